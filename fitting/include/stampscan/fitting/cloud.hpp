@@ -1,0 +1,62 @@
+// Point-cloud types shared by every stage: a cloud of positions with optional per-point normals,
+// thickness strain, colours and further named scalars (the Cloud4D of ARCHITECTURE.md), and a
+// triangle mesh that carries the same per-vertex attributes.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace stampscan::fitting {
+
+using Vec3 = Eigen::Vector3d;
+
+// A point cloud in millimetres. `positions` is always filled; each optional attribute is either
+// empty or holds exactly one entry per position (checked by validate()). The kd-tree indexes
+// `positions` in place, without a copy.
+struct Cloud {
+  std::vector<Vec3> positions;
+  std::vector<Vec3> normals;                    // unit normals, optional
+  std::vector<double> strain;                   // thickness true strain, optional
+  std::vector<std::array<std::uint8_t, 3>> colors;  // red green blue, optional
+  // Further per-point scalars kept through read/fit/write, e.g. major_strain, minor_strain.
+  std::map<std::string, std::vector<double>> scalars;
+
+  std::size_t size() const { return positions.size(); }
+  bool empty() const { return positions.empty(); }
+  bool hasNormals() const { return !normals.empty(); }
+  bool hasStrain() const { return !strain.empty(); }
+  bool hasColors() const { return !colors.empty(); }
+
+  // Throws std::invalid_argument naming the attribute whose length does not match.
+  void validate() const;
+  // Appends point i of `other` (same attribute layout required).
+  void appendPoint(const Cloud& other, std::size_t i);
+};
+
+// Axis-aligned bounds of a cloud; an empty cloud gives min = +inf, max = -inf.
+struct Bounds {
+  Vec3 min;
+  Vec3 max;
+  Vec3 extent() const { return max - min; }
+  double diagonal() const { return extent().norm(); }
+};
+Bounds boundsOf(const std::vector<Vec3>& points);
+
+struct Triangle {
+  std::array<std::uint32_t, 3> v;
+};
+
+// A triangle mesh: vertices with the same optional attributes as a cloud, and triangles indexing them.
+struct Mesh {
+  Cloud vertices;
+  std::vector<Triangle> triangles;
+};
+
+}  // namespace stampscan::fitting

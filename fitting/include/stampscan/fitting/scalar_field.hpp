@@ -1,0 +1,38 @@
+// The scalar attribute (thickness strain) carried onto the surface (paper Sec. 5).
+#pragma once
+
+#include "stampscan/fitting/cloud.hpp"
+
+#include <string>
+#include <vector>
+
+namespace stampscan::fitting {
+
+enum class ScalarFieldType {
+  // The paper's map, Eqs. (15)-(16): Shepard's interpolant with the piecewise, locally supported
+  // weight of Eq. (16). It interpolates the data, so it reproduces their noise and oscillates
+  // between samples (the paper's Fig. 8 and Fig. 9 show this).
+  Shepard,
+  // Default: the value at P* of a linear field c0 + g.t fitted by weighted least squares in the
+  // tangent plane with the same weights as the surface - the weighted combination of local
+  // hyperplanes of Eq. (17), made smooth by fitting it rather than interpolating.
+  Smooth,
+};
+
+ScalarFieldType parseScalarFieldType(const std::string& name);  // "shepard" | "smooth"
+std::string toString(ScalarFieldType type);
+
+// One neighbour's contribution: its position, value, and the surface fit's weight for it.
+struct ScalarSample {
+  Vec3 position;
+  double value;
+  double weight;
+};
+
+// Eqs. (15)-(16) at x with support radius R. Returns NaN when no sample lies within R.
+double shepardScalar(const Vec3& x, const std::vector<ScalarSample>& samples, double R);
+// Weighted linear fit in the plane through x with unit normal n; falls back to the weighted mean
+// when the samples do not span the plane. Returns NaN when the weights sum to zero.
+double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples);
+
+}  // namespace stampscan::fitting

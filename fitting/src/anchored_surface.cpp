@@ -1,0 +1,515 @@
+#include "stampscan/fitting/anchored_surface.hpp"
+
+#include "stampscan/fitting/kernels.hpp"
+#include "stampscan/fitting/local_fit.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <queue>
+
+namespace stampscan::fitting {
+
+namespace {
+constexpr double kTukeyC = 4.685;
+constexpr std::uint32_t kMinAnchorPoints = 2;
+
+// ---------------------------------------------------------------------------------------------
+// One robust local fit: algebraic sphere with Gaussian weights (Eq. (3)) around `centre`, refitted
+// with Tukey's biweight, plus the linear strain field in its tangent plane.
+struct LocalFit {
+  LocalSurface surface;
+  double offset = 0;        // signed distance from the centre to the fitted surface, mm
+  double offset_sigma = 0;  // its standard deviation from the residuals and the effective count
+  double residual_variance = 0;  // weighted, corrected for the five fitted parameters
+  double effective_count = 0;    // (sum w)^2 / sum w^2
+  double strain = std::numeric_limits<double>::quiet_NaN();
+  Vec3 strain_gradient = Vec3::Zero();
+};
+
+double median(std::vector<double>& v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+struct FitScratch {
+  std::vector<Neighbor> near;
+  std::vector<double> weight;
+  std::vector<double> base_weight;
+  std::vector<double> residual;
+  std::vector<double> abs_residual;
+};
+
+std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
+                                 const Vec3& centre, double h, bool robust, std::size_t min_points, FitScratch& s) {
+  tree.radius(centre, kGaussianCutoff * h, s.near);
+  if (s.near.size() < min_points) return std::nullopt;
+  const double h_sq = h * h;
+  s.weight.resize(s.near.size());
+  for (std::size_t k = 0; k < s.near.size(); ++k) s.weight[k] = gaussianWeightSq(s.near[k].distance_sq, h_sq);
+
+  const auto fitWith = [&]() {
+    AlgebraicMoments moments(centre, h);
+    for (std::size_t k = 0; k < s.near.size(); ++k)
+      if (s.weight[k] > 0) moments.add(points[s.near[k].index], s.weight[k]);
+    return LocalSurface::fitPrattSphere(moments);
+  };
+  // Tukey's biweight on the residuals from `reference`, applied to the Gaussian weights.
+  const auto reweight = [&](const LocalSurface& reference) {
+    s.residual.resize(s.near.size());
+    s.abs_residual.clear();
+    for (std::size_t k = 0; k < s.near.size(); ++k) {
+      s.residual[k] = reference.signedDistance(points[s.near[k].index]);
+      if (s.base_weight[k] > 0.1) s.abs_residual.push_back(std::abs(s.residual[k]));
+    }
+    if (s.abs_residual.size() < min_points) return;
+    const double sigma = std::max(1.4826 * median(s.abs_residual), 1e-6 * h);
+    const double cutoff = kTukeyC * sigma;
+    for (std::size_t k = 0; k < s.near.size(); ++k) {
+      const double r = s.residual[k] / cutoff;
+      s.weight[k] = s.base_weight[k] * (r * r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0);
+    }
+  };
+  s.base_weight = s.weight;
+  if (robust) {
+    // First residuals from a plane: a sphere fitted through outliers can bend round them and make
+    // them look like inliers; a plane cannot. Then once more from the sphere, which does not
+    // mistake curvature for outliers.
+    WeightedSums plane_sums(centre, h);
+    for (std::size_t k = 0; k < s.near.size(); ++k) plane_sums.add(points[s.near[k].index], s.weight[k]);
+    if (const auto plane = LocalSurface::fitPlane(plane_sums)) reweight(*plane);
+  }
+  std::optional<LocalSurface> surface = fitWith();
+  if (!surface) return std::nullopt;
+  if (robust) {
+    reweight(*surface);
+    surface = fitWith();
+    if (!surface) return std::nullopt;
+  }
+  s.residual.resize(s.near.size());
+  for (std::size_t k = 0; k < s.near.size(); ++k) s.residual[k] = surface->signedDistance(points[s.near[k].index]);
+
+  LocalFit fit{*surface};
+  fit.offset = surface->signedDistance(centre);
+  // Standard deviation of the fitted offset: residual variance over the effective sample size
+  // (sum w)^2 / sum w^2, inflated by the five parameters of the sphere.
+  double sw = 0, sw2 = 0, swr2 = 0;
+  for (std::size_t k = 0; k < s.near.size(); ++k) {
+    const double w = s.weight[k];
+    sw += w;
+    sw2 += w * w;
+    swr2 += w * s.residual[k] * s.residual[k];
+  }
+  if (!(sw > 0)) return std::nullopt;
+  const double n_eff = sw * sw / sw2;
+  if (n_eff < 6.0) return std::nullopt;
+  const double var = swr2 / sw * n_eff / (n_eff - 5.0);
+  fit.offset_sigma = std::sqrt(var * 5.0 / n_eff);
+  fit.residual_variance = var;
+  fit.effective_count = n_eff;
+
+  if (strain) {
+    // Linear strain field c0 + g.t in the tangent plane at the centre's foot point.
+    const Vec3 foot = surface->project(centre);
+    const Vec3 n = surface->normal(foot);
+    const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+    const Vec3 t1 = n.cross(helper).normalized(), t2 = n.cross(t1);
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < s.near.size(); ++k) {
+      const double w = s.weight[k];
+      if (w <= 0) continue;
+      const Vec3 d = (points[s.near[k].index] - foot) / h;
+      const Eigen::Vector3d row(1.0, d.dot(t1), d.dot(t2));
+      A.noalias() += w * row * row.transpose();
+      b += w * (*strain)[s.near[k].index] * row;
+    }
+    A /= sw;
+    b /= sw;
+    if (A.determinant() > 1e-6) {
+      const Eigen::Vector3d c = A.ldlt().solve(b);
+      fit.strain = c(0);
+      fit.strain_gradient = (c(1) * t1 + c(2) * t2) / h;
+    } else {
+      fit.strain = b(0) / A(0, 0);
+    }
+    // Express the linear field about the centre so that evaluation needs no foot point.
+    fit.strain -= fit.strain_gradient.dot(foot - centre);
+  }
+  return fit;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sparse multi-level grid keys: level in the top bits, then three 19-bit cell coordinates.
+using Key = std::uint64_t;
+constexpr int kCellBits = 19;
+constexpr std::int64_t kCellBias = std::int64_t{1} << (kCellBits - 1);
+constexpr std::uint64_t kCellMask = (std::uint64_t{1} << kCellBits) - 1;
+
+Key makeKey(int level, std::int64_t i, std::int64_t j, std::int64_t k) {
+  const auto c = [](std::int64_t v) { return static_cast<std::uint64_t>(std::clamp(v + kCellBias, std::int64_t{0}, std::int64_t{kCellMask})); };
+  return (static_cast<std::uint64_t>(level) << (3 * kCellBits)) | (c(i) << (2 * kCellBits)) | (c(j) << kCellBits) | c(k);
+}
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+struct AnchoredSurface::Impl {
+  const std::vector<Vec3>& points;
+  const KdTree& tree;
+  const std::vector<double>* strain;
+  AnchoredParams params;
+
+  // Bandwidth field: probe positions, their chosen h, and a tree over them.
+  std::vector<Vec3> probe_points;
+  std::unique_ptr<KdTree> probe_tree;
+  std::unique_ptr<BandwidthField> h_field;
+  double h0 = 1;  // bandwidth of level 0
+  Vec3 grid_origin = Vec3::Zero();
+  int levels = 1;
+
+  struct Anchor {
+    Key key = 0;
+    Vec3 centre = Vec3::Zero();
+    double h = 0;
+    double cell = 0;  // cell size of its level
+    bool valid = false;
+    bool skip = false;  // no point uses it (all moved to fuller cells): not fitted
+    LocalSurface surface;
+    double strain = std::numeric_limits<double>::quiet_NaN();
+    Vec3 strain_gradient = Vec3::Zero();
+  };
+  std::vector<Anchor> anchors;              // sorted by key
+  std::vector<std::size_t> adjacency_offset;  // CSR: anchors near each anchor, itself first
+  std::vector<std::uint32_t> adjacency;
+  std::vector<std::uint32_t> anchor_of_point;
+
+  Impl(const std::vector<Vec3>& p, const KdTree& t, const std::vector<double>* s, const AnchoredParams& a)
+      : points(p), tree(t), strain(s), params(a) {}
+
+  double cellSize(int level) const { return params.anchor_spacing * h0 * std::pow(params.scale_step, level); }
+  int levelFor(double h) const {
+    const int level = static_cast<int>(std::floor(std::log(std::max(h, h0) / h0) / std::log(params.scale_step) + 1e-9));
+    return std::clamp(level, 0, levels - 1);
+  }
+  Key keyFor(const Vec3& x, int level) const {
+    const Vec3 g = (x - grid_origin) / cellSize(level);
+    return makeKey(level, static_cast<std::int64_t>(std::floor(g.x())), static_cast<std::int64_t>(std::floor(g.y())),
+                   static_cast<std::int64_t>(std::floor(g.z())));
+  }
+  const Anchor* findAnchor(Key key, std::uint32_t* index = nullptr) const {
+    const auto it = std::lower_bound(anchors.begin(), anchors.end(), key, [](const Anchor& a, Key k) { return a.key < k; });
+    if (it == anchors.end() || it->key != key) return nullptr;
+    if (index) *index = static_cast<std::uint32_t>(it - anchors.begin());
+    return &*it;
+  }
+
+  void chooseBandwidths(AnchoredStats& stats);
+  void buildAnchors();
+  void fitAnchors(const Progress& progress);
+  void linkAnchors();
+  std::size_t orientAnchors();
+  Projection blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const;
+};
+
+void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
+  // Probes: every probe_stride-th point in the kd-tree's spatial order, so they cover the part evenly
+  // in index space (denser where the data are denser).
+  const std::vector<std::uint32_t> order = tree.spatialOrder();
+  const std::size_t stride = std::max<std::size_t>(1, std::min(params.probe_stride, points.size() / 64 + 1));
+  std::vector<std::uint32_t> probes;
+  for (std::size_t k = stride / 2; k < order.size(); k += stride) probes.push_back(order[k]);
+  if (probes.empty()) probes.push_back(order.front());
+  std::vector<double> chosen(probes.size(), 0.0);
+
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probes.size(), 8), [&](const auto& range) {
+    FitScratch scratch;
+    std::vector<Neighbor> knn;
+    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+      const Vec3& x = points[probes[p]];
+      tree.knn(x, static_cast<std::size_t>(params.start_rank) + 1, knn);
+      const double h_start = std::max(std::sqrt(knn.back().distance_sq), 1e-9);
+      // Grow h while the sphere still explains the neighbourhood down to the noise: the residual
+      // variance stays at the floor set by the best smaller scale (misfit would add to it), and
+      // stop once enough points carry weight that more would not lower the error noticeably.
+      double floor_variance = std::numeric_limits<double>::infinity();
+      double best = 0;
+      double h = h_start;
+      for (int j = 0; j < params.max_scales; ++j, h *= params.scale_step) {
+        const auto fit = fitLocal(points, tree, nullptr, x, h, params.robust, params.min_points, scratch);
+        if (!fit) continue;  // too few points at this scale: try a wider one
+        if (best > 0 && fit->residual_variance > (1.0 + params.misfit_tolerance) * floor_variance) break;
+        floor_variance = std::min(floor_variance, fit->residual_variance);
+        best = h;
+        if (fit->effective_count >= params.max_effective_count) break;
+      }
+      chosen[p] = best > 0 ? best : h_start * std::pow(params.scale_step, params.max_scales - 1);
+    }
+  });
+
+  probe_points.reserve(probes.size());
+  for (std::uint32_t i : probes) probe_points.push_back(points[i]);
+  probe_tree = std::make_unique<KdTree>(probe_points);
+  stats.probes = probes.size();
+  stats.bandwidth = summarize(chosen);
+  h0 = stats.bandwidth.min;
+  levels = 1 + static_cast<int>(std::ceil(std::log(stats.bandwidth.max / h0) / std::log(params.scale_step) - 1e-9));
+  levels = std::clamp(levels, 1, 60);
+  h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(chosen));
+  grid_origin = boundsOf(points).min;
+}
+
+void AnchoredSurface::Impl::buildAnchors() {
+  // Each point joins the cell of its level (its bandwidth rounded down to h0 * 1.5^level); a cell's
+  // points make one anchor at their centroid.
+  const std::size_t n = points.size();
+  std::vector<std::pair<Key, std::uint32_t>> keyed(n);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const double h = h_field->at(points[i], 4);
+      keyed[i] = {keyFor(points[i], levelFor(h)), static_cast<std::uint32_t>(i)};
+    }
+  });
+  tbb::parallel_sort(keyed.begin(), keyed.end());
+  anchor_of_point.assign(n, 0);
+  std::vector<std::uint32_t> group_size(n, 0);  // per point: how many points share its cell
+  for (std::size_t start = 0; start < n;) {
+    std::size_t end = start;
+    Vec3 sum = Vec3::Zero();
+    while (end < n && keyed[end].first == keyed[start].first) sum += points[keyed[end++].second];
+    Anchor a;
+    a.key = keyed[start].first;
+    a.centre = sum / static_cast<double>(end - start);
+    const int level = static_cast<int>(a.key >> (3 * kCellBits));
+    a.cell = cellSize(level);
+    for (std::size_t k = start; k < end; ++k) {
+      anchor_of_point[keyed[k].second] = static_cast<std::uint32_t>(anchors.size());
+      group_size[keyed[k].second] = static_cast<std::uint32_t>(end - start);
+    }
+    anchors.push_back(a);
+    start = end;
+  }
+  // A cell holding one or two points would centre a fit on them: if they are outliers, that fit
+  // bends through them. Such anchors are not fitted; their points blend the fits of the anchors
+  // around them (the candidate list of every anchor holds its neighbours).
+  for (std::size_t i = 0; i < n; ++i)
+    if (group_size[i] < kMinAnchorPoints) anchors[anchor_of_point[i]].skip = true;
+}
+
+void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 16), [&](const auto& range) {
+    FitScratch scratch;
+    for (std::size_t a = range.begin(); a != range.end(); ++a) {
+      Anchor& anchor = anchors[a];
+      anchor.h = h_field->at(anchor.centre, 4);
+      if (anchor.skip) continue;
+      // A fit that fails (too few points) is retried wider, a few times.
+      for (int attempt = 0; attempt < 4; ++attempt) {
+        const auto fit = fitLocal(points, tree, strain, anchor.centre, anchor.h, params.robust, params.min_points, scratch);
+        if (!fit) {
+          anchor.h *= params.scale_step;
+          continue;
+        }
+        anchor.valid = true;
+        anchor.surface = fit->surface;
+        anchor.strain = fit->strain;
+        anchor.strain_gradient = fit->strain_gradient;
+        break;
+      }
+    }
+  });
+  if (progress) progress("anchors", 1.0);
+}
+
+void AnchoredSurface::Impl::linkAnchors() {
+  // Candidates for blending at a point of anchor a's cell: every anchor whose support could reach
+  // that cell, found once per anchor (an anchor one level coarser has a support 1.5x wider).
+  std::vector<Vec3> centres(anchors.size());
+  for (std::size_t a = 0; a < anchors.size(); ++a) centres[a] = anchors[a].centre;
+  const KdTree anchor_tree(centres);
+  std::vector<std::vector<std::uint32_t>> lists(anchors.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 64), [&](const auto& range) {
+    std::vector<Neighbor> near;
+    for (std::size_t a = range.begin(); a != range.end(); ++a) {
+      const double reach = (params.blend_radius * params.scale_step + std::sqrt(3.0)) * anchors[a].cell;
+      anchor_tree.radius(anchors[a].centre, reach, near, /*sorted=*/true);
+      auto& list = lists[a];
+      list.push_back(static_cast<std::uint32_t>(a));
+      for (const Neighbor& nb : near)
+        if (nb.index != a) list.push_back(nb.index);
+    }
+  });
+  adjacency_offset.assign(anchors.size() + 1, 0);
+  for (std::size_t a = 0; a < anchors.size(); ++a) adjacency_offset[a + 1] = adjacency_offset[a] + lists[a].size();
+  adjacency.reserve(adjacency_offset.back());
+  for (auto& list : lists) adjacency.insert(adjacency.end(), list.begin(), list.end());
+}
+
+std::size_t AnchoredSurface::Impl::orientAnchors() {
+  // Same rule as for point normals: a spanning tree over the anchor graph, best-aligned first; each
+  // connected piece then faces the sensor side on average.
+  const std::size_t m = anchors.size();
+  std::vector<Vec3> normal(m, Vec3::UnitZ());
+  for (std::size_t a = 0; a < m; ++a)
+    if (anchors[a].valid) normal[a] = anchors[a].surface.normal(anchors[a].surface.project(anchors[a].centre));
+  std::vector<std::uint8_t> done(m, 0);
+  std::vector<std::uint32_t> members;
+  std::size_t components = 0;
+  using Item = std::pair<double, std::uint32_t>;
+  std::priority_queue<Item> queue;
+  const OrientationParams& o = params.orientation;
+  for (std::size_t seed = 0; seed < m; ++seed) {
+    if (done[seed] || !anchors[seed].valid) continue;
+    ++components;
+    members.clear();
+    queue.push({2.0, static_cast<std::uint32_t>(seed)});
+    while (!queue.empty()) {
+      const std::uint32_t v = queue.top().second;
+      queue.pop();
+      if (done[v]) continue;
+      done[v] = 1;
+      members.push_back(v);
+      // The nearest dozen anchors suffice to carry the orientation (the lists are sorted by distance).
+      const std::size_t last = std::min(adjacency_offset[v + 1], adjacency_offset[v] + 13);
+      for (std::size_t e = adjacency_offset[v] + 1; e < last; ++e) {
+        const std::uint32_t w = adjacency[e];
+        if (done[w] || !anchors[w].valid) continue;
+        double dot = normal[v].dot(normal[w]);
+        if (dot < 0) {
+          anchors[w].surface.flip();
+          normal[w] = -normal[w];
+          dot = -dot;
+        }
+        queue.push({dot, w});
+      }
+    }
+    double facing = 0;
+    for (std::uint32_t v : members) {
+      const Vec3 towards = o.mode == OrientationMode::TowardsViewpoint ? Vec3(o.viewpoint - anchors[v].centre) : o.direction;
+      facing += normal[v].dot(towards.normalized());
+    }
+    if (facing < 0)
+      for (std::uint32_t v : members) anchors[v].surface.flip();
+  }
+  return components;
+}
+
+Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const {
+  // Partition of unity: phi_a(x) = (1 - d^2 / R_a^2)^3 with R_a = blend_radius * cell. The point moves
+  // to the phi-weighted mean of its projections onto each anchor's sphere, until the step is small.
+  Projection result;
+  result.point = start;
+  result.scalar = std::numeric_limits<double>::quiet_NaN();
+  Vec3 x = start;
+  double h_mean = 0;
+  for (int it = 1; it <= params.max_iterations; ++it) {
+    Vec3 sum_p = Vec3::Zero(), sum_n = Vec3::Zero();
+    double sum_w = 0, sum_c = 0, sum_h = 0;
+    const Anchor* nearest = nullptr;
+    double nearest_d2 = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < count; ++k) {
+      const Anchor& a = anchors[candidates[k]];
+      if (!a.valid) continue;
+      const double d2 = (x - a.centre).squaredNorm();
+      if (d2 < nearest_d2) {
+        nearest_d2 = d2;
+        nearest = &a;
+      }
+      const double R = params.blend_radius * a.cell;
+      const double t = 1.0 - d2 / (R * R);
+      if (t <= 0) continue;
+      const double w = t * t * t;
+      const Vec3 p = a.surface.project(x);
+      sum_w += w;
+      sum_p += w * p;
+      sum_n += w * a.surface.normal(p);
+      sum_h += w * a.h;
+      if (strain) sum_c += w * (a.strain + a.strain_gradient.dot(p - a.centre));
+    }
+    if (!(sum_w > 0)) {
+      if (!nearest) return result;  // no valid anchor around: leave the point alone
+      // Outside every support: use the nearest anchor alone.
+      const Vec3 p = nearest->surface.project(x);
+      sum_w = 1;
+      sum_p = p;
+      sum_n = nearest->surface.normal(p);
+      sum_h = nearest->h;
+      sum_c = strain ? nearest->strain + nearest->strain_gradient.dot(p - nearest->centre) : 0.0;
+    }
+    const Vec3 next = sum_p / sum_w;
+    h_mean = sum_h / sum_w;
+    const double step = (next - x).norm();
+    x = next;
+    result.iterations = it;
+    result.normal = sum_n.normalized();
+    if (strain) result.scalar = sum_c / sum_w;
+    result.valid = true;
+    if (step < params.tolerance * h_mean) {
+      result.converged = true;
+      break;
+    }
+  }
+  result.point = x;
+  result.bandwidth = h_mean;
+  result.neighbors = count;
+  return result;
+}
+
+AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
+                                 const AnchoredParams& params, const Progress& progress)
+    : impl_(std::make_unique<Impl>(points, tree, strain, params)) {
+  if (points.empty()) throw std::invalid_argument("cannot fit an empty cloud");
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  const auto lap = [&](const char* stage) {
+    const auto t1 = Clock::now();
+    stats_.stage_seconds[stage] = std::chrono::duration<double>(t1 - t0).count();
+    t0 = t1;
+  };
+  impl_->chooseBandwidths(stats_);
+  lap("bandwidth");
+  if (progress) progress("bandwidth", 1.0);
+  impl_->buildAnchors();
+  lap("anchor cells");
+  impl_->fitAnchors(progress);
+  lap("anchor fits");
+  impl_->linkAnchors();
+  lap("anchor links");
+  stats_.orientation_components = impl_->orientAnchors();
+  lap("orientation");
+  stats_.anchors = impl_->anchors.size();
+  stats_.invalid_anchors = static_cast<std::size_t>(
+      std::count_if(impl_->anchors.begin(), impl_->anchors.end(), [](const Impl::Anchor& a) { return !a.valid; }));
+}
+
+AnchoredSurface::~AnchoredSurface() = default;
+
+Projection AnchoredSurface::projectPoint(std::size_t i) const {
+  const std::uint32_t a = impl_->anchor_of_point[i];
+  const std::size_t begin = impl_->adjacency_offset[a], end = impl_->adjacency_offset[a + 1];
+  return impl_->blend(impl_->points[i], impl_->adjacency.data() + begin, end - begin);
+}
+
+double AnchoredSurface::bandwidthAt(const Vec3& x) const { return impl_->h_field->at(x, 4); }
+
+bool AnchoredSurface::hasScalar() const { return impl_->strain != nullptr; }
+
+Projection AnchoredSurface::project(const Vec3& x) const {
+  // The anchor of x's own cell if there is one, else the anchor of its nearest data point.
+  std::uint32_t a = 0;
+  if (!impl_->findAnchor(impl_->keyFor(x, impl_->levelFor(bandwidthAt(x))), &a)) {
+    thread_local std::vector<Neighbor> near;
+    impl_->tree.knn(x, 1, near);
+    a = impl_->anchor_of_point[near.front().index];
+  }
+  const std::size_t begin = impl_->adjacency_offset[a], end = impl_->adjacency_offset[a + 1];
+  return impl_->blend(x, impl_->adjacency.data() + begin, end - begin);
+}
+
+}  // namespace stampscan::fitting

@@ -1,0 +1,229 @@
+#include "stampscan/fitting/mesh.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace stampscan::fitting {
+
+namespace {
+using Key = std::uint64_t;
+constexpr int kBits = 21;
+constexpr std::int64_t kBias = std::int64_t{1} << (kBits - 1);
+constexpr std::uint64_t kMask = (std::uint64_t{1} << kBits) - 1;
+
+Key pack(std::int64_t i, std::int64_t j, std::int64_t k) {
+  return (static_cast<std::uint64_t>(i + kBias) << (2 * kBits)) | (static_cast<std::uint64_t>(j + kBias) << kBits) |
+         static_cast<std::uint64_t>(k + kBias);
+}
+std::array<std::int64_t, 3> unpack(Key key) {
+  return {static_cast<std::int64_t>((key >> (2 * kBits)) & kMask) - kBias,
+          static_cast<std::int64_t>((key >> kBits) & kMask) - kBias, static_cast<std::int64_t>(key & kMask) - kBias};
+}
+
+// A sorted set of keys with a value per key; lookups by binary search keep everything deterministic.
+template <class T>
+struct SortedMap {
+  std::vector<Key> keys;
+  std::vector<T> values;
+  const T* find(Key k) const {
+    const auto it = std::lower_bound(keys.begin(), keys.end(), k);
+    if (it == keys.end() || *it != k) return nullptr;
+    return &values[static_cast<std::size_t>(it - keys.begin())];
+  }
+};
+
+void sortUnique(std::vector<Key>& keys) {
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+}
+}  // namespace
+
+Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
+  const ImplicitSurface& surface = fitted.surface();
+  const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().bandwidth.median);
+  if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
+  const Bounds bounds = boundsOf(projected.positions);
+  const double span = bounds.extent().maxCoeff() / cell;
+  if (span > static_cast<double>(kBias - 4))
+    throw std::invalid_argument("mesh cell size " + std::to_string(cell) + " mm is too small for a part this large");
+  const Vec3 origin = bounds.min;
+  const auto cellOf = [&](const Vec3& p) {
+    const Vec3 g = (p - origin) / cell;
+    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(g.x())),
+                                       static_cast<std::int64_t>(std::floor(g.y())),
+                                       static_cast<std::int64_t>(std::floor(g.z()))};
+  };
+  const auto cornerPosition = [&](Key key) {
+    const auto c = unpack(key);
+    return Vec3(origin + cell * Vec3(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2])));
+  };
+
+  // Cells holding a fitted point, and one ring around them, so that every edge the surface crosses
+  // near the data has all its corners.
+  std::vector<Key> cells;
+  cells.reserve(projected.size());
+  for (const Vec3& p : projected.positions) {
+    const auto c = cellOf(p);
+    cells.push_back(pack(c[0], c[1], c[2]));
+  }
+  sortUnique(cells);
+  std::vector<Key> corners;
+  corners.reserve(cells.size() * 27);
+  for (Key key : cells) {
+    const auto c = unpack(key);
+    for (int di = -1; di <= 2; ++di)
+      for (int dj = -1; dj <= 2; ++dj)
+        for (int dk = -1; dk <= 2; ++dk) corners.push_back(pack(c[0] + di, c[1] + dj, c[2] + dk));
+  }
+  sortUnique(corners);
+
+  // Signed distance at the corners near data; NaN marks a corner in a hole.
+  SortedMap<double> field;
+  field.keys = std::move(corners);
+  field.values.assign(field.keys.size(), std::numeric_limits<double>::quiet_NaN());
+  const KdTree& tree = fitted.tree();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, field.keys.size(), 256), [&](const auto& range) {
+    std::vector<Neighbor> near;
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const Vec3 x = cornerPosition(field.keys[i]);
+      tree.knn(x, 1, near);
+      if (near.empty()) continue;
+      const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 1.5 * cell);
+      if (near[0].distance_sq > reach * reach) continue;
+      field.values[i] = surface.signedDistance(x);
+    }
+  });
+  if (params.progress) params.progress("mesh field", 1.0);
+
+  // One vertex per cell with a sign change: the mean of its edge crossings, projected on the surface.
+  static constexpr int kEdges[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
+                                        {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+  std::vector<Key> surface_cells;
+  for (Key key : cells) {
+    const auto c = unpack(key);
+    for (int di = -1; di <= 1; ++di)
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int dk = -1; dk <= 1; ++dk) surface_cells.push_back(pack(c[0] + di, c[1] + dj, c[2] + dk));
+  }
+  sortUnique(surface_cells);
+  struct CellVertex {
+    bool present = false;
+    Vec3 position, normal;
+    double strain = 0;
+  };
+  std::vector<CellVertex> cell_vertices(surface_cells.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface_cells.size(), 256), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const auto c = unpack(surface_cells[i]);
+      std::array<double, 8> f;
+      std::array<Vec3, 8> x;
+      bool complete = true;
+      for (int v = 0; v < 8 && complete; ++v) {
+        const Key corner = pack(c[0] + (v & 1), c[1] + ((v >> 1) & 1), c[2] + ((v >> 2) & 1));
+        const double* value = field.find(corner);
+        complete = value && std::isfinite(*value);
+        if (complete) {
+          f[static_cast<std::size_t>(v)] = *value;
+          x[static_cast<std::size_t>(v)] = cornerPosition(corner);
+        }
+      }
+      if (!complete) continue;
+      Vec3 sum = Vec3::Zero();
+      int crossings = 0;
+      for (const auto& e : kEdges) {
+        const double fa = f[static_cast<std::size_t>(e[0])], fb = f[static_cast<std::size_t>(e[1])];
+        if ((fa < 0) == (fb < 0)) continue;
+        const double t = fa / (fa - fb);
+        sum += x[static_cast<std::size_t>(e[0])] + t * (x[static_cast<std::size_t>(e[1])] - x[static_cast<std::size_t>(e[0])]);
+        ++crossings;
+      }
+      if (crossings == 0) continue;
+      const Projection p = surface.project(sum / crossings);
+      if (!p.valid) continue;
+      CellVertex& cv = cell_vertices[i];
+      // Keep the vertex inside its cell's neighbourhood: a projection that jumps away is not trusted.
+      if ((p.point - sum / crossings).norm() > 2.0 * cell) continue;
+      cv.present = true;
+      cv.position = p.point;
+      cv.normal = p.normal;
+      cv.strain = p.scalar;
+    }
+  });
+
+  Mesh mesh;
+  const bool has_strain = surface.hasScalar();
+  std::vector<std::uint32_t> vertex_index(surface_cells.size(), std::numeric_limits<std::uint32_t>::max());
+  for (std::size_t i = 0; i < surface_cells.size(); ++i) {
+    if (!cell_vertices[i].present) continue;
+    vertex_index[i] = static_cast<std::uint32_t>(mesh.vertices.positions.size());
+    mesh.vertices.positions.push_back(cell_vertices[i].position);
+    mesh.vertices.normals.push_back(cell_vertices[i].normal);
+    if (has_strain) mesh.vertices.strain.push_back(cell_vertices[i].strain);
+  }
+  const auto vertexOfCell = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::uint32_t {
+    const Key key = pack(i, j, k);
+    const auto it = std::lower_bound(surface_cells.begin(), surface_cells.end(), key);
+    if (it == surface_cells.end() || *it != key) return std::numeric_limits<std::uint32_t>::max();
+    return vertex_index[static_cast<std::size_t>(it - surface_cells.begin())];
+  };
+
+  // A quad around every grid edge the surface crosses, from the four cells sharing that edge.
+  const auto& verts = mesh.vertices.positions;
+  const auto& normals = mesh.vertices.normals;
+  const auto addTriangle = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    const Vec3 face = (verts[b] - verts[a]).cross(verts[c] - verts[a]);
+    if (face.squaredNorm() == 0) return;
+    const Vec3 reference = normals[a] + normals[b] + normals[c];
+    if (face.dot(reference) < 0) std::swap(b, c);
+    mesh.triangles.push_back({{a, b, c}});
+  };
+  for (std::size_t ci = 0; ci < field.keys.size(); ++ci) {
+    const double fa = field.values[ci];
+    if (!std::isfinite(fa)) continue;
+    const auto c = unpack(field.keys[ci]);
+    for (int axis = 0; axis < 3; ++axis) {
+      std::array<std::int64_t, 3> d{0, 0, 0};
+      d[static_cast<std::size_t>(axis)] = 1;
+      const double* fb = field.find(pack(c[0] + d[0], c[1] + d[1], c[2] + d[2]));
+      if (!fb || !std::isfinite(*fb) || (fa < 0) == (*fb < 0)) continue;
+      // The four cells around the edge, in cyclic order in the plane of the two other axes.
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      std::array<std::uint32_t, 4> quad;
+      bool complete = true;
+      static constexpr int kAround[4][2] = {{0, 0}, {-1, 0}, {-1, -1}, {0, -1}};
+      for (int q = 0; q < 4 && complete; ++q) {
+        std::array<std::int64_t, 3> cc = c;
+        cc[static_cast<std::size_t>(u)] += kAround[q][0];
+        cc[static_cast<std::size_t>(v)] += kAround[q][1];
+        quad[static_cast<std::size_t>(q)] = vertexOfCell(cc[0], cc[1], cc[2]);
+        complete = quad[static_cast<std::size_t>(q)] != std::numeric_limits<std::uint32_t>::max();
+      }
+      if (!complete) continue;
+      // Split along the shorter diagonal.
+      if ((verts[quad[0]] - verts[quad[2]]).squaredNorm() <= (verts[quad[1]] - verts[quad[3]]).squaredNorm()) {
+        addTriangle(quad[0], quad[1], quad[2]);
+        addTriangle(quad[0], quad[2], quad[3]);
+      } else {
+        addTriangle(quad[0], quad[1], quad[3]);
+        addTriangle(quad[1], quad[2], quad[3]);
+      }
+    }
+  }
+  if (stats) {
+    stats->cell_size = cell;
+    stats->corners_evaluated = static_cast<std::size_t>(
+        std::count_if(field.values.begin(), field.values.end(), [](double v) { return std::isfinite(v); }));
+    stats->vertices = mesh.vertices.positions.size();
+    stats->triangles = mesh.triangles.size();
+  }
+  if (params.progress) params.progress("mesh", 1.0);
+  return mesh;
+}
+
+}  // namespace stampscan::fitting

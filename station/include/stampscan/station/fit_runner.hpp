@@ -1,0 +1,32 @@
+// Shared by `station fit` and `station demo`: parameters from command-line words, the fit with a
+// progress bar, and the printed summary.
+#pragma once
+
+#include "stampscan/fitting/mesh.hpp"
+#include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/fitting/surface_fit.hpp"
+
+#include <string>
+#include <vector>
+
+namespace stampscan::station {
+
+struct MeshRequest {};
+
+struct FitOutcome {
+  fitting::Cloud surface;
+  fitting::FitStats stats;
+  fitting::Mesh mesh;
+  fitting::MeshStats mesh_stats;
+  double mesh_seconds = 0;
+};
+
+fitting::FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth, const std::string& kernel,
+                                 const std::string& scalar, int sig_r, const std::vector<double>& viewpoint);
+FitOutcome runFit(const fitting::Cloud& input, fitting::FitParams params, const MeshRequest* mesh, bool show_progress);
+void printFitSummary(const fitting::ReadReport& read, const fitting::FitParams& params, const FitOutcome& outcome,
+                     bool with_mesh);
+// Colours a cloud (or mesh vertices) by thinning with the temperature map (no-op without strain).
+void colorByStrain(fitting::Cloud& cloud);
+
+}  // namespace stampscan::station

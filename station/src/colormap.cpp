@@ -1,0 +1,45 @@
+#include "stampscan/station/colormap.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace stampscan::station {
+
+Rgb temperatureColor(double t) {
+  if (!std::isfinite(t)) return {128, 128, 128};
+  t = std::clamp(t, 0.0, 1.0);
+  // Piecewise-linear through blue, cyan, green, yellow, red.
+  static constexpr double kStops[5][3] = {{0, 0, 255}, {0, 255, 255}, {0, 255, 0}, {255, 255, 0}, {255, 0, 0}};
+  const double s = t * 4.0;
+  const int i = std::min(3, static_cast<int>(s));
+  const double f = s - i;
+  Rgb c;
+  for (int k = 0; k < 3; ++k)
+    c[static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(std::lround(kStops[i][k] + f * (kStops[i + 1][k] - kStops[i][k])));
+  return c;
+}
+
+std::vector<Rgb> colorize(const std::vector<double>& values, double lo, double hi) {
+  std::vector<Rgb> colors;
+  colors.reserve(values.size());
+  const double span = hi > lo ? hi - lo : 1.0;
+  for (double v : values) colors.push_back(temperatureColor((v - lo) / span));
+  return colors;
+}
+
+std::array<double, 2> displayRange(const std::vector<double>& values) {
+  std::vector<double> finite;
+  finite.reserve(values.size());
+  for (double v : values)
+    if (std::isfinite(v)) finite.push_back(v);
+  if (finite.empty()) return {0.0, 1.0};
+  const auto at = [&](double q) {
+    auto it = finite.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(finite.size() - 1));
+    std::nth_element(finite.begin(), it, finite.end());
+    return *it;
+  };
+  const double lo = at(0.01), hi = at(0.99);
+  return {lo, hi > lo ? hi : lo + 1e-9};
+}
+
+}  // namespace stampscan::station

@@ -1,0 +1,28 @@
+// station: the StampScan command-line program.
+#include "stampscan/station/commands.hpp"
+
+#include <cstdio>
+#include <exception>
+
+int main(int argc, char** argv) {
+  CLI::App app{"StampScan: sheet-metal forming inspection: scan, fit, strain map"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "station 0.1.0");
+  stampscan::station::CommandRunner fit = stampscan::station::addFitCommand(app);
+  stampscan::station::CommandRunner sample = stampscan::station::addSampleCommand(app);
+  stampscan::station::CommandRunner demo = stampscan::station::addDemoCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (app.got_subcommand("fit")) return fit();
+    if (app.got_subcommand("sample")) return sample();
+    if (app.got_subcommand("demo")) return demo();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "station: error: %s\n", e.what());
+    return 1;
+  }
+  return 2;
+}

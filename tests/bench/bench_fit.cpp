@@ -1,0 +1,213 @@
+// Fitting benchmark: StampScan's default fit against PCL's MovingLeastSquares (polynomial order 2,
+// same thread count) on the same synthetic scan of the sample pan: laser-like overlapping strips,
+// stereo-like clusters of 1-12 near-duplicates, 0.05 mm noise, a hole, a few outliers.
+//
+// Each system runs in a child process so that its peak memory is its own: after the cloud is made,
+// the child resets its peak-RSS counter (/proc/self/clear_refs) and reports the peak during the fit.
+//
+//   bench_fit [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl]
+#include "stampscan/fitting/surface_fit.hpp"
+#include "stampscan/sim/sample_cloud.hpp"
+
+#include <tbb/global_control.h>
+
+#ifdef STAMPSCAN_HAVE_PCL
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/surface/mls.h>
+#endif
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace stampscan;
+
+namespace {
+struct Result {
+  double seconds = 0;
+  double rms = 0;
+  double max = 0;
+  double peak_mb = 0;    // peak RSS during the fit above the RSS before it
+  double total_mb = 0;   // peak RSS of the process during the fit
+  std::size_t points = 0;
+};
+
+long statusKb(const char* field) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(field, 0) == 0) return std::atol(line.c_str() + std::strlen(field));
+  return 0;
+}
+
+void resetPeak() {
+  std::ofstream out("/proc/self/clear_refs");
+  out << "5";
+}
+
+// Runs `fn` in a child process and returns what it wrote back through a pipe.
+template <class Fn>
+Result inChild(Fn&& fn) {
+  int fds[2];
+  if (pipe(fds) != 0) std::abort();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    close(fds[0]);
+    Result r = fn();
+    if (write(fds[1], &r, sizeof r) != static_cast<ssize_t>(sizeof r)) _exit(1);
+    _exit(0);
+  }
+  close(fds[1]);
+  Result r;
+  if (read(fds[0], &r, sizeof r) != static_cast<ssize_t>(sizeof r)) r.seconds = -1;
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return r;
+}
+
+double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::size_t points = 500000;
+  int threads = 2;
+  std::uint64_t seed = 1;
+  bool skip_pcl = false;
+  bool per_point = false;
+  std::vector<double> radii = {0.75, 1.0, 1.5, 2.0, 3.0};
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto next = [&]() { return std::string(i + 1 < argc ? argv[++i] : ""); };
+    if (a == "--points") points = std::stoul(next());
+    else if (a == "--threads") threads = std::stoi(next());
+    else if (a == "--seed") seed = std::stoull(next());
+    else if (a == "--skip-pcl") skip_pcl = true;
+    else if (a == "--per-point") per_point = true;
+    else if (a == "--radii") {
+      radii.clear();
+      std::stringstream ss(next());
+      std::string item;
+      while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
+    } else {
+      std::fprintf(stderr, "usage: bench_fit [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
+      return 2;
+    }
+  }
+  const sim::PanPart part;
+  sim::SampleCloudParams sp;
+  sp.target_points = points;
+  sp.seed = seed;
+  const sim::SampleCloud sample = sim::makeSampleCloud(part, sp);
+  const std::size_t n = sample.cloud.size();
+  // TBB's worker threads do not survive fork(): nothing parallel may run here before the children.
+  std::printf("cloud: %zu points (%zu laser, %zu stereo, %zu outliers), %d threads\n", n, sample.laser_points,
+              sample.stereo_points, sample.outliers, threads);
+  std::printf("%-26s %9s %10s %10s %9s %12s %12s\n", "system", "time s", "points/s", "RMS mm", "max mm", "fit B/point",
+              "total B/pt");
+
+  const auto print = [&](const std::string& name, const Result& r) {
+    std::printf("%-26s %9.3f %10.0f %10.4f %9.3f %12.1f %12.1f\n", name.c_str(), r.seconds,
+                static_cast<double>(r.points) / r.seconds, r.rms, r.max, r.peak_mb * 1048576.0 / static_cast<double>(n),
+                r.total_mb * 1048576.0 / static_cast<double>(n));
+    std::fflush(stdout);
+  };
+
+  const auto limitThreads = [&]() {
+    return tbb::global_control(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+  };
+  const Result raw = inChild([&]() {
+    Result r;
+    const sim::SurfaceError e = sim::surfaceError(part, sample.cloud.positions);
+    r.rms = e.rms;
+    r.max = e.max;
+    r.points = n;
+    r.seconds = 1;
+    return r;
+  });
+  std::printf("raw scan: RMS %.4f mm, max %.3f mm from the true surface\n", raw.rms, raw.max);
+  const auto runOurs = [&](fitting::FitMethod method) {
+    return inChild([&, method]() {
+    Result r;
+    auto limit = limitThreads();
+    fitting::FitParams params;
+    params.method = method;
+    const long before = statusKb("VmRSS:");
+    resetPeak();
+    const double t0 = now();
+    const fitting::FitResult fit = fitting::fitSurface(sample.cloud, params);
+    r.seconds = now() - t0;
+    const long peak = statusKb("VmHWM:");
+    r.peak_mb = static_cast<double>(peak - before) / 1024.0;
+    r.total_mb = static_cast<double>(peak) / 1024.0;
+    const sim::SurfaceError e = sim::surfaceError(part, fit.surface.positions);
+    r.rms = e.rms;
+    r.max = e.max;
+    r.points = fit.surface.size();
+    return r;
+    });
+  };
+  const Result ours = runOurs(fitting::FitMethod::Auto);
+  print("stampscan auto (default)", ours);
+  if (per_point) print("stampscan apss (per point)", runOurs(fitting::FitMethod::Apss));
+
+#ifdef STAMPSCAN_HAVE_PCL
+  if (!skip_pcl) {
+    double best_rms = 1e9, best_time = 0, best_radius = 0;
+    for (double radius : radii) {
+      const Result r = inChild([&]() {
+        Result res;
+        auto limit = limitThreads();
+        pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+        cloud->reserve(n);
+        for (const auto& p : sample.cloud.positions)
+          cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+        const long before = statusKb("VmRSS:");
+        resetPeak();
+        const double t0 = now();
+        pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointNormal> mls;
+        mls.setInputCloud(cloud);
+        mls.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
+        mls.setPolynomialOrder(2);
+        mls.setSearchRadius(radius);
+        mls.setComputeNormals(true);
+        mls.setNumberOfThreads(static_cast<unsigned>(threads));
+        pcl::PointCloud<pcl::PointNormal> out;
+        mls.process(out);
+        res.seconds = now() - t0;
+        const long peak = statusKb("VmHWM:");
+        res.peak_mb = static_cast<double>(peak - before) / 1024.0;
+        res.total_mb = static_cast<double>(peak) / 1024.0;
+        std::vector<fitting::Vec3> pts;
+        pts.reserve(out.size());
+        for (const auto& p : out.points) pts.emplace_back(p.x, p.y, p.z);
+        const sim::SurfaceError e = sim::surfaceError(part, pts);
+        res.rms = e.rms;
+        res.max = e.max;
+        res.points = out.size();
+        return res;
+      });
+      char name[64];
+      std::snprintf(name, sizeof name, "pcl mls order 2, r=%.2f", radius);
+      print(name, r);
+      if (r.points > 0 && r.rms < best_rms) {
+        best_rms = r.rms;
+        best_time = r.seconds;
+        best_radius = radius;
+      }
+    }
+    std::printf("\nPCL best radius %.2f mm: RMS %.4f mm in %.3f s. StampScan: RMS %.4f mm (%.2fx lower), %.1fx the throughput\n",
+                best_radius, best_rms, best_time, ours.rms, best_rms / ours.rms, best_time / ours.seconds);
+  }
+#endif
+  return 0;
+}
