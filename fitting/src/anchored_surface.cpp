@@ -2,6 +2,7 @@
 
 #include "stampscan/fitting/kernels.hpp"
 #include "stampscan/fitting/local_fit.hpp"
+#include "stampscan/fitting/quadric_patch.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -18,16 +19,16 @@ namespace stampscan::fitting {
 
 namespace {
 constexpr double kTukeyC = 4.685;
-constexpr std::uint32_t kMinAnchorPoints = 2;
+constexpr std::uint32_t kMinAnchorPoints = 1;
 
 // ---------------------------------------------------------------------------------------------
-// One robust local fit: algebraic sphere with Gaussian weights (Eq. (3)) around `centre`, refitted
+// One robust local fit: quadric patch with Gaussian weights (Eq. (3)) around `centre`, refitted
 // with Tukey's biweight, plus the linear strain field in its tangent plane.
 struct LocalFit {
-  LocalSurface surface;
+  QuadricPatch surface;
   double offset = 0;        // signed distance from the centre to the fitted surface, mm
   double offset_sigma = 0;  // its standard deviation from the residuals and the effective count
-  double residual_variance = 0;  // weighted, corrected for the five fitted parameters
+  double residual_variance = 0;  // weighted, corrected for the six fitted parameters
   double effective_count = 0;    // (sum w)^2 / sum w^2
   double strain = std::numeric_limits<double>::quiet_NaN();
   Vec3 strain_gradient = Vec3::Zero();
@@ -55,14 +56,8 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   s.weight.resize(s.near.size());
   for (std::size_t k = 0; k < s.near.size(); ++k) s.weight[k] = gaussianWeightSq(s.near[k].distance_sq, h_sq);
 
-  const auto fitWith = [&]() {
-    AlgebraicMoments moments(centre, h);
-    for (std::size_t k = 0; k < s.near.size(); ++k)
-      if (s.weight[k] > 0) moments.add(points[s.near[k].index], s.weight[k]);
-    return LocalSurface::fitPrattSphere(moments);
-  };
   // Tukey's biweight on the residuals from `reference`, applied to the Gaussian weights.
-  const auto reweight = [&](const LocalSurface& reference) {
+  const auto reweight = [&](const auto& reference) {
     s.residual.resize(s.near.size());
     s.abs_residual.clear();
     for (std::size_t k = 0; k < s.near.size(); ++k) {
@@ -77,20 +72,35 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
       s.weight[k] = s.base_weight[k] * (r * r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0);
     }
   };
+  const auto fitPlane = [&]() {
+    WeightedSums sums(centre, h);
+    for (std::size_t k = 0; k < s.near.size(); ++k)
+      if (s.weight[k] > 0) sums.add(points[s.near[k].index], s.weight[k]);
+    return LocalSurface::fitPlane(sums);
+  };
   s.base_weight = s.weight;
+  // Eqs. (2), (6), (7): the weighted plane gives the frame. With robust weighting the first
+  // residuals come from that plane: a curved fit through outliers can bend round them and make them
+  // look like inliers; a plane cannot. Then once more from the quadric, which does not mistake
+  // curvature for outliers.
+  std::optional<LocalSurface> plane = fitPlane();
+  if (!plane) return std::nullopt;
   if (robust) {
-    // First residuals from a plane: a sphere fitted through outliers can bend round them and make
-    // them look like inliers; a plane cannot. Then once more from the sphere, which does not
-    // mistake curvature for outliers.
-    WeightedSums plane_sums(centre, h);
-    for (std::size_t k = 0; k < s.near.size(); ++k) plane_sums.add(points[s.near[k].index], s.weight[k]);
-    if (const auto plane = LocalSurface::fitPlane(plane_sums)) reweight(*plane);
+    reweight(*plane);
+    plane = fitPlane();
+    if (!plane) return std::nullopt;
   }
-  std::optional<LocalSurface> surface = fitWith();
+  const auto fitQuadric = [&]() {
+    QuadricPatch::Sums sums(*plane, centre, h);
+    for (std::size_t k = 0; k < s.near.size(); ++k)
+      if (s.weight[k] > 0) sums.add(points[s.near[k].index], s.weight[k]);
+    return QuadricPatch::fit(sums);
+  };
+  std::optional<QuadricPatch> surface = fitQuadric();
   if (!surface) return std::nullopt;
   if (robust) {
     reweight(*surface);
-    surface = fitWith();
+    surface = fitQuadric();
     if (!surface) return std::nullopt;
   }
   s.residual.resize(s.near.size());
@@ -99,7 +109,7 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   LocalFit fit{*surface};
   fit.offset = surface->signedDistance(centre);
   // Standard deviation of the fitted offset: residual variance over the effective sample size
-  // (sum w)^2 / sum w^2, inflated by the five parameters of the sphere.
+  // (sum w)^2 / sum w^2, inflated by the six parameters of the quadric.
   double sw = 0, sw2 = 0, swr2 = 0;
   for (std::size_t k = 0; k < s.near.size(); ++k) {
     const double w = s.weight[k];
@@ -109,9 +119,10 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   }
   if (!(sw > 0)) return std::nullopt;
   const double n_eff = sw * sw / sw2;
-  if (n_eff < 6.0) return std::nullopt;
-  const double var = swr2 / sw * n_eff / (n_eff - 5.0);
-  fit.offset_sigma = std::sqrt(var * 5.0 / n_eff);
+  constexpr double kParameters = 6.0;  // of the quadric
+  if (n_eff < kParameters + 1.0) return std::nullopt;
+  const double var = swr2 / sw * n_eff / (n_eff - kParameters);
+  fit.offset_sigma = std::sqrt(var * kParameters / n_eff);
   fit.residual_variance = var;
   fit.effective_count = n_eff;
 
@@ -181,7 +192,7 @@ struct AnchoredSurface::Impl {
     double cell = 0;  // cell size of its level
     bool valid = false;
     bool skip = false;  // no point uses it (all moved to fuller cells): not fitted
-    LocalSurface surface;
+    QuadricPatch surface;
     double strain = std::numeric_limits<double>::quiet_NaN();
     Vec3 strain_gradient = Vec3::Zero();
   };
@@ -235,7 +246,7 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
       const Vec3& x = points[probes[p]];
       tree.knn(x, static_cast<std::size_t>(params.start_rank) + 1, knn);
       const double h_start = std::max(std::sqrt(knn.back().distance_sq), 1e-9);
-      // Grow h while the sphere still explains the neighbourhood down to the noise: the residual
+      // Grow h while the quadric still explains the neighbourhood down to the noise: the residual
       // variance stays at the floor set by the best smaller scale (misfit would add to it), and
       // stop once enough points carry weight that more would not lower the error noticeably.
       double floor_variance = std::numeric_limits<double>::infinity();
@@ -261,7 +272,7 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
   h0 = stats.bandwidth.min;
   levels = 1 + static_cast<int>(std::ceil(std::log(stats.bandwidth.max / h0) / std::log(params.scale_step) - 1e-9));
   levels = std::clamp(levels, 1, 60);
-  h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(chosen));
+  h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(chosen), BandwidthField::Mean::Harmonic);
   grid_origin = boundsOf(points).min;
 }
 
@@ -310,18 +321,25 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
       anchor.h = h_field->at(anchor.centre, 4);
       if (anchor.skip) continue;
       // A fit that fails (too few points) is retried wider, a few times.
-      for (int attempt = 0; attempt < 4; ++attempt) {
-        const auto fit = fitLocal(points, tree, strain, anchor.centre, anchor.h, params.robust, params.min_points, scratch);
-        if (!fit) {
-          anchor.h *= params.scale_step;
-          continue;
-        }
-        anchor.valid = true;
-        anchor.surface = fit->surface;
-        anchor.strain = fit->strain;
-        anchor.strain_gradient = fit->strain_gradient;
-        break;
+      std::optional<LocalFit> fit;
+      for (int attempt = 0; attempt < 4 && !fit; ++attempt) {
+        fit = fitLocal(points, tree, strain, anchor.centre, anchor.h, params.robust, params.min_points, scratch);
+        if (!fit) anchor.h *= params.scale_step;
       }
+      // The interpolated h may come from flatter surroundings: narrow it while a narrower fit
+      // explains the neighbourhood clearly better (the probes' misfit rule, applied here).
+      for (int step = 0; fit && step < 3; ++step) {
+        const double h = anchor.h / params.scale_step;
+        auto narrower = fitLocal(points, tree, strain, anchor.centre, h, params.robust, params.min_points, scratch);
+        if (!narrower || fit->residual_variance <= (1.0 + params.misfit_tolerance) * narrower->residual_variance) break;
+        fit = std::move(narrower);
+        anchor.h = h;
+      }
+      if (!fit) continue;
+      anchor.valid = true;
+      anchor.surface = fit->surface;
+      anchor.strain = fit->strain;
+      anchor.strain_gradient = fit->strain_gradient;
     }
   });
   if (progress) progress("anchors", 1.0);
@@ -402,17 +420,27 @@ std::size_t AnchoredSurface::Impl::orientAnchors() {
 
 Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const {
   // Partition of unity: phi_a(x) = (1 - d^2 / R_a^2)^3 with R_a = blend_radius * cell. The point moves
-  // to the phi-weighted mean of its projections onto each anchor's sphere, until the step is small.
+  // to the weighted mean of its projections onto each anchor's patch, until the step is small.
+  // A local fit is only trusted near its own surface: across a tight radius the anchor on the flange
+  // would pull a wall point onto the flange's plane. So each weight is also gated by how far the
+  // anchor's projection moves x beyond the closest anchor's: g = exp(-(excess / (h_a/4))^2).
+  struct Contribution {
+    const Anchor* anchor;
+    double phi;
+    Vec3 projected;
+    double moved;
+  };
+  thread_local std::vector<Contribution> near;
   Projection result;
   result.point = start;
   result.scalar = std::numeric_limits<double>::quiet_NaN();
   Vec3 x = start;
   double h_mean = 0;
   for (int it = 1; it <= params.max_iterations; ++it) {
-    Vec3 sum_p = Vec3::Zero(), sum_n = Vec3::Zero();
-    double sum_w = 0, sum_c = 0, sum_h = 0;
+    near.clear();
     const Anchor* nearest = nullptr;
     double nearest_d2 = std::numeric_limits<double>::infinity();
+    double least_moved = std::numeric_limits<double>::infinity();
     for (std::size_t k = 0; k < count; ++k) {
       const Anchor& a = anchors[candidates[k]];
       if (!a.valid) continue;
@@ -421,26 +449,31 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
         nearest_d2 = d2;
         nearest = &a;
       }
-      const double R = params.blend_radius * a.cell;
+      // Support in cells, but never wider than the fit's own bandwidth warrants.
+      const double R = params.blend_radius * std::min(a.cell, a.h);
       const double t = 1.0 - d2 / (R * R);
       if (t <= 0) continue;
-      const double w = t * t * t;
       const Vec3 p = a.surface.project(x);
-      sum_w += w;
-      sum_p += w * p;
-      sum_n += w * a.surface.normal(p);
-      sum_h += w * a.h;
-      if (strain) sum_c += w * (a.strain + a.strain_gradient.dot(p - a.centre));
+      const double moved = (p - x).norm();
+      least_moved = std::min(least_moved, moved);
+      near.push_back({&a, t * t * t, p, moved});
     }
-    if (!(sum_w > 0)) {
+    if (near.empty()) {
       if (!nearest) return result;  // no valid anchor around: leave the point alone
       // Outside every support: use the nearest anchor alone.
-      const Vec3 p = nearest->surface.project(x);
-      sum_w = 1;
-      sum_p = p;
-      sum_n = nearest->surface.normal(p);
-      sum_h = nearest->h;
-      sum_c = strain ? nearest->strain + nearest->strain_gradient.dot(p - nearest->centre) : 0.0;
+      near.push_back({nearest, 1.0, nearest->surface.project(x), 0.0});
+      least_moved = 0;
+    }
+    Vec3 sum_p = Vec3::Zero(), sum_n = Vec3::Zero();
+    double sum_w = 0, sum_c = 0, sum_h = 0;
+    for (const Contribution& c : near) {
+      const double excess = (c.moved - least_moved) / (0.25 * c.anchor->h);
+      const double w = c.phi * std::exp(-excess * excess);
+      sum_w += w;
+      sum_p += w * c.projected;
+      sum_n += w * c.anchor->surface.normal(c.projected);
+      sum_h += w * c.anchor->h;
+      if (strain) sum_c += w * (c.anchor->strain + c.anchor->strain_gradient.dot(c.projected - c.anchor->centre));
     }
     const Vec3 next = sum_p / sum_w;
     h_mean = sum_h / sum_w;

@@ -49,8 +49,8 @@ std::vector<double> gaussianDataBandwidths(const std::vector<Vec3>& points, cons
   return h;
 }
 
-BandwidthField::BandwidthField(const std::vector<Vec3>& points, const KdTree& tree, std::vector<double> values)
-    : points_(points), tree_(tree), values_(std::move(values)) {}
+BandwidthField::BandwidthField(const std::vector<Vec3>& points, const KdTree& tree, std::vector<double> values, Mean mean)
+    : points_(points), tree_(tree), values_(std::move(values)), mean_(mean) {}
 
 double BandwidthField::interpolate(const Vec3& /*x*/, const std::vector<Neighbor>& near) const {
   double sum_s = 0, sum_sh = 0;
@@ -61,9 +61,9 @@ double BandwidthField::interpolate(const Vec3& /*x*/, const std::vector<Neighbor
     const double w = gaussianWeightSq(nb.distance_sq, hi_sq);  // Eq. (14)
     const double s = w / (nb.distance_sq + 0.01 * hi_sq);      // Shepard weight, see header
     sum_s += s;
-    sum_sh += s * hi;
+    sum_sh += mean_ == Mean::Arithmetic ? s * hi : s / hi;
   }
-  if (sum_s > 0) return sum_sh / sum_s;  // Eqs. (9), (13)
+  if (sum_s > 0) return mean_ == Mean::Arithmetic ? sum_sh / sum_s : sum_s / sum_sh;  // Eqs. (9), (13)
   // Far from every point: fall back to the nearest point's value.
   return near.empty() ? 0.0 : values_[near.front().index];
 }

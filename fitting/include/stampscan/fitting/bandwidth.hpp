@@ -25,8 +25,13 @@ std::vector<double> gaussianDataBandwidths(const std::vector<Vec3>& points, cons
 // s_i = w_i / (d_i^2 + eps^2), with eps a small fraction of h_i so the interpolant stays bounded.
 class BandwidthField {
  public:
+  // Arithmetic: Eqs. (9), (13) as printed. Harmonic: the same weights averaging 1/h, so that where
+  // a small h meets a large one the small one wins (a narrow feature next to a flat region keeps
+  // its narrow kernel rather than inheriting half of the flat region's).
+  enum class Mean { Arithmetic, Harmonic };
   // `values` holds one h_i per point of `points` (same order); both must outlive the field.
-  BandwidthField(const std::vector<Vec3>& points, const KdTree& tree, std::vector<double> values);
+  BandwidthField(const std::vector<Vec3>& points, const KdTree& tree, std::vector<double> values,
+                 Mean mean = Mean::Arithmetic);
 
   // h(x) from the `neighbors` nearest points' h_i.
   double at(const Vec3& x, int neighbors = 8) const;
@@ -40,6 +45,7 @@ class BandwidthField {
   const std::vector<Vec3>& points_;
   const KdTree& tree_;
   std::vector<double> values_;
+  Mean mean_;
 };
 
 // Density-robust scale for the default method: h_i = factor * d_i with d_i the distance to the

@@ -1,0 +1,64 @@
+// A local quadric height field over a tangent frame: w = c0 + c1 u + c2 v + c3 u^2 + c4 uv + c5 v^2,
+// with (u, v, w) the coordinates of a point in a frame (t1, t2, n) at `origin`, scaled by 1/scale.
+//
+// Beyond the paper: unlike the plane of Eq. (1) it follows curvature (no shrinkage at peaks), and
+// unlike a sphere it takes different curvatures in different directions, as on the cylindrical
+// walls and radii of a stamped part. The frame comes from the paper's weighted plane (Eqs. (2),
+// (6), (7)); the coefficients are a weighted least-squares fit of the heights above it.
+#pragma once
+
+#include "stampscan/fitting/cloud.hpp"
+#include "stampscan/fitting/local_fit.hpp"
+
+#include <optional>
+
+namespace stampscan::fitting {
+
+class QuadricPatch {
+ public:
+  // Accumulates the weighted normal equations of the height fit in the frame of `plane`.
+  class Sums {
+   public:
+    Sums(const LocalSurface& plane, const Vec3& origin, double scale);
+    void add(const Vec3& p, double w);
+    std::size_t count() const { return count_; }
+
+   private:
+    friend class QuadricPatch;
+    Vec3 origin_;
+    double inv_scale_;
+    Eigen::Matrix3d frame_;  // columns t1, t2, n
+    Eigen::Matrix<double, 6, 6> ata_ = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> atb_ = Eigen::Matrix<double, 6, 1>::Zero();
+    std::size_t count_ = 0;
+  };
+
+  // Nothing when the weights sum to zero. With too little spread for curvature the quadratic
+  // terms are damped towards the plane (a small ridge), never left undetermined.
+  static std::optional<QuadricPatch> fit(const Sums& sums);
+
+  // Closest point of the patch to x (Gauss-Newton on the height field, a few steps).
+  Vec3 project(const Vec3& x) const;
+  // Unit normal at the patch point above/below x, on the side of the frame normal.
+  Vec3 normal(const Vec3& x) const;
+  // Signed distance from x to the patch along its normal (first order).
+  double signedDistance(const Vec3& x) const;
+  // Reverses the orientation (the surface stays the same).
+  void flip();
+  const Vec3& origin() const { return origin_; }
+
+ private:
+  Vec3 toLocal(const Vec3& x) const { return frame_.transpose() * (x - origin_) / scale_; }
+  double height(double u, double v) const {
+    return c_(0) + c_(1) * u + c_(2) * v + c_(3) * u * u + c_(4) * u * v + c_(5) * v * v;
+  }
+  Eigen::Vector2d slope(double u, double v) const {
+    return {c_(1) + 2 * c_(3) * u + c_(4) * v, c_(2) + c_(4) * u + 2 * c_(5) * v};
+  }
+  Vec3 origin_ = Vec3::Zero();
+  double scale_ = 1;
+  Eigen::Matrix3d frame_ = Eigen::Matrix3d::Identity();
+  Eigen::Matrix<double, 6, 1> c_ = Eigen::Matrix<double, 6, 1>::Zero();
+};
+
+}  // namespace stampscan::fitting

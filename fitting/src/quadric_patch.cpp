@@ -1,0 +1,86 @@
+#include "stampscan/fitting/quadric_patch.hpp"
+
+#include <Eigen/Dense>
+
+#include <cmath>
+
+namespace stampscan::fitting {
+
+QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double scale)
+    : origin_(origin), inv_scale_(1.0 / scale) {
+  const Vec3 n = plane.normal(origin);
+  const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  const Vec3 t1 = n.cross(helper).normalized();
+  frame_.col(0) = t1;
+  frame_.col(1) = n.cross(t1);
+  frame_.col(2) = n;
+}
+
+void QuadricPatch::Sums::add(const Vec3& p, double w) {
+  const Vec3 q = frame_.transpose() * (p - origin_) * inv_scale_;
+  const double u = q.x(), v = q.y();
+  Eigen::Matrix<double, 6, 1> phi;
+  phi << 1.0, u, v, u * u, u * v, v * v;
+  ata_.selfadjointView<Eigen::Lower>().rankUpdate(phi, w);
+  atb_ += (w * q.z()) * phi;
+  ++count_;
+}
+
+std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
+  Eigen::Matrix<double, 6, 6> a = s.ata_.selfadjointView<Eigen::Lower>();
+  const double total = a(0, 0);
+  if (!(total > 0)) return std::nullopt;
+  a /= total;
+  Eigen::Matrix<double, 6, 1> b = s.atb_ / total;
+  // Ridge on the curvature terms only: where the neighbours do not span two directions (a row of
+  // repeats, an edge) the patch stays close to the plane instead of curling at random.
+  const double ridge = 1e-4 * (a(3, 3) + a(5, 5)) + 1e-12;
+  for (int i = 3; i < 6; ++i) a(i, i) += ridge;
+  a(1, 1) += 1e-12;
+  a(2, 2) += 1e-12;
+  QuadricPatch patch;
+  patch.origin_ = s.origin_;
+  patch.scale_ = 1.0 / s.inv_scale_;
+  patch.frame_ = s.frame_;
+  patch.c_ = a.ldlt().solve(b);
+  if (!patch.c_.allFinite()) return std::nullopt;
+  return patch;
+}
+
+Vec3 QuadricPatch::project(const Vec3& x) const {
+  const Vec3 q = toLocal(x);
+  double u = q.x(), v = q.y();
+  // Minimise (u - u0)^2 + (v - v0)^2 + (f(u, v) - w0)^2; from the foot below x this converges in a
+  // few steps while the patch is not steep over the distance.
+  for (int it = 0; it < 4; ++it) {
+    const double r = height(u, v) - q.z();
+    const Eigen::Vector2d g = slope(u, v);
+    Eigen::Matrix2d jtj = Eigen::Matrix2d::Identity() + g * g.transpose();
+    const Eigen::Vector2d jtr(u - q.x() + g.x() * r, v - q.y() + g.y() * r);
+    const Eigen::Vector2d step = jtj.ldlt().solve(jtr);
+    u -= step.x();
+    v -= step.y();
+    if (step.squaredNorm() < 1e-20) break;
+  }
+  return origin_ + scale_ * (frame_ * Vec3(u, v, height(u, v)));
+}
+
+Vec3 QuadricPatch::normal(const Vec3& x) const {
+  const Vec3 q = toLocal(x);
+  const Eigen::Vector2d g = slope(q.x(), q.y());
+  return (frame_ * Vec3(-g.x(), -g.y(), 1.0)).normalized();
+}
+
+double QuadricPatch::signedDistance(const Vec3& x) const {
+  const Vec3 q = toLocal(x);
+  const Eigen::Vector2d g = slope(q.x(), q.y());
+  return (q.z() - height(q.x(), q.y())) / std::sqrt(1.0 + g.squaredNorm()) * scale_;
+}
+
+void QuadricPatch::flip() {
+  // w -> -w with the same (u, v): the frame normal turns round and every height changes sign.
+  frame_.col(2) = -frame_.col(2);
+  c_ = -c_;
+}
+
+}  // namespace stampscan::fitting
