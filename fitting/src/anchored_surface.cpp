@@ -19,6 +19,14 @@ namespace stampscan::fitting {
 
 namespace {
 constexpr double kTukeyC = 4.685;
+// Neighbours beyond this multiple of h are left out of a local fit: their Gaussian weight is below
+// exp(-4.84) = 0.8 %, and leaving them out saves a third of the work of the paper's 2.5 h.
+constexpr double kSupport = 2.2;
+// Least in-plane spread (in h^2) of a fit's neighbours; an evenly covered disk has 0.5, a half disk
+// at the edge of the data about 0.2.
+constexpr double kMinTangentSpread = 0.05;
+// Least share of its Gaussian weight a robust fit must keep (Tukey keeps ~90 % on clean data).
+constexpr double kMinKeptWeight = 0.4;
 constexpr std::uint32_t kMinAnchorPoints = 1;
 
 // ---------------------------------------------------------------------------------------------
@@ -50,7 +58,7 @@ struct FitScratch {
 
 std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
                                  const Vec3& centre, double h, bool robust, std::size_t min_points, FitScratch& s) {
-  tree.radius(centre, kGaussianCutoff * h, s.near);
+  tree.radius(centre, kSupport * h, s.near);
   if (s.near.size() < min_points) return std::nullopt;
   const double h_sq = h * h;
   s.weight.resize(s.near.size());
@@ -60,9 +68,13 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   const auto reweight = [&](const auto& reference) {
     s.residual.resize(s.near.size());
     s.abs_residual.clear();
+    // The robust scale needs a median, not every residual: a stride keeps it to ~256 samples.
+    const std::size_t stride = 1 + s.near.size() / 256;
     for (std::size_t k = 0; k < s.near.size(); ++k) {
       s.residual[k] = reference.signedDistance(points[s.near[k].index]);
-      if (s.base_weight[k] > 0.1) s.abs_residual.push_back(std::abs(s.residual[k]));
+      // Every neighbour counts for the scale, whatever its weight: around an outlier the nearest
+      // (heaviest) points are the outliers themselves, the majority by count is the surface.
+      if (k % stride == 0) s.abs_residual.push_back(std::abs(s.residual[k]));
     }
     if (s.abs_residual.size() < min_points) return;
     const double sigma = std::max(1.4826 * median(s.abs_residual), 1e-6 * h);
@@ -79,17 +91,17 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
     return LocalSurface::fitPlane(sums);
   };
   s.base_weight = s.weight;
-  // Eqs. (2), (6), (7): the weighted plane gives the frame. With robust weighting the first
-  // residuals come from that plane: a curved fit through outliers can bend round them and make them
-  // look like inliers; a plane cannot. Then once more from the quadric, which does not mistake
-  // curvature for outliers.
-  std::optional<LocalSurface> plane = fitPlane();
-  if (!plane) return std::nullopt;
-  if (robust) {
-    reweight(*plane);
-    plane = fitPlane();
-    if (!plane) return std::nullopt;
-  }
+  // Eqs. (2), (6), (7): the weighted plane gives the frame, and with robust weighting the first
+  // residuals: a curved fit centred on an outlier can bend round it and make it look like an
+  // inlier; a plane cannot. The quadric is then fitted over the plane's frame and refitted with
+  // Tukey weights from its own residuals, which do not mistake curvature for outliers. The
+  // residuals of that first quadric also give the variance below: the refit moves them by far less
+  // than the noise.
+  const std::optional<LocalSurface> plane = fitPlane();
+  // A surface needs neighbours spread in two directions: one cluster of repeated observations, or
+  // a single row, only looks like a good fit.
+  if (!plane || plane->tangentSpread() < kMinTangentSpread) return std::nullopt;
+  if (robust) reweight(*plane);
   const auto fitQuadric = [&]() {
     QuadricPatch::Sums sums(*plane, centre, h);
     for (std::size_t k = 0; k < s.near.size(); ++k)
@@ -100,11 +112,20 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   if (!surface) return std::nullopt;
   if (robust) {
     reweight(*surface);
+    // A fit that keeps little of its Gaussian weight has followed a few points (a cluster of outliers
+    // under the centre) and thrown away the surface around them: not a fit of the surface.
+    double kept = 0, offered = 0;
+    for (std::size_t k = 0; k < s.near.size(); ++k) {
+      kept += s.weight[k];
+      offered += s.base_weight[k];
+    }
+    if (kept < kMinKeptWeight * offered) return std::nullopt;
     surface = fitQuadric();
     if (!surface) return std::nullopt;
+  } else {
+    s.residual.resize(s.near.size());
+    for (std::size_t k = 0; k < s.near.size(); ++k) s.residual[k] = surface->signedDistance(points[s.near[k].index]);
   }
-  s.residual.resize(s.near.size());
-  for (std::size_t k = 0; k < s.near.size(); ++k) s.residual[k] = surface->signedDistance(points[s.near[k].index]);
 
   LocalFit fit{*surface};
   fit.offset = surface->signedDistance(centre);
@@ -181,6 +202,8 @@ struct AnchoredSurface::Impl {
   std::vector<Vec3> probe_points;
   std::unique_ptr<KdTree> probe_tree;
   std::unique_ptr<BandwidthField> h_field;
+  std::vector<double> noise_floor;        // residual variance floor seen by each probe
+  std::vector<double> curvature_limited;  // 1 where misfit, not the point count, limited h
   double h0 = 1;  // bandwidth of level 0
   Vec3 grid_origin = Vec3::Zero();
   int levels = 1;
@@ -204,14 +227,22 @@ struct AnchoredSurface::Impl {
   Impl(const std::vector<Vec3>& p, const KdTree& t, const std::vector<double>* s, const AnchoredParams& a)
       : points(p), tree(t), strain(s), params(a) {}
 
-  double cellSize(int level) const { return params.anchor_spacing * h0 * std::pow(params.scale_step, level); }
+  // A tier is a level and a spacing: coarse cells (anchor_spacing * h) where the probes found the
+  // surface smooth enough that h was limited by the point count, fine cells (one h) where misfit
+  // limited h: there the quadrics hold over a shorter distance and need closer neighbours.
+  static int tierOf(int level, bool fine) { return 2 * level + (fine ? 1 : 0); }
+  double cellSize(int tier) const {
+    const double spacing = tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
+    return spacing * h0 * std::pow(params.scale_step, tier / 2);
+  }
+  bool fineAt(const Vec3& x) const { return h_field->interpolateOther(x, curvature_limited, 4) > 0.25; }
   int levelFor(double h) const {
     const int level = static_cast<int>(std::floor(std::log(std::max(h, h0) / h0) / std::log(params.scale_step) + 1e-9));
     return std::clamp(level, 0, levels - 1);
   }
-  Key keyFor(const Vec3& x, int level) const {
-    const Vec3 g = (x - grid_origin) / cellSize(level);
-    return makeKey(level, static_cast<std::int64_t>(std::floor(g.x())), static_cast<std::int64_t>(std::floor(g.y())),
+  Key keyFor(const Vec3& x, int tier) const {
+    const Vec3 g = (x - grid_origin) / cellSize(tier);
+    return makeKey(tier, static_cast<std::int64_t>(std::floor(g.x())), static_cast<std::int64_t>(std::floor(g.y())),
                    static_cast<std::int64_t>(std::floor(g.z())));
   }
   const Anchor* findAnchor(Key key, std::uint32_t* index = nullptr) const {
@@ -238,6 +269,9 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
   for (std::size_t k = stride / 2; k < order.size(); k += stride) probes.push_back(order[k]);
   if (probes.empty()) probes.push_back(order.front());
   std::vector<double> chosen(probes.size(), 0.0);
+  std::vector<double> floors(probes.size(), 0.0);
+  std::vector<double> smallest(probes.size(), 0.0);  // smallest scale that could be fitted
+  std::vector<double> limited(probes.size(), 0.0);
 
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probes.size(), 8), [&](const auto& range) {
     FitScratch scratch;
@@ -255,14 +289,34 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
       for (int j = 0; j < params.max_scales; ++j, h *= params.scale_step) {
         const auto fit = fitLocal(points, tree, nullptr, x, h, params.robust, params.min_points, scratch);
         if (!fit) continue;  // too few points at this scale: try a wider one
-        if (best > 0 && fit->residual_variance > (1.0 + params.misfit_tolerance) * floor_variance) break;
+        if (best > 0 && fit->residual_variance > (1.0 + params.misfit_tolerance) * floor_variance) {
+          limited[p] = 1.0;
+          break;
+        }
+        if (best == 0) smallest[p] = h;
         floor_variance = std::min(floor_variance, fit->residual_variance);
         best = h;
         if (fit->effective_count >= params.max_effective_count) break;
       }
+      floors[p] = std::isfinite(floor_variance) ? floor_variance : 0.0;
       chosen[p] = best > 0 ? best : h_start * std::pow(params.scale_step, params.max_scales - 1);
     }
   });
+
+  // The noise of a scanner is much the same all over a part, so the typical floor tells noise from
+  // misfit: where even the smallest scale left more than twice the typical floor (sparse data over a
+  // tight radius), that floor was misfit already and the smallest scale is kept.
+  std::vector<double> measured;
+  for (double f : floors)
+    if (f > 0) measured.push_back(f);
+  const double typical = measured.empty() ? 0.0 : summarize(measured).median;
+  for (std::size_t p = 0; p < probes.size(); ++p) {
+    if (typical > 0 && floors[p] > 2.0 * typical && smallest[p] > 0) {
+      chosen[p] = smallest[p];
+      limited[p] = 1.0;
+    }
+    if (typical > 0) floors[p] = std::min(floors[p] > 0 ? floors[p] : typical, 2.0 * typical);
+  }
 
   probe_points.reserve(probes.size());
   for (std::uint32_t i : probes) probe_points.push_back(points[i]);
@@ -273,6 +327,8 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
   levels = 1 + static_cast<int>(std::ceil(std::log(stats.bandwidth.max / h0) / std::log(params.scale_step) - 1e-9));
   levels = std::clamp(levels, 1, 60);
   h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(chosen), BandwidthField::Mean::Harmonic);
+  noise_floor = std::move(floors);
+  curvature_limited = std::move(limited);
   grid_origin = boundsOf(points).min;
 }
 
@@ -284,7 +340,7 @@ void AnchoredSurface::Impl::buildAnchors() {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const double h = h_field->at(points[i], 4);
-      keyed[i] = {keyFor(points[i], levelFor(h)), static_cast<std::uint32_t>(i)};
+      keyed[i] = {keyFor(points[i], tierOf(levelFor(h), fineAt(points[i]))), static_cast<std::uint32_t>(i)};
     }
   });
   tbb::parallel_sort(keyed.begin(), keyed.end());
@@ -297,8 +353,7 @@ void AnchoredSurface::Impl::buildAnchors() {
     Anchor a;
     a.key = keyed[start].first;
     a.centre = sum / static_cast<double>(end - start);
-    const int level = static_cast<int>(a.key >> (3 * kCellBits));
-    a.cell = cellSize(level);
+    a.cell = cellSize(static_cast<int>(a.key >> (3 * kCellBits)));
     for (std::size_t k = start; k < end; ++k) {
       anchor_of_point[keyed[k].second] = static_cast<std::uint32_t>(anchors.size());
       group_size[keyed[k].second] = static_cast<std::uint32_t>(end - start);
@@ -326,9 +381,12 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
         fit = fitLocal(points, tree, strain, anchor.centre, anchor.h, params.robust, params.min_points, scratch);
         if (!fit) anchor.h *= params.scale_step;
       }
-      // The interpolated h may come from flatter surroundings: narrow it while a narrower fit
-      // explains the neighbourhood clearly better (the probes' misfit rule, applied here).
-      for (int step = 0; fit && step < 3; ++step) {
+      // The interpolated h may come from flatter surroundings: where the fit leaves more than the
+      // noise floor the probes saw, narrow h while a narrower fit explains the neighbourhood
+      // clearly better (the probes' misfit rule, applied here).
+      const double floor = h_field->interpolateOther(anchor.centre, noise_floor, 4);
+      const bool misfit = fit && fit->residual_variance > (1.0 + params.misfit_tolerance) * floor;
+      for (int step = 0; fit && misfit && step < 3; ++step) {
         const double h = anchor.h / params.scale_step;
         auto narrower = fitLocal(points, tree, strain, anchor.centre, h, params.robust, params.min_points, scratch);
         if (!narrower || fit->residual_variance <= (1.0 + params.misfit_tolerance) * narrower->residual_variance) break;
@@ -359,8 +417,13 @@ void AnchoredSurface::Impl::linkAnchors() {
       anchor_tree.radius(anchors[a].centre, reach, near, /*sorted=*/true);
       auto& list = lists[a];
       list.push_back(static_cast<std::uint32_t>(a));
-      for (const Neighbor& nb : near)
-        if (nb.index != a) list.push_back(nb.index);
+      // Keep b only if its support (see blend) can reach a point of a's cell.
+      for (const Neighbor& nb : near) {
+        if (nb.index == a) continue;
+        const Anchor& b = anchors[nb.index];
+        const double support = params.blend_radius * std::min(b.cell, b.h) + std::sqrt(3.0) * anchors[a].cell;
+        if (nb.distance_sq <= support * support) list.push_back(nb.index);
+      }
     }
   });
   adjacency_offset.assign(anchors.size() + 1, 0);
@@ -464,29 +527,44 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
       near.push_back({nearest, 1.0, nearest->surface.project(x), 0.0});
       least_moved = 0;
     }
-    Vec3 sum_p = Vec3::Zero(), sum_n = Vec3::Zero();
-    double sum_w = 0, sum_c = 0, sum_h = 0;
-    for (const Contribution& c : near) {
+    Vec3 sum_p = Vec3::Zero();
+    double sum_w = 0, sum_h = 0;
+    for (Contribution& c : near) {
       const double excess = (c.moved - least_moved) / (0.25 * c.anchor->h);
-      const double w = c.phi * std::exp(-excess * excess);
-      sum_w += w;
-      sum_p += w * c.projected;
-      sum_n += w * c.anchor->surface.normal(c.projected);
-      sum_h += w * c.anchor->h;
-      if (strain) sum_c += w * (c.anchor->strain + c.anchor->strain_gradient.dot(c.projected - c.anchor->centre));
+      c.phi *= std::exp(-excess * excess);  // from here on, the gated weight
+      sum_w += c.phi;
+      sum_p += c.phi * c.projected;
+      sum_h += c.phi * c.anchor->h;
     }
     const Vec3 next = sum_p / sum_w;
     h_mean = sum_h / sum_w;
     const double step = (next - x).norm();
     x = next;
     result.iterations = it;
-    result.normal = sum_n.normalized();
-    if (strain) result.scalar = sum_c / sum_w;
     result.valid = true;
     if (step < params.tolerance * h_mean) {
       result.converged = true;
       break;
     }
+  }
+  // Normal and strain from the last blend, evaluated once at the end. Each patch normal is turned
+  // to agree with the strongest one, so that a neighbour whose orientation came out the other way
+  // (sparse data, the far side of a thin wall) cannot tilt the sum.
+  const Contribution* strongest = nullptr;
+  for (const Contribution& c : near)
+    if (!strongest || c.phi > strongest->phi) strongest = &c;
+  const Vec3 reference = strongest ? strongest->anchor->surface.normal(strongest->projected) : Vec3::UnitZ();
+  Vec3 sum_n = Vec3::Zero();
+  double sum_w = 0, sum_c = 0;
+  for (const Contribution& c : near) {
+    sum_w += c.phi;
+    const Vec3 n = c.anchor->surface.normal(c.projected);
+    sum_n += (n.dot(reference) < 0 ? -c.phi : c.phi) * n;
+    if (strain) sum_c += c.phi * (c.anchor->strain + c.anchor->strain_gradient.dot(c.projected - c.anchor->centre));
+  }
+  if (sum_w > 0) {
+    result.normal = sum_n.normalized();
+    if (strain) result.scalar = sum_c / sum_w;
   }
   result.point = x;
   result.bandwidth = h_mean;
@@ -536,7 +614,7 @@ bool AnchoredSurface::hasScalar() const { return impl_->strain != nullptr; }
 Projection AnchoredSurface::project(const Vec3& x) const {
   // The anchor of x's own cell if there is one, else the anchor of its nearest data point.
   std::uint32_t a = 0;
-  if (!impl_->findAnchor(impl_->keyFor(x, impl_->levelFor(bandwidthAt(x))), &a)) {
+  if (!impl_->findAnchor(impl_->keyFor(x, Impl::tierOf(impl_->levelFor(bandwidthAt(x)), impl_->fineAt(x))), &a)) {
     thread_local std::vector<Neighbor> near;
     impl_->tree.knn(x, 1, near);
     a = impl_->anchor_of_point[near.front().index];

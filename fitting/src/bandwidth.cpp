@@ -74,6 +74,22 @@ double BandwidthField::at(const Vec3& x, int neighbors) const {
   return interpolate(x, near);
 }
 
+double BandwidthField::interpolateOther(const Vec3& x, const std::vector<double>& other, int neighbors) const {
+  thread_local std::vector<Neighbor> near;
+  tree_.knn(x, static_cast<std::size_t>(std::max(1, neighbors)), near);
+  double sum_s = 0, sum_v = 0;
+  for (const Neighbor& nb : near) {
+    const double hi = values_[nb.index];
+    if (!(hi > 0)) continue;
+    const double hi_sq = hi * hi;
+    const double s = gaussianWeightSq(nb.distance_sq, hi_sq) / (nb.distance_sq + 0.01 * hi_sq);
+    sum_s += s;
+    sum_v += s * other[nb.index];
+  }
+  if (sum_s > 0) return sum_v / sum_s;
+  return near.empty() ? 0.0 : other[near.front().index];
+}
+
 std::vector<double> BandwidthField::smoothedAtPoints(int neighbors) const {
   std::vector<double> h(points_.size(), 0.0);
   forEachPoint(points_.size(), [&](std::size_t i) {

@@ -44,6 +44,7 @@ std::optional<LocalSurface> LocalSurface::fitPlane(const WeightedSums& s) {
   n.normalize();
   const double trace = eig.eigenvalues().sum();
   surface.variation_ = trace > 0 ? std::max(0.0, eig.eigenvalues()(0)) / trace : 0.0;
+  surface.spread_ = std::max(0.0, eig.eigenvalues()(1));
   surface.ul_ = n;
   surface.u0_ = -n.dot(mean_local);
   surface.uq_ = 0;

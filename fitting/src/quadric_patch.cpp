@@ -17,21 +17,53 @@ QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double s
 }
 
 void QuadricPatch::Sums::add(const Vec3& p, double w) {
-  const Vec3 q = frame_.transpose() * (p - origin_) * inv_scale_;
-  const double u = q.x(), v = q.y();
-  Eigen::Matrix<double, 6, 1> phi;
-  phi << 1.0, u, v, u * u, u * v, v * v;
-  ata_.selfadjointView<Eigen::Lower>().rankUpdate(phi, w);
-  atb_ += (w * q.z()) * phi;
+  const Vec3 d = (p - origin_) * inv_scale_;
+  const double u = frame_.col(0).dot(d), v = frame_.col(1).dot(d), h = frame_.col(2).dot(d);
+  const double uu = u * u, uv = u * v, vv = v * v;
+  const double wu = w * u, wv = w * v, wuu = w * uu, wuv = w * uv, wvv = w * vv;
+  // Lower triangle of phi phi^T for phi = (1, u, v, uu, uv, vv), row by row.
+  ata_[0] += w;
+  ata_[1] += wu;
+  ata_[2] += wu * u;
+  ata_[3] += wv;
+  ata_[4] += wv * u;
+  ata_[5] += wv * v;
+  ata_[6] += wuu;
+  ata_[7] += wuu * u;
+  ata_[8] += wuu * v;
+  ata_[9] += wuu * uu;
+  ata_[10] += wuv;
+  ata_[11] += wuv * u;
+  ata_[12] += wuv * v;
+  ata_[13] += wuv * uu;
+  ata_[14] += wuv * uv;
+  ata_[15] += wvv;
+  ata_[16] += wvv * u;
+  ata_[17] += wvv * v;
+  ata_[18] += wvv * uu;
+  ata_[19] += wvv * uv;
+  ata_[20] += wvv * vv;
+  atb_[0] += w * h;
+  atb_[1] += wu * h;
+  atb_[2] += wv * h;
+  atb_[3] += wuu * h;
+  atb_[4] += wuv * h;
+  atb_[5] += wvv * h;
   ++count_;
 }
 
 std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
-  Eigen::Matrix<double, 6, 6> a = s.ata_.selfadjointView<Eigen::Lower>();
+  Eigen::Matrix<double, 6, 6> a;
+  Eigen::Matrix<double, 6, 1> b;
+  int k = 0;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j <= i; ++j) a(i, j) = a(j, i) = s.ata_[k++];
+    b(i) = s.atb_[i];
+  }
   const double total = a(0, 0);
   if (!(total > 0)) return std::nullopt;
   a /= total;
-  Eigen::Matrix<double, 6, 1> b = s.atb_ / total;
+  b /= total;
   // Ridge on the curvature terms only: where the neighbours do not span two directions (a row of
   // repeats, an edge) the patch stays close to the plane instead of curling at random.
   const double ridge = 1e-4 * (a(3, 3) + a(5, 5)) + 1e-12;
@@ -55,12 +87,12 @@ Vec3 QuadricPatch::project(const Vec3& x) const {
   for (int it = 0; it < 4; ++it) {
     const double r = height(u, v) - q.z();
     const Eigen::Vector2d g = slope(u, v);
-    Eigen::Matrix2d jtj = Eigen::Matrix2d::Identity() + g * g.transpose();
+    // Solve (I + g g^T) step = J^T r in closed form: (I + g g^T)^-1 = I - g g^T / (1 + |g|^2).
     const Eigen::Vector2d jtr(u - q.x() + g.x() * r, v - q.y() + g.y() * r);
-    const Eigen::Vector2d step = jtj.ldlt().solve(jtr);
+    const Eigen::Vector2d step = jtr - g * (g.dot(jtr) / (1.0 + g.squaredNorm()));
     u -= step.x();
     v -= step.y();
-    if (step.squaredNorm() < 1e-20) break;
+    if (step.squaredNorm() < 1e-14) break;  // below 1e-7 of the patch scale
   }
   return origin_ + scale_ * (frame_ * Vec3(u, v, height(u, v)));
 }

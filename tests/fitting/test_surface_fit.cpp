@@ -46,7 +46,7 @@ TEST(SurfaceFit, DefaultMethodOnTheSamplePan) {
   for (std::size_t i = 0; i < r.surface.size(); ++i) {
     ASSERT_NEAR(r.surface.normals[i].norm(), 1.0, 1e-9);
     const Vec3& q = r.surface.positions[i];
-    ASSERT_GT(r.surface.normals[i].dot(part.normal(q.x(), q.y())), 0.7) << "point " << i;
+    ASSERT_GT(r.surface.normals[i].dot(part.normal(q.x(), q.y())), 0.7) << "point " << i << " at " << q.transpose();
   }
 }
 

@@ -35,6 +35,8 @@ class BandwidthField {
 
   // h(x) from the `neighbors` nearest points' h_i.
   double at(const Vec3& x, int neighbors = 8) const;
+  // Another per-point quantity (same order as the points) interpolated with the same weights.
+  double interpolateOther(const Vec3& x, const std::vector<double>& other, int neighbors = 8) const;
   // h at each input point, smoothed over its neighbours (computed in parallel).
   std::vector<double> smoothedAtPoints(int neighbors = 8) const;
 

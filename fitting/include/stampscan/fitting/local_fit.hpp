@@ -104,6 +104,10 @@ class LocalSurface {
   // Smallest eigenvalue over the sum of eigenvalues of the weighted covariance (plane fits):
   // 0 on a perfect plane, 1/3 for isotropic scatter.
   double surfaceVariation() const { return variation_; }
+  // Plane fits: the middle eigenvalue of the weighted covariance in units of scale^2, i.e. how far
+  // the neighbours spread in the plane's second direction (about 0.5 for a disk evenly covered
+  // under a Gaussian of bandwidth scale; near 0 for a row of points or one cluster of repeats).
+  double tangentSpread() const { return spread_; }
 
  private:
   Vec3 origin_ = Vec3::Zero();
@@ -114,6 +118,7 @@ class LocalSurface {
   double uq_ = 0;
   Vec3 mean_ = Vec3::Zero();
   double variation_ = 0;
+  double spread_ = 0;
   Vec3 toLocal(const Vec3& x) const { return (x - origin_) / scale_; }
 };
 

@@ -28,8 +28,10 @@ class QuadricPatch {
     Vec3 origin_;
     double inv_scale_;
     Eigen::Matrix3d frame_;  // columns t1, t2, n
-    Eigen::Matrix<double, 6, 6> ata_ = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> atb_ = Eigen::Matrix<double, 6, 1>::Zero();
+    // Lower triangle of sum w phi phi^T (21 entries, row by row) and sum w w_height phi, kept as
+    // plain sums so the accumulation loop vectorises.
+    double ata_[21] = {};
+    double atb_[6] = {};
     std::size_t count_ = 0;
   };
 
