@@ -27,6 +27,9 @@ constexpr double kSupport = 2.2;
 constexpr double kMinTangentSpread = 0.05;
 // Least share of its Gaussian weight a robust fit must keep (Tukey keeps ~90 % on clean data).
 constexpr double kMinKeptWeight = 0.4;
+// A blended projection that moves a data point by more than this many noise deviations is checked
+// against a fit centred at the point.
+constexpr double kTrustedMoveSigmas = 5.0;
 constexpr std::uint32_t kMinAnchorPoints = 1;
 
 // ---------------------------------------------------------------------------------------------
@@ -84,10 +87,10 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
       s.weight[k] = s.base_weight[k] * (r * r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0);
     }
   };
-  const auto fitPlane = [&]() {
+  const auto fitPlane = [&](bool uniform) {
     WeightedSums sums(centre, h);
     for (std::size_t k = 0; k < s.near.size(); ++k)
-      if (s.weight[k] > 0) sums.add(points[s.near[k].index], s.weight[k]);
+      if (s.weight[k] > 0) sums.add(points[s.near[k].index], uniform ? 1.0 : s.weight[k]);
     return LocalSurface::fitPlane(sums);
   };
   s.base_weight = s.weight;
@@ -97,11 +100,17 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   // Tukey weights from its own residuals, which do not mistake curvature for outliers. The
   // residuals of that first quadric also give the variance below: the refit moves them by far less
   // than the noise.
-  const std::optional<LocalSurface> plane = fitPlane();
+  std::optional<LocalSurface> plane = fitPlane(false);
   // A surface needs neighbours spread in two directions: one cluster of repeated observations, or
   // a single row, only looks like a good fit.
   if (!plane || plane->tangentSpread() < kMinTangentSpread) return std::nullopt;
-  if (robust) reweight(*plane);
+  if (robust) {
+    // Outliers are first judged against a plane through the whole support with equal weights: a
+    // Gaussian centred on an outlier would give it the largest weight and pull the plane onto it.
+    if (const auto even = fitPlane(true)) reweight(*even);
+    plane = fitPlane(false);
+    if (!plane) return std::nullopt;
+  }
   const auto fitQuadric = [&]() {
     QuadricPatch::Sums sums(*plane, centre, h);
     for (std::size_t k = 0; k < s.near.size(); ++k)
@@ -258,6 +267,7 @@ struct AnchoredSurface::Impl {
   void linkAnchors();
   std::size_t orientAnchors();
   Projection blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const;
+  Projection checkedAgainstLocalFit(const Vec3& x, const Projection& blended) const;
 };
 
 void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
@@ -375,23 +385,31 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
       Anchor& anchor = anchors[a];
       anchor.h = h_field->at(anchor.centre, 4);
       if (anchor.skip) continue;
-      // A fit that fails (too few points) is retried wider, a few times.
+      // The noise floor the probes saw here.
+      const double floor = h_field->interpolateOther(anchor.centre, noise_floor, 4);
+      // A fit that fails (too few points, or too few kept) is retried wider, a few times, as long as
+      // the wider fit still explains its neighbourhood (a wide fit over a tight radius would not, and
+      // is worse than leaving the cell to its neighbours).
       std::optional<LocalFit> fit;
+      const double first_h = anchor.h;
       for (int attempt = 0; attempt < 4 && !fit; ++attempt) {
         fit = fitLocal(points, tree, strain, anchor.centre, anchor.h, params.robust, params.min_points, scratch);
+        if (fit && attempt > 0 && fit->residual_variance > 4.0 * floor) fit.reset();
         if (!fit) anchor.h *= params.scale_step;
       }
+      if (!fit) anchor.h = first_h;
       // The interpolated h may come from flatter surroundings: where the fit leaves more than the
-      // noise floor the probes saw, narrow h while a narrower fit explains the neighbourhood
-      // clearly better (the probes' misfit rule, applied here).
-      const double floor = h_field->interpolateOther(anchor.centre, noise_floor, 4);
+      // noise floor (the probes' misfit rule, applied here), narrow h while that helps, until the fit
+      // is down to the floor.
       const bool misfit = fit && fit->residual_variance > (1.0 + params.misfit_tolerance) * floor;
       for (int step = 0; fit && misfit && step < 3; ++step) {
         const double h = anchor.h / params.scale_step;
         auto narrower = fitLocal(points, tree, strain, anchor.centre, h, params.robust, params.min_points, scratch);
-        if (!narrower || fit->residual_variance <= (1.0 + params.misfit_tolerance) * narrower->residual_variance) break;
+        if (!narrower || narrower->residual_variance >= fit->residual_variance) break;
+        const bool settled = narrower->residual_variance <= (1.0 + params.misfit_tolerance) * floor;
         fit = std::move(narrower);
         anchor.h = h;
+        if (settled) break;
       }
       if (!fit) continue;
       anchor.valid = true;
@@ -566,6 +584,16 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     result.normal = sum_n.normalized();
     if (strain) result.scalar = sum_c / sum_w;
   }
+  if (strain && params.scalar == ScalarFieldType::Shepard) {
+    thread_local std::vector<Neighbor> data;
+    thread_local std::vector<ScalarSample> samples;
+    const double R = kSupport * h_mean;
+    tree.radius(x, R, data);
+    samples.clear();
+    for (const Neighbor& nb : data) samples.push_back({points[nb.index], (*strain)[nb.index], 1.0});
+    const double shepard = shepardScalar(x, samples, R);  // Eqs. (15)-(16)
+    if (std::isfinite(shepard)) result.scalar = shepard;
+  }
   result.point = x;
   result.bandwidth = h_mean;
   result.neighbors = count;
@@ -604,7 +632,63 @@ AnchoredSurface::~AnchoredSurface() = default;
 Projection AnchoredSurface::projectPoint(std::size_t i) const {
   const std::uint32_t a = impl_->anchor_of_point[i];
   const std::size_t begin = impl_->adjacency_offset[a], end = impl_->adjacency_offset[a + 1];
-  return impl_->blend(impl_->points[i], impl_->adjacency.data() + begin, end - begin);
+  const Vec3& x = impl_->points[i];
+  Projection blended = impl_->blend(x, impl_->adjacency.data() + begin, end - begin);
+  if (!blended.valid) {
+    // No fit reaches this point's cell (an outlier alone in a cell off the surface, whose own fit
+    // was rejected): borrow the anchors of the nearest point whose cell has a fit.
+    thread_local std::vector<Neighbor> near;
+    impl_->tree.knn(x, 16, near);
+    for (const Neighbor& nb : near) {
+      const std::uint32_t b = impl_->anchor_of_point[nb.index];
+      if (b == a || !impl_->anchors[b].valid) continue;
+      blended = impl_->blend(x, impl_->adjacency.data() + impl_->adjacency_offset[b],
+                             impl_->adjacency_offset[b + 1] - impl_->adjacency_offset[b]);
+      break;
+    }
+  }
+  return impl_->checkedAgainstLocalFit(x, blended);
+}
+
+Projection AnchoredSurface::Impl::checkedAgainstLocalFit(const Vec3& x, const Projection& blended) const {
+  // Where the data are too sparse for the tightest radius of the part, the patches can all be wider
+  // than the feature and agree on a surface that cuts the corner. A move of many noise deviations is
+  // checked against a fit centred at the point itself, as narrow as the data allow: an outlier is
+  // carried onto the surface by that fit too, a point on a tight radius is not.
+  const double floor = h_field->interpolateOther(x, noise_floor, 4);
+  const double moved = (blended.point - x).norm();
+  const double sigma = std::sqrt(floor);
+  if (!blended.valid || !(floor > 0) || moved <= kTrustedMoveSigmas * sigma) return blended;
+  // An outlier is far from a surface that passes close to the data around its foot point; where the
+  // surface cuts a corner, the data nearest the foot are far from it too.
+  thread_local std::vector<Neighbor> near;
+  thread_local std::vector<double> neighbour_moves;
+  tree.knn(blended.point, 9, near);
+  neighbour_moves.clear();
+  for (const Neighbor& nb : near) {
+    if (points[nb.index] == x) continue;
+    const std::uint32_t b = anchor_of_point[nb.index];
+    const Projection p = blend(points[nb.index], adjacency.data() + adjacency_offset[b],
+                               adjacency_offset[b + 1] - adjacency_offset[b]);
+    if (p.valid) neighbour_moves.push_back((p.point - points[nb.index]).norm());
+  }
+  if (neighbour_moves.empty() || median(neighbour_moves) <= 0.5 * kTrustedMoveSigmas * sigma) return blended;
+  thread_local FitScratch scratch;
+  double h = h_field->at(x, 4) / (params.scale_step * params.scale_step);
+  for (int attempt = 0; attempt < 5; ++attempt, h *= params.scale_step) {
+    const auto fit = fitLocal(points, tree, strain, x, h, params.robust, params.min_points, scratch);
+    if (!fit) continue;
+    Projection local = blended;
+    local.point = fit->surface.project(x);
+    if ((local.point - x).norm() >= moved) return blended;  // the local fit agrees: keep the blend
+    const Vec3 n = fit->surface.normal(local.point);
+    local.normal = n.dot(blended.normal) < 0 ? Vec3(-n) : n;
+    if (strain && params.scalar == ScalarFieldType::Smooth)
+      local.scalar = fit->strain + fit->strain_gradient.dot(local.point - x);
+    local.bandwidth = h;
+    return local;
+  }
+  return blended;
 }
 
 double AnchoredSurface::bandwidthAt(const Vec3& x) const { return impl_->h_field->at(x, 4); }

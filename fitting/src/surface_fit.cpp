@@ -57,6 +57,7 @@ FittedSurface::FittedSurface(const Cloud& input, const FitParams& params) : inpu
     AnchoredParams ap = params.anchored;
     ap.robust = params.robust.value_or(true);
     ap.orientation = params.orientation;
+    ap.scalar = params.scalar;
     ap.max_iterations = std::min(params.max_iterations, ap.max_iterations);
     auto anchored = std::make_unique<AnchoredSurface>(points, *tree_, input.hasStrain() ? &input.strain : nullptr, ap,
                                                       params.progress);

@@ -16,7 +16,9 @@ constexpr double kStrainNoise = 0.005;  // measurement noise on strain, true-str
 
 SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params) {
   std::mt19937_64 rng(params.seed);
-  std::normal_distribution<double> noise(0.0, params.noise_sigma);
+  // normal_distribution needs a positive spread: noise-free samples get exactly zero.
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const auto noise = [&](std::mt19937_64& g) { return params.noise_sigma > 0 ? params.noise_sigma * gauss(g) : 0.0; };
   std::normal_distribution<double> strain_noise(0.0, kStrainNoise);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const PanParams& pp = part.params();
@@ -37,10 +39,17 @@ SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params
 
   // Laser sweeps along y, each a strip of profiles across x, overlapping their neighbours by 30 % and
   // turned by a small angle so that overlaps cross at small angles (paper Sec. 3.1).
+  // Stereo sites sit on the grid whatever the target; for small targets only a share of them is
+  // kept (as if fewer views were taken), so that the total stays near the target.
+  const double stereo_sites = std::max(0.0, (pp.half_length - x_split) / params.grid_pitch + 1.0) *
+                              (2.0 * pp.half_width / params.grid_pitch + 1.0);
+  const double stereo_expected = stereo_sites * 0.5 * (1.0 + std::max(1, params.max_repeats));
+  const double target = static_cast<double>(params.target_points);
+  const double stereo_keep = stereo_expected > 0 ? std::min(1.0, 0.25 * target / stereo_expected) : 0.0;
+  const double laser_target = std::max(target - stereo_keep * stereo_expected, 0.5 * target);
   const double laser_x0 = -pp.half_length, laser_x1 = std::min(x_split + 5.0, pp.half_length);
   const double area = (laser_x1 - laser_x0) * 2.0 * pp.half_width * 1.35;
-  const double laser_share = 1.0 - 0.5 * params.stereo_fraction;
-  const double per_point_area = area / (laser_share * static_cast<double>(params.target_points));
+  const double per_point_area = area / laser_target;
   const double along_profile = std::sqrt(per_point_area * 0.5);  // points within a profile
   const double between_profiles = per_point_area / along_profile;
   const double strip_width = 30.0;
@@ -66,6 +75,7 @@ SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params
   for (double x = x_split; x <= pp.half_length; x += params.grid_pitch) {
     for (double y = -pp.half_width; y <= pp.half_width; y += params.grid_pitch) {
       const int m = repeats(rng);
+      if (unit(rng) >= stereo_keep) continue;
       for (int k = 0; k < m; ++k)
         if (emit(x, y)) ++out.stereo_points;
     }

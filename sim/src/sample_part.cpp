@@ -57,19 +57,36 @@ double PanPart::thicknessStrain(double x, double y) const {
 }
 
 Vec3 PanPart::closestPoint(const Vec3& p) const {
-  // Minimise |p - (u, v, z(u, v))|^2 over (u, v), starting below p.
+  // Minimise E(u, v) = |p - (u, v, z(u, v))|^2 by Levenberg-Marquardt from the point below p. Plain
+  // Gauss-Newton crawls near the tight radii of the wall; the damping keeps every step downhill.
+  const auto energy = [&](double u, double v) { return (p - surfacePoint(u, v)).squaredNorm(); };
   double u = p.x(), v = p.y();
-  for (int it = 0; it < 30; ++it) {
+  double e = energy(u, v);
+  double lambda = 1e-3;
+  for (int it = 0; it < 200; ++it) {
     const double z = height(u, v);
     const Eigen::Vector2d g = gradient(u, v);
-    // Residual r = S(u, v) - p; Jacobian J = [[1, 0], [0, 1], [gx, gy]].
     const Vec3 r(u - p.x(), v - p.y(), z - p.z());
     Eigen::Matrix<double, 3, 2> J;
     J << 1, 0, 0, 1, g.x(), g.y();
-    const Eigen::Vector2d step = (J.transpose() * J).ldlt().solve(-J.transpose() * r);
-    u += step.x();
-    v += step.y();
-    if (step.norm() < 1e-10) break;
+    const Eigen::Matrix2d jtj = J.transpose() * J;
+    const Eigen::Vector2d jtr = J.transpose() * r;
+    bool improved = false;
+    for (int tries = 0; tries < 30 && !improved; ++tries) {
+      const Eigen::Vector2d step = (jtj + lambda * Eigen::Matrix2d::Identity()).ldlt().solve(-jtr);
+      const double e_new = energy(u + step.x(), v + step.y());
+      if (e_new < e) {
+        u += step.x();
+        v += step.y();
+        improved = step.norm() > 1e-13;
+        e = e_new;
+        lambda = std::max(lambda * 0.3, 1e-9);
+        if (!improved) break;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved || jtr.norm() < 1e-14) break;
   }
   return surfacePoint(u, v);
 }

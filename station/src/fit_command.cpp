@@ -12,6 +12,8 @@
 #include <tbb/global_control.h>
 
 #include <chrono>
+#include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
@@ -43,7 +45,7 @@ FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth,
     } catch (const std::exception&) {
       used = 0;
     }
-    if (used != bandwidth.size() || !(h > 0))
+    if (used != bandwidth.size() || !(h > 0) || !std::isfinite(h))
       throw std::invalid_argument("--bandwidth must be 'auto' or a positive length in mm, got '" + bandwidth + "'");
     params.bandwidth = h;
   }
@@ -113,8 +115,10 @@ CommandRunner addFitCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("fit", "Fit the WLS implicit surface to a cloud; one output point per input point");
   cmd->add_option("input", opt->input, "Input cloud (.ply, .xyz, .txt, .csv)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output, "Output PLY: x y z nx ny nz [strain]")->required();
-  cmd->add_option("--method", opt->method, "auto (default, most accurate) | euclidean | sig | gaussian")
-      ->check(CLI::IsMember({"auto", "euclidean", "sig", "gaussian"}));
+  cmd->add_option("--method", opt->method,
+                  "auto (default: adaptive quadric patches, most accurate) | apss (robust sphere fit at every "
+                  "point) | euclidean (paper Sec. 3.2) | sig (r-SIG, Sec. 3.3) | gaussian (Sec. 4)")
+      ->check(CLI::IsMember({"auto", "apss", "euclidean", "sig", "gaussian"}));
   cmd->add_option("--bandwidth", opt->bandwidth, "Kernel bandwidth h in mm, or 'auto' (default)");
   cmd->add_option("--sig-r", opt->sig_r, "r of the r-SIG (method sig), default 7")->check(CLI::Range(1, 64));
   cmd->add_option("--kernel", opt->kernel, "gaussian (default) | cubic, for methods euclidean and sig")
@@ -135,6 +139,14 @@ CommandRunner addFitCommand(CLI::App& app) {
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(opt->threads));
     const FitParams params = fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
+    // Check where the results go before the work: a missing folder should not cost a fit, and a
+    // failure after the first file is written would leave half a result.
+    for (const std::string& path : {opt->output, opt->mesh}) {
+      if (path.empty()) continue;
+      const std::filesystem::path parent = std::filesystem::absolute(path).parent_path();
+      if (!std::filesystem::is_directory(parent))
+        throw std::runtime_error(path + ": cannot write there: folder " + parent.string() + " does not exist");
+    }
     ReadReport read;
     const Cloud input = readCloud(opt->input, &read);
     if (!opt->quiet) std::printf("station fit %s\n", opt->input.c_str());

@@ -246,14 +246,19 @@ TEST(SampleCloud, StereoPointsComeInClustersOnTheGrid) {
       ASSERT_NEAR(steps, std::round(steps), 1e-6) << "cluster at " << c.xy.transpose();
     }
   }
-  // Consecutive clusters in a grid column are one pitch apart.
-  std::size_t neighbours = 0;
+  // Consecutive clusters in a grid column are a whole number of pitches apart (small targets keep
+  // only a share of the grid elements, as if fewer views were taken), most of them one pitch.
+  std::size_t neighbours = 0, adjacent = 0;
   for (std::size_t i = 1; i < clusters.size(); ++i) {
     if (clusters[i].xy.x() != clusters[i - 1].xy.x()) continue;
-    EXPECT_NEAR(clusters[i].xy.y() - clusters[i - 1].xy.y(), p.grid_pitch, 1e-9);
+    const double steps = (clusters[i].xy.y() - clusters[i - 1].xy.y()) / p.grid_pitch;
+    EXPECT_NEAR(steps, std::round(steps), 1e-9);
+    EXPECT_GE(std::round(steps), 1.0);
+    adjacent += std::round(steps) == 1.0;
     ++neighbours;
   }
   EXPECT_GT(neighbours, clusters.size() / 2);
+  EXPECT_GT(adjacent, neighbours / 4);
   // The stereo region is the +x end of the part.
   for (const StereoCluster& c : clusters) EXPECT_GT(c.xy.x(), 0.0);
 }

@@ -24,6 +24,7 @@
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/normals.hpp"
 #include "stampscan/fitting/projection.hpp"
+#include "stampscan/fitting/scalar_field.hpp"
 
 #include <functional>
 #include <map>
@@ -48,6 +49,9 @@ struct AnchoredParams {
   double tolerance = 1e-3;      // the projection stops when a step is below tolerance * h
   std::size_t min_points = 10;  // a fit needs at least this many points
   OrientationParams orientation;
+  // Smooth: the patches' linear strain fields, blended. Shepard: the paper's Eqs. (15)-(16) over the
+  // data around the projected point.
+  ScalarFieldType scalar = ScalarFieldType::Smooth;
 };
 
 struct AnchoredStats {
