@@ -678,17 +678,24 @@ Projection AnchoredSurface::Impl::checkedAgainstLocalFit(const Vec3& x, const Pr
   for (int attempt = 0; attempt < 5; ++attempt, h *= params.scale_step) {
     const auto fit = fitLocal(points, tree, strain, x, h, params.robust, params.min_points, scratch);
     if (!fit) continue;
+    const Vec3 foot = fit->surface.project(x);
+    // Only a local fit that keeps the point within a plausible noise excursion is taken.
+    if ((foot - x).norm() > 2.0 * kTrustedMoveSigmas * sigma) break;
     Projection local = blended;
-    local.point = fit->surface.project(x);
-    if ((local.point - x).norm() >= moved) return blended;  // the local fit agrees: keep the blend
-    const Vec3 n = fit->surface.normal(local.point);
+    local.point = foot;
+    const Vec3 n = fit->surface.normal(foot);
     local.normal = n.dot(blended.normal) < 0 ? Vec3(-n) : n;
-    if (strain && params.scalar == ScalarFieldType::Smooth)
-      local.scalar = fit->strain + fit->strain_gradient.dot(local.point - x);
+    if (strain && params.scalar == ScalarFieldType::Smooth) local.scalar = fit->strain + fit->strain_gradient.dot(foot - x);
     local.bandwidth = h;
     return local;
   }
-  return blended;
+  // Nothing here fits the data well enough to move the point by that much: the data are too sparse
+  // for the part's radii at this spot. The measured point is kept as it is, which is never worse
+  // than its own noise.
+  Projection kept = blended;
+  kept.point = x;
+  kept.converged = false;
+  return kept;
 }
 
 double AnchoredSurface::bandwidthAt(const Vec3& x) const { return impl_->h_field->at(x, 4); }
