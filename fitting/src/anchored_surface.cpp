@@ -27,6 +27,9 @@ constexpr double kSupport = 2.2;
 constexpr double kMinTangentSpread = 0.05;
 // Least share of its Gaussian weight a robust fit must keep (Tukey keeps ~90 % on clean data).
 constexpr double kMinKeptWeight = 0.4;
+// A point takes fine anchor cells where at least this share of the nearby probes were limited by
+// misfit rather than by their point count.
+constexpr double kFineShare = 0.25;
 // A blended projection that moves a data point by more than this many noise deviations is checked
 // against a fit centred at the point.
 constexpr double kTrustedMoveSigmas = 5.0;
@@ -244,7 +247,7 @@ struct AnchoredSurface::Impl {
     const double spacing = tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
     return spacing * h0 * std::pow(params.scale_step, tier / 2);
   }
-  bool fineAt(const Vec3& x) const { return h_field->interpolateOther(x, curvature_limited, 4) > 0.25; }
+  bool fineAt(const Vec3& x) const { return h_field->interpolateOther(x, curvature_limited, 4) > kFineShare; }
   int levelFor(double h) const {
     const int level = static_cast<int>(std::floor(std::log(std::max(h, h0) / h0) / std::log(params.scale_step) + 1e-9));
     return std::clamp(level, 0, levels - 1);
@@ -349,8 +352,8 @@ void AnchoredSurface::Impl::buildAnchors() {
   std::vector<std::pair<Key, std::uint32_t>> keyed(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const double h = h_field->at(points[i], 4);
-      keyed[i] = {keyFor(points[i], tierOf(levelFor(h), fineAt(points[i]))), static_cast<std::uint32_t>(i)};
+      const auto [h, limited] = h_field->atAndOther(points[i], curvature_limited, 4);
+      keyed[i] = {keyFor(points[i], tierOf(levelFor(h), limited > kFineShare)), static_cast<std::uint32_t>(i)};
     }
   });
   tbb::parallel_sort(keyed.begin(), keyed.end());

@@ -75,6 +75,10 @@ double BandwidthField::at(const Vec3& x, int neighbors) const {
 }
 
 double BandwidthField::interpolateOther(const Vec3& x, const std::vector<double>& other, int neighbors) const {
+  return atAndOther(x, other, neighbors).second;
+}
+
+std::pair<double, double> BandwidthField::atAndOther(const Vec3& x, const std::vector<double>& other, int neighbors) const {
   thread_local std::vector<Neighbor> near;
   tree_.knn(x, static_cast<std::size_t>(std::max(1, neighbors)), near);
   double sum_s = 0, sum_v = 0;
@@ -86,8 +90,8 @@ double BandwidthField::interpolateOther(const Vec3& x, const std::vector<double>
     sum_s += s;
     sum_v += s * other[nb.index];
   }
-  if (sum_s > 0) return sum_v / sum_s;
-  return near.empty() ? 0.0 : other[near.front().index];
+  const double value = sum_s > 0 ? sum_v / sum_s : (near.empty() ? 0.0 : other[near.front().index]);
+  return {interpolate(x, near), value};
 }
 
 std::vector<double> BandwidthField::smoothedAtPoints(int neighbors) const {

@@ -46,6 +46,7 @@ void sortUnique(std::vector<Key>& keys) {
 
 Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
   const ImplicitSurface& surface = fitted.surface();
+  const std::vector<Vec3>& data_points = fitted.input().positions;
   const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().bandwidth.median);
   if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
   const Bounds bounds = boundsOf(projected.positions);
@@ -94,7 +95,7 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
       const Vec3 x = cornerPosition(field.keys[i]);
       tree.knn(x, 1, near);
       if (near.empty()) continue;
-      const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 1.5 * cell);
+      const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 2.5 * cell);
       if (near[0].distance_sq > reach * reach) continue;
       field.values[i] = surface.signedDistance(x);
     }
@@ -149,6 +150,20 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
       CellVertex& cv = cell_vertices[i];
       // Keep the vertex inside its cell's neighbourhood: a projection that jumps away is not trusted.
       if ((p.point - sum / crossings).norm() > 2.0 * cell) continue;
+      // The field reaches a little past the data so that its sign is known on both sides of the
+      // surface; vertices stay where there are data (no extrapolation past edges and holes).
+      // Where the data are sparse (a stereo grid, dropouts on a steep wall) the reach grows with
+      // their spacing: half the distance from the nearest point to its 16th neighbour.
+      thread_local std::vector<Neighbor> nearest, spacing;
+      tree.knn(p.point, 1, nearest);
+      if (nearest.empty()) continue;
+      const double gap_sq = nearest[0].distance_sq;
+      double vertex_reach = std::max(0.5 * surface.bandwidthAt(p.point), cell);
+      if (gap_sq > vertex_reach * vertex_reach) {
+        tree.knn(data_points[nearest[0].index], 17, spacing);
+        vertex_reach = std::max(vertex_reach, 0.5 * std::sqrt(spacing.back().distance_sq));
+        if (gap_sq > vertex_reach * vertex_reach) continue;
+      }
       cv.present = true;
       cv.position = p.point;
       cv.normal = p.normal;

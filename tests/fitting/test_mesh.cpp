@@ -18,7 +18,7 @@ TEST(Mesh, SphereCapMeshLiesOnTheSurface) {
   ASSERT_EQ(mesh.vertices.strain.size(), mesh.vertices.size());
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Vec3& v = mesh.vertices.positions[i];
-    EXPECT_NEAR(v.norm(), 10.0, 0.02);
+    EXPECT_NEAR(v.norm(), 10.0, 0.02) << "vertex at polar angle " << std::acos(v.normalized().z());
     EXPECT_NEAR(mesh.vertices.strain[i], -0.05 * v.z() / 10.0, 0.005);
     EXPECT_GT(mesh.vertices.normals[i].dot(v.normalized()), 0.9);
   }

@@ -5,6 +5,7 @@
 #include "stampscan/fitting/cloud.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 
+#include <utility>
 #include <vector>
 
 namespace stampscan::fitting {
@@ -37,6 +38,8 @@ class BandwidthField {
   double at(const Vec3& x, int neighbors = 8) const;
   // Another per-point quantity (same order as the points) interpolated with the same weights.
   double interpolateOther(const Vec3& x, const std::vector<double>& other, int neighbors = 8) const;
+  // Both h(x) and the other quantity, from one neighbour search.
+  std::pair<double, double> atAndOther(const Vec3& x, const std::vector<double>& other, int neighbors = 8) const;
   // h at each input point, smoothed over its neighbours (computed in parallel).
   std::vector<double> smoothedAtPoints(int neighbors = 8) const;
 

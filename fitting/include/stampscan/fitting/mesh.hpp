@@ -14,7 +14,9 @@ namespace stampscan::fitting {
 
 struct MeshParams {
   std::optional<double> cell_size;  // mm; default: half the median bandwidth
-  // A corner is evaluated only when a data point lies within max(gap_factor * h, 1.5 cells) of it.
+  // A corner is evaluated only when a data point lies within max(gap_factor * h, 2.5 cells) of it
+  // (a cell through the surface has corners up to 1.7 cells from it);
+  // a vertex is kept only within max(h / 2, 1 cell, half the local point spacing) of a data point.
   double gap_factor = 1.0;
   std::function<void(const std::string& stage, double fraction)> progress;
 };
