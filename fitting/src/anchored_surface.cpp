@@ -20,7 +20,7 @@ namespace stampscan::fitting {
 namespace {
 constexpr double kTukeyC = 4.685;
 // Neighbours beyond this multiple of h are left out of a local fit: their Gaussian weight is below
-// exp(-4.84) = 0.8 %, and leaving them out saves a third of the work of the paper's 2.5 h.
+// exp(-4.84) = 0.8 %, and leaving them out saves a fifth of the work of the paper's 2.5 h.
 constexpr double kSupport = 2.2;
 // Least in-plane spread (in h^2) of a fit's neighbours; an evenly covered disk has 0.5, a half disk
 // at the edge of the data about 0.2.
@@ -560,10 +560,16 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     const Vec3 next = sum_p / sum_w;
     h_mean = sum_h / sum_w;
     const double step = (next - x).norm();
+    // The blended point lies among its feet on the patches; when they agree to within the
+    // tolerance, projecting it again cannot move it farther than that: converged without another
+    // round of projections.
+    double spread_sq = 0;
+    for (const Contribution& c : near) spread_sq += c.phi * (c.projected - next).squaredNorm();
+    const double tolerance = params.tolerance * h_mean;
     x = next;
     result.iterations = it;
     result.valid = true;
-    if (step < params.tolerance * h_mean) {
+    if (step < tolerance || spread_sq < tolerance * tolerance * sum_w) {
       result.converged = true;
       break;
     }

@@ -45,7 +45,7 @@ class RadiusCollector {
 
 struct KdTree::Impl {
   explicit Impl(const std::vector<Vec3>& points)
-      : adaptor{points}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
+      : adaptor{points}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
     tree.buildIndex();
   }
   PositionsAdaptor adaptor;

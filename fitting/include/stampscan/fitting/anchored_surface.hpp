@@ -39,7 +39,7 @@ struct AnchoredParams {
   double scale_step = 1.5;      // ratio between successive probe bandwidths and anchor levels
   int max_scales = 8;           // probe bandwidths tried: h_start * 1.5^(0..max_scales-1)
   double misfit_tolerance = 0.2;  // a wider h is rejected when it raises the residual variance by this
-  double max_effective_count = 200;  // h stops growing once this many points carry weight
+  double max_effective_count = 120;  // h stops growing once this many points carry weight
   std::size_t probe_stride = 64;  // one probe per this many points (in spatial order)
   double anchor_spacing = 2.0;  // anchor cell size as a multiple of h where the surface is smooth
   double fine_anchor_spacing = 1.0;  // the same where curvature limited h
