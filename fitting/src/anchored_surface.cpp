@@ -4,6 +4,8 @@
 #include "stampscan/fitting/local_fit.hpp"
 #include "stampscan/fitting/quadric_patch.hpp"
 
+#include "robust_patch_fit.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
@@ -17,178 +19,19 @@
 
 namespace stampscan::fitting {
 
+using detail::FitScratch;
+using detail::fitLocal;
+using detail::kSupport;
+using detail::LocalFit;
+using detail::median;
+
 namespace {
-constexpr double kTukeyC = 4.685;
-// Neighbours beyond this multiple of h are left out of a local fit: their Gaussian weight is below
-// exp(-4.84) = 0.8 %, and leaving them out saves a fifth of the work of the paper's 2.5 h.
-constexpr double kSupport = 2.2;
-// Least in-plane spread (in h^2) of a fit's neighbours; an evenly covered disk has 0.5, a half disk
-// at the edge of the data about 0.2.
-constexpr double kMinTangentSpread = 0.05;
-// Least share of its Gaussian weight a robust fit must keep (Tukey keeps ~90 % on clean data).
-constexpr double kMinKeptWeight = 0.4;
 // A point takes fine anchor cells where at least this share of the nearby probes were limited by
 // misfit rather than by their point count.
 constexpr double kFineShare = 0.25;
 // A blended projection that moves a data point by more than this many noise deviations is checked
 // against a fit centred at the point.
 constexpr double kTrustedMoveSigmas = 5.0;
-constexpr std::uint32_t kMinAnchorPoints = 1;
-
-// ---------------------------------------------------------------------------------------------
-// One robust local fit: quadric patch with Gaussian weights (Eq. (3)) around `centre`, refitted
-// with Tukey's biweight, plus the linear strain field in its tangent plane.
-struct LocalFit {
-  QuadricPatch surface;
-  double offset = 0;        // signed distance from the centre to the fitted surface, mm
-  double offset_sigma = 0;  // its standard deviation from the residuals and the effective count
-  double residual_variance = 0;  // weighted, corrected for the six fitted parameters
-  double effective_count = 0;    // (sum w)^2 / sum w^2
-  double strain = std::numeric_limits<double>::quiet_NaN();
-  Vec3 strain_gradient = Vec3::Zero();
-};
-
-double median(std::vector<double>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-struct FitScratch {
-  std::vector<Neighbor> near;
-  std::vector<double> weight;
-  std::vector<double> base_weight;
-  std::vector<double> residual;
-  std::vector<double> abs_residual;
-};
-
-std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
-                                 const Vec3& centre, double h, bool robust, std::size_t min_points, FitScratch& s) {
-  tree.radius(centre, kSupport * h, s.near);
-  if (s.near.size() < min_points) return std::nullopt;
-  const double h_sq = h * h;
-  s.weight.resize(s.near.size());
-  for (std::size_t k = 0; k < s.near.size(); ++k) s.weight[k] = gaussianWeightSq(s.near[k].distance_sq, h_sq);
-
-  // Tukey's biweight on the residuals from `reference`, applied to the Gaussian weights.
-  const auto reweight = [&](const auto& reference) {
-    s.residual.resize(s.near.size());
-    s.abs_residual.clear();
-    // The robust scale needs a median, not every residual: a stride keeps it to ~256 samples.
-    const std::size_t stride = 1 + s.near.size() / 256;
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      s.residual[k] = reference.signedDistance(points[s.near[k].index]);
-      // Every neighbour counts for the scale, whatever its weight: around an outlier the nearest
-      // (heaviest) points are the outliers themselves, the majority by count is the surface.
-      if (k % stride == 0) s.abs_residual.push_back(std::abs(s.residual[k]));
-    }
-    if (s.abs_residual.size() < min_points) return;
-    const double sigma = std::max(1.4826 * median(s.abs_residual), 1e-6 * h);
-    const double cutoff = kTukeyC * sigma;
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      const double r = s.residual[k] / cutoff;
-      s.weight[k] = s.base_weight[k] * (r * r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0);
-    }
-  };
-  const auto fitPlane = [&](bool uniform) {
-    WeightedSums sums(centre, h);
-    for (std::size_t k = 0; k < s.near.size(); ++k)
-      if (s.weight[k] > 0) sums.add(points[s.near[k].index], uniform ? 1.0 : s.weight[k]);
-    return LocalSurface::fitPlane(sums);
-  };
-  s.base_weight = s.weight;
-  // Eqs. (2), (6), (7): the weighted plane gives the frame, and with robust weighting the first
-  // residuals: a curved fit centred on an outlier can bend round it and make it look like an
-  // inlier; a plane cannot. The quadric is then fitted over the plane's frame and refitted with
-  // Tukey weights from its own residuals, which do not mistake curvature for outliers. The
-  // residuals of that first quadric also give the variance below: the refit moves them by far less
-  // than the noise.
-  std::optional<LocalSurface> plane = fitPlane(false);
-  // A surface needs neighbours spread in two directions: one cluster of repeated observations, or
-  // a single row, only looks like a good fit.
-  if (!plane || plane->tangentSpread() < kMinTangentSpread) return std::nullopt;
-  if (robust) {
-    // Outliers are first judged against a plane through the whole support with equal weights: a
-    // Gaussian centred on an outlier would give it the largest weight and pull the plane onto it.
-    if (const auto even = fitPlane(true)) reweight(*even);
-    plane = fitPlane(false);
-    if (!plane) return std::nullopt;
-  }
-  const auto fitQuadric = [&]() {
-    QuadricPatch::Sums sums(*plane, centre, h);
-    for (std::size_t k = 0; k < s.near.size(); ++k)
-      if (s.weight[k] > 0) sums.add(points[s.near[k].index], s.weight[k]);
-    return QuadricPatch::fit(sums);
-  };
-  std::optional<QuadricPatch> surface = fitQuadric();
-  if (!surface) return std::nullopt;
-  if (robust) {
-    reweight(*surface);
-    // A fit that keeps little of its Gaussian weight has followed a few points (a cluster of outliers
-    // under the centre) and thrown away the surface around them: not a fit of the surface.
-    double kept = 0, offered = 0;
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      kept += s.weight[k];
-      offered += s.base_weight[k];
-    }
-    if (kept < kMinKeptWeight * offered) return std::nullopt;
-    surface = fitQuadric();
-    if (!surface) return std::nullopt;
-  } else {
-    s.residual.resize(s.near.size());
-    for (std::size_t k = 0; k < s.near.size(); ++k) s.residual[k] = surface->signedDistance(points[s.near[k].index]);
-  }
-
-  LocalFit fit{*surface};
-  fit.offset = surface->signedDistance(centre);
-  // Standard deviation of the fitted offset: residual variance over the effective sample size
-  // (sum w)^2 / sum w^2, inflated by the six parameters of the quadric.
-  double sw = 0, sw2 = 0, swr2 = 0;
-  for (std::size_t k = 0; k < s.near.size(); ++k) {
-    const double w = s.weight[k];
-    sw += w;
-    sw2 += w * w;
-    swr2 += w * s.residual[k] * s.residual[k];
-  }
-  if (!(sw > 0)) return std::nullopt;
-  const double n_eff = sw * sw / sw2;
-  constexpr double kParameters = 6.0;  // of the quadric
-  if (n_eff < kParameters + 1.0) return std::nullopt;
-  const double var = swr2 / sw * n_eff / (n_eff - kParameters);
-  fit.offset_sigma = std::sqrt(var * kParameters / n_eff);
-  fit.residual_variance = var;
-  fit.effective_count = n_eff;
-
-  if (strain) {
-    // Linear strain field c0 + g.t in the tangent plane at the centre's foot point.
-    const Vec3 foot = surface->project(centre);
-    const Vec3 n = surface->normal(foot);
-    const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-    const Vec3 t1 = n.cross(helper).normalized(), t2 = n.cross(t1);
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      const double w = s.weight[k];
-      if (w <= 0) continue;
-      const Vec3 d = (points[s.near[k].index] - foot) / h;
-      const Eigen::Vector3d row(1.0, d.dot(t1), d.dot(t2));
-      A.noalias() += w * row * row.transpose();
-      b += w * (*strain)[s.near[k].index] * row;
-    }
-    A /= sw;
-    b /= sw;
-    if (A.determinant() > 1e-6) {
-      const Eigen::Vector3d c = A.ldlt().solve(b);
-      fit.strain = c(0);
-      fit.strain_gradient = (c(1) * t1 + c(2) * t2) / h;
-    } else {
-      fit.strain = b(0) / A(0, 0);
-    }
-    // Express the linear field about the centre so that evaluation needs no foot point.
-    fit.strain -= fit.strain_gradient.dot(foot - centre);
-  }
-  return fit;
-}
 
 // ---------------------------------------------------------------------------------------------
 // Sparse multi-level grid keys: level in the top bits, then three 19-bit cell coordinates.
@@ -226,7 +69,6 @@ struct AnchoredSurface::Impl {
     double h = 0;
     double cell = 0;  // cell size of its level
     bool valid = false;
-    bool skip = false;  // no point uses it (all moved to fuller cells): not fitted
     QuadricPatch surface;
     double strain = std::numeric_limits<double>::quiet_NaN();
     Vec3 strain_gradient = Vec3::Zero();
@@ -358,7 +200,6 @@ void AnchoredSurface::Impl::buildAnchors() {
   });
   tbb::parallel_sort(keyed.begin(), keyed.end());
   anchor_of_point.assign(n, 0);
-  std::vector<std::uint32_t> group_size(n, 0);  // per point: how many points share its cell
   for (std::size_t start = 0; start < n;) {
     std::size_t end = start;
     Vec3 sum = Vec3::Zero();
@@ -369,16 +210,10 @@ void AnchoredSurface::Impl::buildAnchors() {
     a.cell = cellSize(static_cast<int>(a.key >> (3 * kCellBits)));
     for (std::size_t k = start; k < end; ++k) {
       anchor_of_point[keyed[k].second] = static_cast<std::uint32_t>(anchors.size());
-      group_size[keyed[k].second] = static_cast<std::uint32_t>(end - start);
     }
     anchors.push_back(a);
     start = end;
   }
-  // A cell holding one or two points would centre a fit on them: if they are outliers, that fit
-  // bends through them. Such anchors are not fitted; their points blend the fits of the anchors
-  // around them (the candidate list of every anchor holds its neighbours).
-  for (std::size_t i = 0; i < n; ++i)
-    if (group_size[i] < kMinAnchorPoints) anchors[anchor_of_point[i]].skip = true;
 }
 
 void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
@@ -387,7 +222,6 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
     for (std::size_t a = range.begin(); a != range.end(); ++a) {
       Anchor& anchor = anchors[a];
       anchor.h = h_field->at(anchor.centre, 4);
-      if (anchor.skip) continue;
       // The noise floor the probes saw here.
       const double floor = h_field->interpolateOther(anchor.centre, noise_floor, 4);
       // A fit that fails (too few points, or too few kept) is retried wider, a few times, as long as
