@@ -200,6 +200,10 @@ void AnchoredSurface::Impl::buildAnchors() {
   });
   tbb::parallel_sort(keyed.begin(), keyed.end());
   anchor_of_point.assign(n, 0);
+  // Exactly one anchor per distinct cell: reserve them all, so the array never doubles.
+  std::size_t cells = 0;
+  for (std::size_t k = 0; k < n; ++k) cells += k == 0 || keyed[k].first != keyed[k - 1].first;
+  anchors.reserve(cells);
   for (std::size_t start = 0; start < n;) {
     std::size_t end = start;
     Vec3 sum = Vec3::Zero();
@@ -260,31 +264,42 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
 
 void AnchoredSurface::Impl::linkAnchors() {
   // Candidates for blending at a point of anchor a's cell: every anchor whose support could reach
-  // that cell, found once per anchor (an anchor one level coarser has a support 1.5x wider).
+  // that cell, found once per anchor (an anchor one level coarser has a support 1.5x wider). The
+  // lists go straight into one array: a first pass counts, a second fills each anchor's slice, so
+  // no per-anchor vectors double the peak memory.
   std::vector<Vec3> centres(anchors.size());
   for (std::size_t a = 0; a < anchors.size(); ++a) centres[a] = anchors[a].centre;
   const KdTree anchor_tree(centres);
-  std::vector<std::vector<std::uint32_t>> lists(anchors.size());
+  const auto candidates = [&](std::size_t a, std::vector<Neighbor>& near, auto&& emit) {
+    const double reach = (params.blend_radius * params.scale_step + std::sqrt(3.0)) * anchors[a].cell;
+    anchor_tree.radius(anchors[a].centre, reach, near, /*sorted=*/true);
+    emit(static_cast<std::uint32_t>(a));
+    // Keep b only if its support (see blend) can reach a point of a's cell.
+    for (const Neighbor& nb : near) {
+      if (nb.index == a) continue;
+      const Anchor& b = anchors[nb.index];
+      const double support = params.blend_radius * std::min(b.cell, b.h) + std::sqrt(3.0) * anchors[a].cell;
+      if (nb.distance_sq <= support * support) emit(nb.index);
+    }
+  };
+  adjacency_offset.assign(anchors.size() + 1, 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 64), [&](const auto& range) {
     std::vector<Neighbor> near;
     for (std::size_t a = range.begin(); a != range.end(); ++a) {
-      const double reach = (params.blend_radius * params.scale_step + std::sqrt(3.0)) * anchors[a].cell;
-      anchor_tree.radius(anchors[a].centre, reach, near, /*sorted=*/true);
-      auto& list = lists[a];
-      list.push_back(static_cast<std::uint32_t>(a));
-      // Keep b only if its support (see blend) can reach a point of a's cell.
-      for (const Neighbor& nb : near) {
-        if (nb.index == a) continue;
-        const Anchor& b = anchors[nb.index];
-        const double support = params.blend_radius * std::min(b.cell, b.h) + std::sqrt(3.0) * anchors[a].cell;
-        if (nb.distance_sq <= support * support) list.push_back(nb.index);
-      }
+      std::size_t count = 0;
+      candidates(a, near, [&](std::uint32_t) { ++count; });
+      adjacency_offset[a + 1] = count;
     }
   });
-  adjacency_offset.assign(anchors.size() + 1, 0);
-  for (std::size_t a = 0; a < anchors.size(); ++a) adjacency_offset[a + 1] = adjacency_offset[a] + lists[a].size();
-  adjacency.reserve(adjacency_offset.back());
-  for (auto& list : lists) adjacency.insert(adjacency.end(), list.begin(), list.end());
+  for (std::size_t a = 0; a < anchors.size(); ++a) adjacency_offset[a + 1] += adjacency_offset[a];
+  adjacency.resize(adjacency_offset.back());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 64), [&](const auto& range) {
+    std::vector<Neighbor> near;
+    for (std::size_t a = range.begin(); a != range.end(); ++a) {
+      std::size_t at = adjacency_offset[a];
+      candidates(a, near, [&](std::uint32_t b) { adjacency[at++] = b; });
+    }
+  });
 }
 
 std::size_t AnchoredSurface::Impl::orientAnchors() {
