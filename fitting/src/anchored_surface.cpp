@@ -265,8 +265,7 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
 void AnchoredSurface::Impl::linkAnchors() {
   // Candidates for blending at a point of anchor a's cell: every anchor whose support could reach
   // that cell, found once per anchor (an anchor one level coarser has a support 1.5x wider). The
-  // lists go straight into one array: a first pass counts, a second fills each anchor's slice, so
-  // no per-anchor vectors double the peak memory.
+  // lists end up in one array (no per-anchor vectors, whose slack would double the memory).
   std::vector<Vec3> centres(anchors.size());
   for (std::size_t a = 0; a < anchors.size(); ++a) centres[a] = anchors[a].centre;
   const KdTree anchor_tree(centres);
@@ -282,24 +281,26 @@ void AnchoredSurface::Impl::linkAnchors() {
       if (nb.distance_sq <= support * support) emit(nb.index);
     }
   };
+  // Blocks of anchors are listed in parallel, each into its own buffer, then stitched in order.
+  constexpr std::size_t kBlock = 256;
+  const std::size_t blocks = (anchors.size() + kBlock - 1) / kBlock;
+  std::vector<std::vector<std::uint32_t>> block_lists(blocks);
   adjacency_offset.assign(anchors.size() + 1, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 64), [&](const auto& range) {
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t block) {
     std::vector<Neighbor> near;
-    for (std::size_t a = range.begin(); a != range.end(); ++a) {
-      std::size_t count = 0;
-      candidates(a, near, [&](std::uint32_t) { ++count; });
-      adjacency_offset[a + 1] = count;
+    auto& list = block_lists[block];
+    for (std::size_t a = block * kBlock; a < std::min(anchors.size(), (block + 1) * kBlock); ++a) {
+      const std::size_t before = list.size();
+      candidates(a, near, [&](std::uint32_t b) { list.push_back(b); });
+      adjacency_offset[a + 1] = list.size() - before;
     }
   });
   for (std::size_t a = 0; a < anchors.size(); ++a) adjacency_offset[a + 1] += adjacency_offset[a];
-  adjacency.resize(adjacency_offset.back());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 64), [&](const auto& range) {
-    std::vector<Neighbor> near;
-    for (std::size_t a = range.begin(); a != range.end(); ++a) {
-      std::size_t at = adjacency_offset[a];
-      candidates(a, near, [&](std::uint32_t b) { adjacency[at++] = b; });
-    }
-  });
+  adjacency.reserve(adjacency_offset.back());
+  for (auto& list : block_lists) {
+    adjacency.insert(adjacency.end(), list.begin(), list.end());
+    std::vector<std::uint32_t>().swap(list);
+  }
 }
 
 std::size_t AnchoredSurface::Impl::orientAnchors() {

@@ -39,7 +39,7 @@ class QuadricPatch {
   // terms are damped towards the plane (a small ridge), never left undetermined.
   static std::optional<QuadricPatch> fit(const Sums& sums);
 
-  // Closest point of the patch to x (Gauss-Newton on the height field, a few steps).
+  // Closest point of the patch to x (Gauss-Newton on the height field, two steps).
   Vec3 project(const Vec3& x) const;
   // Unit normal at the patch point above/below x, on the side of the frame normal.
   Vec3 normal(const Vec3& x) const;
