@@ -5,6 +5,7 @@
 #include "stampscan/fitting/quadric_patch.hpp"
 
 #include "robust_patch_fit.hpp"
+#include "spanning_orientation.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,7 +16,6 @@
 #include <cmath>
 #include <limits>
 #include <optional>
-#include <queue>
 
 namespace stampscan::fitting {
 
@@ -304,52 +304,24 @@ void AnchoredSurface::Impl::linkAnchors() {
 }
 
 std::size_t AnchoredSurface::Impl::orientAnchors() {
-  // Same rule as for point normals: a spanning tree over the anchor graph, best-aligned first; each
-  // connected piece then faces the sensor side on average.
+  // Same rule as for point normals (spanning_orientation.hpp), over the anchor graph; the nearest
+  // dozen candidates of each anchor (its list is sorted by distance) suffice to carry the sign.
   const std::size_t m = anchors.size();
   std::vector<Vec3> normal(m, Vec3::UnitZ());
-  for (std::size_t a = 0; a < m; ++a)
-    if (anchors[a].valid) normal[a] = anchors[a].surface.normal(anchors[a].surface.project(anchors[a].centre));
-  std::vector<std::uint8_t> done(m, 0);
-  std::vector<std::uint32_t> members;
-  std::size_t components = 0;
-  using Item = std::pair<double, std::uint32_t>;
-  std::priority_queue<Item> queue;
-  const OrientationParams& o = params.orientation;
-  for (std::size_t seed = 0; seed < m; ++seed) {
-    if (done[seed] || !anchors[seed].valid) continue;
-    ++components;
-    members.clear();
-    queue.push({2.0, static_cast<std::uint32_t>(seed)});
-    while (!queue.empty()) {
-      const std::uint32_t v = queue.top().second;
-      queue.pop();
-      if (done[v]) continue;
-      done[v] = 1;
-      members.push_back(v);
-      // The nearest dozen anchors suffice to carry the orientation (the lists are sorted by distance).
-      const std::size_t last = std::min(adjacency_offset[v + 1], adjacency_offset[v] + 13);
-      for (std::size_t e = adjacency_offset[v] + 1; e < last; ++e) {
-        const std::uint32_t w = adjacency[e];
-        if (done[w] || !anchors[w].valid) continue;
-        double dot = normal[v].dot(normal[w]);
-        if (dot < 0) {
-          anchors[w].surface.flip();
-          normal[w] = -normal[w];
-          dot = -dot;
-        }
-        queue.push({dot, w});
-      }
-    }
-    double facing = 0;
-    for (std::uint32_t v : members) {
-      const Vec3 towards = o.mode == OrientationMode::TowardsViewpoint ? Vec3(o.viewpoint - anchors[v].centre) : o.direction;
-      facing += normal[v].dot(towards.normalized());
-    }
-    if (facing < 0)
-      for (std::uint32_t v : members) anchors[v].surface.flip();
+  std::vector<std::uint8_t> usable(m, 0);
+  for (std::size_t a = 0; a < m; ++a) {
+    if (!anchors[a].valid) continue;
+    usable[a] = 1;
+    normal[a] = anchors[a].surface.normal(anchors[a].surface.project(anchors[a].centre));
   }
-  return components;
+  const OrientationParams& o = params.orientation;
+  return detail::orientOverGraph(
+      normal, adjacency_offset, adjacency, 13, &usable,
+      [&](std::uint32_t v) {
+        return o.mode == OrientationMode::TowardsViewpoint ? Vec3((o.viewpoint - anchors[v].centre).normalized())
+                                                           : Vec3(o.direction.normalized());
+      },
+      [&](std::uint32_t v) { anchors[v].surface.flip(); });
 }
 
 Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const {

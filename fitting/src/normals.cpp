@@ -3,12 +3,13 @@
 #include "stampscan/fitting/kernels.hpp"
 #include "stampscan/fitting/local_fit.hpp"
 
+#include "spanning_orientation.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
-#include <queue>
 
 namespace stampscan::fitting {
 
@@ -80,45 +81,10 @@ OrientationReport propagate(const std::vector<Vec3>& points, PointNormals& pn, c
     }
   std::vector<std::uint32_t>().swap(pn.graph);
 
-  // Prim's spanning tree on 1 - |n_i . n_j|: the priority is the alignment, processed best first.
-  // Ties break on the index so the result does not depend on anything but the input.
-  std::vector<std::uint8_t> done(n, 0);
-  std::vector<std::uint32_t> component_members;
-  using Item = std::pair<float, std::uint32_t>;  // (alignment, vertex)
-  std::priority_queue<Item> queue;
-  const Vec3f dir = direction.cast<float>();
-  for (std::size_t seed = 0; seed < n; ++seed) {
-    if (done[seed]) continue;
-    ++report.components;
-    component_members.clear();
-    queue.push({2.0f, static_cast<std::uint32_t>(seed)});
-    while (!queue.empty()) {
-      const std::uint32_t v = queue.top().second;
-      queue.pop();
-      if (done[v]) continue;
-      done[v] = 1;
-      component_members.push_back(v);
-      const Vec3f& nv = pn.normals[v];
-      for (std::size_t e = offset[v]; e < offset[v + 1]; ++e) {
-        const std::uint32_t w = adjacency[e];
-        if (done[w]) continue;
-        // Orient w like its best-aligned settled neighbour: flip now if it disagrees with v; if a
-        // better-aligned neighbour settles it first, that one decides (w is re-flipped below).
-        float dot = nv.dot(pn.normals[w]);
-        if (dot < 0) {
-          pn.normals[w] = -pn.normals[w];
-          ++report.flipped;
-          dot = -dot;
-        }
-        queue.push({dot, w});
-      }
-    }
-    // The spanning tree fixes signs relative to the seed; make the piece face `direction` on average.
-    double facing = 0;
-    for (std::uint32_t v : component_members) facing += pn.normals[v].dot(dir);
-    if (facing < 0)
-      for (std::uint32_t v : component_members) pn.normals[v] = -pn.normals[v];
-  }
+  const Vec3 dir = direction.normalized();
+  report.components = detail::orientOverGraph(
+      pn.normals, offset, adjacency, adjacency.size(), nullptr, [&](std::uint32_t) { return dir; },
+      [&](std::uint32_t) { ++report.flipped; });
   return report;
 }
 }  // namespace
