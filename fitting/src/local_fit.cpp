@@ -14,17 +14,6 @@ void WeightedSums::add(const Vec3& p, double w) {
   wpp_.noalias() += w * q * q.transpose();
 }
 
-void WeightedSums::add(const Vec3& p, const Vec3& n, double w) {
-  const Vec3 q = (p - origin_) * inv_scale_;
-  ++count_;
-  w_ += w;
-  wp_ += w * q;
-  wpp_.noalias() += w * q * q.transpose();
-  wn_ += w * n;
-  wqn_ += w * q.dot(n);
-  has_normals_ = true;
-}
-
 std::optional<LocalSurface> LocalSurface::fitPlane(const WeightedSums& s) {
   if (!(s.w_ > 0)) return std::nullopt;
   LocalSurface surface;
@@ -49,48 +38,6 @@ std::optional<LocalSurface> LocalSurface::fitPlane(const WeightedSums& s) {
   surface.u0_ = -n.dot(mean_local);
   surface.uq_ = 0;
   surface.mean_ = s.origin_ + mean_local * surface.scale_;
-  return surface;
-}
-
-std::optional<LocalSurface> LocalSurface::fitSphere(const WeightedSums& s) {
-  if (!(s.w_ > 0)) return std::nullopt;
-  if (!s.has_normals_) return fitPlane(s);
-  LocalSurface surface;
-  surface.origin_ = s.origin_;
-  surface.scale_ = s.scale();
-  surface.kind_ = Kind::Sphere;
-  const double inv_w = 1.0 / s.w_;
-  const Vec3 mean_p = s.wp_ * inv_w;
-  const Vec3 mean_n = s.wn_ * inv_w;
-  surface.mean_ = s.origin_ + mean_p * surface.scale_;
-  surface.variation_ = 0;
-  const double spread = s.wpp_.trace() * inv_w - mean_p.squaredNorm();
-  if (!(spread > 1e-14)) return std::nullopt;  // coincident points only
-  // APSS closed form: uq = 1/2 (<q.n> - <q>.<n>) / (<q.q> - <q>.<q>), ul = <n> - 2 uq <q>,
-  // u0 = -(ul.<q> + uq <q.q>), with <.> the weighted mean.
-  if (spread > 1e-12) {
-    surface.uq_ = 0.5 * (s.wqn_ * inv_w - mean_p.dot(mean_n)) / spread;
-  } else {
-    surface.uq_ = 0;  // all points coincide: no curvature information, keep the tangent plane
-  }
-  surface.ul_ = mean_n - 2.0 * surface.uq_ * mean_p;
-  surface.u0_ = -(surface.ul_.dot(mean_p) + surface.uq_ * s.wpp_.trace() * inv_w);
-  const double ul_norm = surface.ul_.norm();
-  if (!(ul_norm > 1e-12) || !std::isfinite(surface.uq_)) return fitPlane(s);
-  // Normalise so that |grad s| = 1 on the surface (Pratt's normalisation: |ul|^2 - 4 u0 uq = 1).
-  const double pratt = surface.ul_.squaredNorm() - 4.0 * surface.u0_ * surface.uq_;
-  if (!(pratt > 1e-24)) return fitPlane(s);
-  const double k = 1.0 / std::sqrt(pratt);
-  surface.u0_ *= k;
-  surface.ul_ *= k;
-  surface.uq_ *= k;
-  // A nearly flat sphere is numerically a plane; treat it as one to avoid dividing by uq ~ 0.
-  if (std::abs(surface.uq_) < 1e-9) {
-    surface.uq_ = 0;
-    const double n = surface.ul_.norm();
-    surface.u0_ /= n;
-    surface.ul_ /= n;
-  }
   return surface;
 }
 

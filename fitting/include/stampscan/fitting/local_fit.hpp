@@ -1,6 +1,6 @@
 // Local weighted fits at the heart of the WLS projection: the paper's plane (Eqs. (1), (2), (6), (7))
-// and, beyond the paper, an algebraic sphere (Guennebaud & Gross, "Algebraic Point Set Surfaces",
-// 2007) that follows curvature and so removes the plane fit's shrinkage at peaks.
+// and, beyond the paper, an algebraic sphere (Pratt 1987; as used by Guennebaud & Gross, "Algebraic
+// Point Set Surfaces", 2007) that follows curvature and so removes the plane fit's shrinkage at peaks.
 //
 // All fits work in a local frame centred at `origin` and scaled by 1/scale, which keeps the sums well
 // conditioned whatever the part's coordinates.
@@ -17,9 +17,8 @@ class WeightedSums {
  public:
   WeightedSums(const Vec3& origin, double scale) : origin_(origin), inv_scale_(1.0 / scale) {}
 
-  // Adds point p with weight w (and its unit normal n, needed only by the sphere fit).
+  // Adds point p with weight w.
   void add(const Vec3& p, double w);
-  void add(const Vec3& p, const Vec3& n, double w);
 
   double weightSum() const { return w_; }
   std::size_t count() const { return count_; }
@@ -34,9 +33,6 @@ class WeightedSums {
   double w_ = 0;           // sum w
   Vec3 wp_ = Vec3::Zero();  // sum w q          (q = local coordinates)
   Eigen::Matrix3d wpp_ = Eigen::Matrix3d::Zero();  // sum w q q^T
-  Vec3 wn_ = Vec3::Zero();  // sum w n
-  double wqn_ = 0;          // sum w q.n
-  bool has_normals_ = false;
 };
 
 // Weighted moments of v = (1, q, |q|^2) over a neighbourhood, for fitting an algebraic sphere to
@@ -70,9 +66,6 @@ class LocalSurface {
   // weighted covariance. Returns nothing when the weights sum to zero or all weighted points
   // coincide (no plane is defined by repeated observations of one spot).
   static std::optional<LocalSurface> fitPlane(const WeightedSums& sums);
-  // Algebraic sphere fitted to positions and normals (APSS closed form). Nothing when the points
-  // have no spread.
-  static std::optional<LocalSurface> fitSphere(const WeightedSums& sums);
 
   // Algebraic sphere s(q) = u0 + ul.q + uq |q|^2 minimising sum w s(q_i)^2 under Pratt's
   // normalisation |ul|^2 - 4 u0 uq = 1 (so s is close to the signed distance and planes are the
@@ -91,8 +84,7 @@ class LocalSurface {
   Kind kind() const { return kind_; }
   // Orthogonal projection of x onto the fitted surface (world coordinates).
   Vec3 project(const Vec3& x) const;
-  // Unit normal at (or near) x: the gradient of s, oriented like the input normals (sphere) or
-  // the smallest-covariance direction (plane, sign arbitrary until oriented).
+  // Unit normal at (or near) x: the gradient of s (its sign is arbitrary until oriented).
   Vec3 normal(const Vec3& x) const;
   // Signed distance of x from the surface along the normal (first-order for the sphere); for the
   // plane this is -f of Eq. (1): n.(x - a).
