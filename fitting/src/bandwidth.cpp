@@ -68,9 +68,10 @@ double BandwidthField::interpolate(const Vec3& /*x*/, const std::vector<Neighbor
   return near.empty() ? 0.0 : values_[near.front().index];
 }
 
-double BandwidthField::at(const Vec3& x, int neighbors) const {
+double BandwidthField::at(const Vec3& x, int neighbors, std::uint32_t* nearest) const {
   thread_local std::vector<Neighbor> near;
   tree_.knn(x, static_cast<std::size_t>(std::max(1, neighbors)), near);
+  if (nearest && !near.empty()) *nearest = near.front().index;
   return interpolate(x, near);
 }
 

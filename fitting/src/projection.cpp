@@ -37,34 +37,16 @@ WlsSurface::WlsSurface(const SurfaceData& data, const ProjectionParams& params) 
 }
 
 Projection WlsSurface::projectPoint(std::size_t i) const {
-  return run((*data_.points)[i], static_cast<std::uint32_t>(i), (*data_.bandwidths)[i]);
+  return run((*data_.points)[i], static_cast<std::uint32_t>(i), data_.bandwidths->values()[i]);
 }
 
-double WlsSurface::bandwidthAt(const Vec3& x) const {
-  std::uint32_t nearest = 0;
-  return interpolatedBandwidth(x, &nearest);
-}
-
-double WlsSurface::interpolatedBandwidth(const Vec3& x, std::uint32_t* nearest) const {
-  thread_local std::vector<Neighbor> near;
-  data_.tree->knn(x, 8, near);
-  if (near.empty()) return 0;
-  *nearest = near.front().index;
-  // Shepard's interpolant of the per-point bandwidths, Eqs. (9) and (13), weights as Eq. (14).
-  double sum_s = 0, sum_sh = 0;
-  for (const Neighbor& nb : near) {
-    const double hi = (*data_.bandwidths)[nb.index];
-    const double hi_sq = hi * hi;
-    const double s = gaussianWeightSq(nb.distance_sq, hi_sq) / (nb.distance_sq + 0.01 * hi_sq);
-    sum_s += s;
-    sum_sh += s * hi;
-  }
-  return sum_s > 0 ? sum_sh / sum_s : (*data_.bandwidths)[near.front().index];
-}
+double WlsSurface::bandwidthAt(const Vec3& x) const { return data_.bandwidths->at(x); }
 
 Projection WlsSurface::project(const Vec3& x) const {
+  // h(x) by Shepard's interpolant of the per-point bandwidths (Eqs. (9), (13)); the nearest data
+  // point anchors the data-to-data and graph kernels.
   std::uint32_t nearest = 0;
-  const double h = interpolatedBandwidth(x, &nearest);
+  const double h = data_.bandwidths->at(x, 8, &nearest);
   if (!(h > 0)) return Projection{x, Vec3::UnitZ(), std::numeric_limits<double>::quiet_NaN(), 0, 0, false, false, 0};
   return run(x, nearest, h);
 }

@@ -88,21 +88,21 @@ FittedSurface::FittedSurface(const Cloud& input, const FitParams& params) : inpu
   for (double& h : raw)
     if (!(h > 0)) h = 0;  // isolated duplicates: replaced by the interpolant below
   if (params.bandwidth && params.method != FitMethod::Gaussian) {
-    bandwidths_ = std::move(raw);
+    bandwidths_ = std::make_unique<BandwidthField>(points, *tree_, std::move(raw));
   } else {
-    // A zero h_i (all r neighbours coincide) carries no scale information; give it the largest
-    // neighbour's value before smoothing, so it does not pull the interpolant to zero.
-    BandwidthField field(points, *tree_, std::move(raw));
-    bandwidths_ = field.smoothedAtPoints();
+    // A zero h_i (all r neighbours coincide) carries no scale information: the interpolant leaves
+    // it out, so it cannot pull h towards zero.
+    std::vector<double> smoothed = BandwidthField(points, *tree_, std::move(raw)).smoothedAtPoints();
     const double floor = 1e-6 * boundsOf(points).diagonal();
-    for (double& h : bandwidths_) h = std::max(h, floor);
+    for (double& h : smoothed) h = std::max(h, floor);
+    bandwidths_ = std::make_unique<BandwidthField>(points, *tree_, std::move(smoothed));
   }
-  prep_stats_.bandwidth = summarize(bandwidths_);
+  prep_stats_.bandwidth = summarize(bandwidths_->values());
   prep_stats_.stage_seconds["bandwidth"] = secondsSince(t0);
   if (params.progress) params.progress("bandwidth", 1.0);
 
   t0 = Clock::now();
-  normals_ = estimateNormals(points, *tree_, bandwidths_);
+  normals_ = estimateNormals(points, *tree_, bandwidths_->values());
   prep_stats_.stage_seconds["normals"] = secondsSince(t0);
   t0 = Clock::now();
   const OrientationReport orientation = orientNormals(points, normals_, params.orientation);
@@ -133,7 +133,7 @@ FittedSurface::FittedSurface(const Cloud& input, const FitParams& params) : inpu
   SurfaceData data;
   data.points = &points;
   data.tree = tree_.get();
-  data.bandwidths = &bandwidths_;
+  data.bandwidths = bandwidths_.get();
   data.normals = &normals_.normals;
   data.graph = graph_.get();
   data.scalar = input.hasStrain() ? &input.strain : nullptr;

@@ -34,8 +34,9 @@ class BandwidthField {
   BandwidthField(const std::vector<Vec3>& points, const KdTree& tree, std::vector<double> values,
                  Mean mean = Mean::Arithmetic);
 
-  // h(x) from the `neighbors` nearest points' h_i.
-  double at(const Vec3& x, int neighbors = 8) const;
+  // h(x) from the `neighbors` nearest points' h_i; `nearest`, when given, receives the index of
+  // the point nearest to x.
+  double at(const Vec3& x, int neighbors = 8, std::uint32_t* nearest = nullptr) const;
   // Another per-point quantity (same order as the points) interpolated with the same weights.
   double interpolateOther(const Vec3& x, const std::vector<double>& other, int neighbors = 8) const;
   // Both h(x) and the other quantity, from one neighbour search.

@@ -14,6 +14,7 @@
 // Thread safety: projection is const and safe from many threads at once.
 #pragma once
 
+#include "stampscan/fitting/bandwidth.hpp"
 #include "stampscan/fitting/cloud.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/kernels.hpp"
@@ -71,7 +72,7 @@ class ImplicitSurface {
 struct SurfaceData {
   const std::vector<Vec3>* points = nullptr;
   const KdTree* tree = nullptr;
-  const std::vector<double>* bandwidths = nullptr;  // h at each data point (already smoothed)
+  const BandwidthField* bandwidths = nullptr;       // h at each data point (already smoothed)
   const std::vector<Vec3f>* normals = nullptr;      // oriented; give the fitted normals their sign
   const SigGraph* graph = nullptr;                  // required by WeightScheme::GraphDistance
   const std::vector<double>* scalar = nullptr;      // optional strain per point
@@ -94,7 +95,6 @@ class WlsSurface : public ImplicitSurface {
 
  private:
   Projection run(const Vec3& start, std::uint32_t anchor, double h) const;
-  double interpolatedBandwidth(const Vec3& x, std::uint32_t* nearest) const;
   SurfaceData data_;
   ProjectionParams params_;
 };

@@ -82,7 +82,7 @@ class FittedSurface {
   const Cloud& input_;
   FitParams params_;
   std::unique_ptr<KdTree> tree_;
-  std::vector<double> bandwidths_;
+  std::unique_ptr<BandwidthField> bandwidths_;  // h at each point, and h(x) between them
   PointNormals normals_;
   std::unique_ptr<SigGraph> graph_;
   std::unique_ptr<ImplicitSurface> surface_;
