@@ -7,14 +7,7 @@
 namespace stampscan::fitting {
 
 QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double scale)
-    : origin_(origin), inv_scale_(1.0 / scale) {
-  const Vec3 n = plane.normal(origin);
-  const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-  const Vec3 t1 = n.cross(helper).normalized();
-  frame_.col(0) = t1;
-  frame_.col(1) = n.cross(t1);
-  frame_.col(2) = n;
-}
+    : origin_(origin), inv_scale_(1.0 / scale), frame_(frameAround(plane.normal(origin))) {}
 
 void QuadricPatch::Sums::add(const Vec3& p, double w) {
   const Vec3 d = (p - origin_) * inv_scale_;

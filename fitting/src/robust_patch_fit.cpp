@@ -2,8 +2,7 @@
 
 #include "stampscan/fitting/kernels.hpp"
 #include "stampscan/fitting/local_fit.hpp"
-
-#include <Eigen/Dense>
+#include "stampscan/fitting/scalar_field.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -124,30 +123,16 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
   fit.effective_count = n_eff;
 
   if (strain) {
-    // Linear strain field c0 + g.t in the tangent plane at the centre's foot point.
+    // Linear strain field c0 + g.t in the tangent plane at the centre's foot point, with the
+    // fit's weights (the smooth scalar field of scalar_field.hpp).
     const Vec3 foot = surface->project(centre);
-    const Vec3 n = surface->normal(foot);
-    const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-    const Vec3 t1 = n.cross(helper).normalized(), t2 = n.cross(t1);
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      const double w = s.weight[k];
-      if (w <= 0) continue;
-      const Vec3 d = (points[s.near[k].index] - foot) / h;
-      const Eigen::Vector3d row(1.0, d.dot(t1), d.dot(t2));
-      A.noalias() += w * row * row.transpose();
-      b += w * (*strain)[s.near[k].index] * row;
-    }
-    A /= sw;
-    b /= sw;
-    if (A.determinant() > 1e-6) {
-      const Eigen::Vector3d c = A.ldlt().solve(b);
-      fit.strain = c(0);
-      fit.strain_gradient = (c(1) * t1 + c(2) * t2) / h;
-    } else {
-      fit.strain = b(0) / A(0, 0);
-    }
+    s.samples.clear();
+    for (std::size_t k = 0; k < s.near.size(); ++k)
+      if (s.weight[k] > 0) s.samples.push_back({points[s.near[k].index], (*strain)[s.near[k].index], s.weight[k]});
+    const auto field = fitTangentLinear(foot, surface->normal(foot), s.samples);
+    if (!field) return std::nullopt;
+    fit.strain = field->value;
+    fit.strain_gradient = field->gradient;
     // Express the linear field about the centre so that evaluation needs no foot point.
     fit.strain -= fit.strain_gradient.dot(foot - centre);
   }

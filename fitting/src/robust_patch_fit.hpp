@@ -5,6 +5,7 @@
 
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/quadric_patch.hpp"
+#include "stampscan/fitting/scalar_field.hpp"
 
 #include <limits>
 #include <optional>
@@ -33,6 +34,7 @@ struct FitScratch {
   std::vector<double> base_weight;
   std::vector<double> residual;
   std::vector<double> abs_residual;
+  std::vector<ScalarSample> samples;
 };
 
 // Median of v (reorders v). v must not be empty.

@@ -30,37 +30,43 @@ double shepardScalar(const Vec3& x, const std::vector<ScalarSample>& samples, do
   return sum_w > 0 ? sum_wc / sum_w : std::numeric_limits<double>::quiet_NaN();  // Eq. (15)
 }
 
-double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples) {
-  // Tangent basis (t1, t2) of the plane through x.
-  const Vec3 helper = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-  const Vec3 t1 = n.cross(helper).normalized();
-  const Vec3 t2 = n.cross(t1);
-  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d b = Eigen::Vector3d::Zero();
-  double sum_w = 0, sum_wc = 0, scale_sq = 0;
+std::optional<LinearScalar> fitTangentLinear(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples) {
+  const Eigen::Matrix3d frame = frameAround(n);
+  const Vec3 t1 = frame.col(0), t2 = frame.col(1);
+  // The samples' spread sets the scale of the tangent coordinates, for conditioning.
+  double sum_w = 0, sum_wc = 0, spread_sq = 0;
   for (const ScalarSample& s : samples) {
     if (!(s.weight > 0)) continue;
-    const Vec3 d = s.position - x;
+    sum_w += s.weight;
+    sum_wc += s.weight * s.value;
+    spread_sq += s.weight * (s.position - x).squaredNorm();
+  }
+  if (!(sum_w > 0)) return std::nullopt;
+  LinearScalar field{sum_wc / sum_w, Vec3::Zero()};
+  const double scale = std::sqrt(spread_sq / sum_w);
+  if (!(scale > 0)) return field;
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const ScalarSample& s : samples) {
+    if (!(s.weight > 0)) continue;
+    const Vec3 d = (s.position - x) / scale;
     const Eigen::Vector3d row(1.0, d.dot(t1), d.dot(t2));
     A.noalias() += s.weight * row * row.transpose();
     b += s.weight * s.value * row;
-    sum_w += s.weight;
-    sum_wc += s.weight * s.value;
-    scale_sq += s.weight * d.squaredNorm();
   }
-  if (!(sum_w > 0)) return std::numeric_limits<double>::quiet_NaN();
-  const double mean = sum_wc / sum_w;
-  // The linear terms need spread in both tangent directions; judge it relative to the spread.
-  const double spread = scale_sq / sum_w;
-  if (spread > 0) {
-    Eigen::Matrix3d An = A / sum_w;
-    const double det = An.determinant();
-    if (det > 1e-6 * spread * spread) {
-      const Eigen::Vector3d c = An.ldlt().solve(b / sum_w);
-      if (c.allFinite()) return c(0);
-    }
+  A /= sum_w;
+  b /= sum_w;
+  // The linear terms need spread in both tangent directions.
+  if (A.determinant() > 1e-6) {
+    const Eigen::Vector3d c = A.ldlt().solve(b);
+    if (c.allFinite()) field = {c(0), (c(1) * t1 + c(2) * t2) / scale};
   }
-  return mean;
+  return field;
+}
+
+double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples) {
+  const auto field = fitTangentLinear(x, n, samples);
+  return field ? field->value : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace stampscan::fitting

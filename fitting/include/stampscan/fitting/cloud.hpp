@@ -49,6 +49,17 @@ struct Bounds {
 };
 Bounds boundsOf(const std::vector<Vec3>& points);
 
+// A right-handed orthonormal frame (t1, t2, n) as matrix columns, for a unit normal n.
+inline Eigen::Matrix3d frameAround(const Vec3& n) {
+  const Vec3 helper = n.x() * n.x() < 0.81 ? Vec3::UnitX() : Vec3::UnitY();
+  const Vec3 t1 = n.cross(helper).normalized();
+  Eigen::Matrix3d frame;
+  frame.col(0) = t1;
+  frame.col(1) = n.cross(t1);
+  frame.col(2) = n;
+  return frame;
+}
+
 struct Triangle {
   std::array<std::uint32_t, 3> v;
 };

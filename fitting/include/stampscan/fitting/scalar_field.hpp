@@ -3,6 +3,7 @@
 
 #include "stampscan/fitting/cloud.hpp"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,8 +32,15 @@ struct ScalarSample {
 
 // Eqs. (15)-(16) at x with support radius R. Returns NaN when no sample lies within R.
 double shepardScalar(const Vec3& x, const std::vector<ScalarSample>& samples, double R);
-// Weighted linear fit in the plane through x with unit normal n; falls back to the weighted mean
-// when the samples do not span the plane. Returns NaN when the weights sum to zero.
+// A linear field in the tangent plane through x: value at x and gradient (in the plane).
+struct LinearScalar {
+  double value;
+  Vec3 gradient;
+};
+// Weighted least-squares fit of c0 + g.t in the plane through x with unit normal n; the weighted
+// mean with zero gradient when the samples do not span the plane. Nothing when the weights sum to 0.
+std::optional<LinearScalar> fitTangentLinear(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples);
+// The value of that fit at x; NaN when the weights sum to zero.
 double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples);
 
 }  // namespace stampscan::fitting
