@@ -89,7 +89,6 @@ struct AnchoredSurface::Impl {
     const double spacing = tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
     return spacing * h0 * std::pow(params.scale_step, tier / 2);
   }
-  bool fineAt(const Vec3& x) const { return h_field->interpolateOther(x, curvature_limited, 4) > kFineShare; }
   int levelFor(double h) const {
     const int level = static_cast<int>(std::floor(std::log(std::max(h, h0) / h0) / std::log(params.scale_step) + 1e-9));
     return std::clamp(level, 0, levels - 1);
@@ -536,7 +535,8 @@ bool AnchoredSurface::hasScalar() const { return impl_->strain != nullptr; }
 Projection AnchoredSurface::project(const Vec3& x) const {
   // The anchor of x's own cell if there is one, else the anchor of its nearest data point.
   std::uint32_t a = 0;
-  if (!impl_->findAnchor(impl_->keyFor(x, Impl::tierOf(impl_->levelFor(bandwidthAt(x)), impl_->fineAt(x))), &a)) {
+  const auto [h, limited] = impl_->h_field->atAndOther(x, impl_->curvature_limited, 4);
+  if (!impl_->findAnchor(impl_->keyFor(x, Impl::tierOf(impl_->levelFor(h), limited > kFineShare)), &a)) {
     thread_local std::vector<Neighbor> near;
     impl_->tree.knn(x, 1, near);
     a = impl_->anchor_of_point[near.front().index];
