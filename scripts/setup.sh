@@ -8,7 +8,8 @@ build_dir=${1:-build}
 shift || true
 
 packages=(build-essential cmake ninja-build pkg-config
-          libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev libgtest-dev)
+          libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev libgtest-dev
+          libzstd-dev liblz4-dev zlib1g-dev libopencv-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

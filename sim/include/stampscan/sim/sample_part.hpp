@@ -26,6 +26,11 @@ class PanPart {
   explicit PanPart(const PanParams& params = {});
 
   double height(double x, double y) const;
+  // The pocket's normalised radius: 1 on the outline at mid-wall, a rounded rectangle (a
+  // superellipse of order 4) around the centre.
+  double pocketRadius(double x, double y) const;
+  // The height of the flange-wall-floor profile at pocket radius s, without the floor's dome.
+  double wallHeight(double s) const;
   Eigen::Vector2d gradient(double x, double y) const;
   Vec3 surfacePoint(double x, double y) const { return {x, y, height(x, y)}; }
   Vec3 normal(double x, double y) const;  // unit, facing +z

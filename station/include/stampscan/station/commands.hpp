@@ -13,5 +13,7 @@ using CommandRunner = std::function<int()>;
 CommandRunner addFitCommand(CLI::App& app);
 CommandRunner addSampleCommand(CLI::App& app);
 CommandRunner addDemoCommand(CLI::App& app);
+CommandRunner addSimCommand(CLI::App& app);
+CommandRunner addTraceCommand(CLI::App& app);
 
 }  // namespace stampscan::station

@@ -1,0 +1,43 @@
+// The grid printed on the blank before forming (circles or squares, 2.54 mm pitch by default), how
+// much ink covers any material point, and the ground truth at every grid element of a formed part.
+#pragma once
+
+#include "stampscan/fitting/cloud.hpp"
+#include "stampscan/sim/formed_part.hpp"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace stampscan::sim {
+
+enum class GridKind { Circle, Square };
+
+struct GridSpec {
+  GridKind kind = GridKind::Circle;
+  double pitch = 2.54;            // mm between circle centres or grid lines
+  double circle_diameter = 2.54;  // mm, of the printed circles' centre line
+  double line_width = 0.15;       // mm, of the printed lines
+  double margin = 2.0;            // mm of blank left unprinted at its edge
+};
+
+std::string toString(GridKind kind);
+GridKind gridKindFromString(const std::string& name);  // "circle" or "square"; throws otherwise
+
+// Fraction of a footprint-wide square around material point m covered by ink (box filter along the
+// distance to the nearest line): 0 on bare sheet, 1 on a line much wider than the footprint.
+double inkCoverage(const GridSpec& grid, const BlankRect& printed, const Vec2& m, double footprint);
+
+// The printed area of a blank.
+BlankRect printedArea(const GridSpec& grid, const BlankRect& blank);
+
+// Grid elements of the printed area, in material coordinates: circle centres, or square cell
+// centres. Row-major, rows along v.
+std::vector<Vec2> gridElements(const GridSpec& grid, const BlankRect& blank);
+
+// Ground truth at every grid element of a formed part: positions, normals, thickness strain and the
+// scalars major_strain, minor_strain, major_dir_x/y/z (unit, tangent) and material_u/v.
+fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid);
+void writeGroundTruth(const std::filesystem::path& file, const fitting::Cloud& truth);
+
+}  // namespace stampscan::sim

@@ -1,0 +1,89 @@
+// A whole simulated session of the cell, in the form the devices deliver it: calibration scenes (the
+// circle plate for the cameras, the reference sphere for the digitizer), then the part scanned by
+// laser sweeps and by the stereo pair from several poses, with the CMM's positions and events, the
+// PLC's state and the devices' clock readings. Messages go to a TraceSink (the MCAP writer) in
+// log-time order. Deterministic for a given seed.
+#pragma once
+
+#include "stampscan/sim/camera_model.hpp"
+#include "stampscan/sim/cmm_motion.hpp"
+#include "stampscan/sim/digitizer_model.hpp"
+#include "stampscan/sim/formed_part.hpp"
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/scene.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace stampscan::sim {
+
+// Where the generated messages go.
+class TraceSink {
+ public:
+  virtual ~TraceSink() = default;
+  virtual void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) = 0;
+  virtual void metadata(const std::string& name, const std::map<std::string, std::string>& values) = 0;
+};
+
+struct ScanParams {
+  PartKind part = PartKind::Dome;
+  GridSpec grid;
+  bool laser = true, stereo = true, calibration = true;
+  std::uint64_t seed = 1;
+
+  DigitizerSpec digitizer;
+  double sweep_speed = 25;      // mm/s while the digitizer scans
+  double strip_overlap = 0.3;   // share of a strip's width its neighbour covers again
+  CameraIntrinsics camera;      // nominal; each camera's true values differ a little (by seed)
+  CameraSensor camera_sensor;
+  double image_scale = 1.0;     // resolution factor for quick runs (focal length scales with it)
+  double stereo_standoff = 300; // mm from the cameras to the part
+  int stereo_rows = 3, stereo_columns = 3;  // poses over the part
+  int plate_poses = 12;
+  int sphere_sweeps = 8;
+  CirclePlate plate;
+  ReferenceSphere sphere;
+  // Limits the laser strips and stereo poses to a part of the footprint (machine xy); empty = all.
+  BlankRect scan_region{Vec2::Zero(), Vec2::Zero()};
+
+  // A small scene for tests and demos: quarter-resolution images, few poses and sweeps.
+  static ScanParams quick();
+};
+
+// The cell's true geometry and clocks, which calibration has to recover. The station only ever sees
+// nominal values; these go into the trace as "simulation_truth" metadata for the tests.
+struct CellTruth {
+  CameraIntrinsics left, right;
+  Eigen::Isometry3d head_from_left, head_from_right;  // camera frames on the head
+  Eigen::Isometry3d head_from_digitizer;
+  Eigen::Isometry3d head_from_digitizer_nominal;
+  std::int64_t digitizer_clock_offset_ns = 0;  // digitizer clock minus station clock
+  std::int64_t digitizer_latency_ns = 0;       // profile stamp minus its true exposure time
+  std::int64_t camera_clock_offset_ns[2] = {0, 0};
+  std::vector<Eigen::Isometry3d> plate_poses;  // machine_from_plate per calibration pose
+  ReferenceSphere sphere;
+};
+
+struct ScanSummary {
+  double scan_seconds = 0;  // simulated duration of the session
+  std::size_t profiles = 0, laser_points = 0, frames = 0, positions = 0, messages = 0;
+  std::size_t grid_elements = 0;
+  CellTruth truth;
+};
+
+using ScanProgress = std::function<void(double fraction, std::string_view stage)>;
+
+// Builds the part, plans the session and streams it to `sink`.
+ScanSummary generateScan(const ScanParams& params, TraceSink& sink, const ScanProgress& progress = {});
+
+// The station clock's start: 2026-01-01T00:00:00Z in nanoseconds since the Unix epoch.
+inline constexpr std::int64_t kSessionStartNs = 1767225600LL * 1000000000LL;
+
+}  // namespace stampscan::sim

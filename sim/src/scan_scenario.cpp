@@ -1,0 +1,538 @@
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include "stampscan/acquisition/trace_messages.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <numbers>
+#include <random>
+
+namespace stampscan::sim {
+
+namespace msg = stampscan::trace;
+
+ScanParams ScanParams::quick() {
+  ScanParams p;
+  p.image_scale = 0.25;
+  p.stereo_rows = 1;
+  p.stereo_columns = 2;
+  p.plate_poses = 4;
+  p.sphere_sweeps = 4;
+  p.digitizer.points_per_profile = 256;
+  p.digitizer.profile_rate = 125;
+  p.scan_region = {Vec2(-20, -15), Vec2(20, 15)};
+  return p;
+}
+
+namespace {
+
+std::int64_t toNs(double seconds) { return static_cast<std::int64_t>(std::llround(seconds * 1e9)); }
+
+std::string number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+std::string poseText(const Eigen::Isometry3d& T) {
+  // Row-major 3x4 [R | t].
+  std::string s;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) {
+      if (!s.empty()) s.push_back(' ');
+      s.append(number(T.matrix()(r, c)));
+    }
+  return s;
+}
+std::string intrinsicsText(const CameraIntrinsics& c) {
+  return std::to_string(c.width) + " " + std::to_string(c.height) + " " + number(c.fx) + " " + number(c.fy) + " " +
+         number(c.cx) + " " + number(c.cy) + " " + number(c.k1) + " " + number(c.k2) + " " + number(c.p1) + " " +
+         number(c.p2) + " " + number(c.k3);
+}
+
+Eigen::Matrix3d smallRotation(std::mt19937_64& rng, double sigma) {
+  std::normal_distribution<double> g(0.0, sigma);
+  const Vec3 w(g(rng), g(rng), g(rng));
+  if (w.norm() < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+}
+
+// A camera on the head at `position`, looking at `target` (both head frame), OpenCV axes.
+Eigen::Isometry3d cameraOnHead(const Vec3& position, const Vec3& target) {
+  const Vec3 z = (target - position).normalized();
+  const Vec3 x = (Vec3::UnitX() - Vec3::UnitX().dot(z) * z).normalized();
+  const Vec3 y = z.cross(x);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = x;
+  T.linear().col(1) = y;
+  T.linear().col(2) = z;
+  T.translation() = position;
+  return T;
+}
+
+constexpr double kRigHalfBaseline = 60;  // mm: cameras at x = -+60 on the head
+constexpr double kRigDrop = 60;          // mm below the head's reference point
+const Vec3 kDigitizerMount(0, 0, -120);  // nominal: the mirror 120 mm below the reference point
+
+// Messages collected for a stretch of the session and released in log-time order once nothing
+// earlier can still arrive.
+class OrderedEmitter {
+ public:
+  explicit OrderedEmitter(TraceSink& sink) : sink_(sink) {}
+  void add(std::string_view topic, std::int64_t log_time, std::vector<std::byte> bytes) {
+    pending_.push_back({log_time, order_++, topic, std::move(bytes)});
+  }
+  void flushBefore(std::int64_t t) {
+    std::stable_sort(pending_.begin(), pending_.end(),
+                     [](const Pending& a, const Pending& b) { return a.log < b.log || (a.log == b.log && a.order < b.order); });
+    std::size_t n = 0;
+    while (n < pending_.size() && pending_[n].log < t) {
+      sink_.message(pending_[n].topic, pending_[n].log, std::move(pending_[n].bytes));
+      ++n;
+    }
+    emitted_ += n;
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+  }
+  std::size_t emitted() const { return emitted_; }
+
+ private:
+  struct Pending {
+    std::int64_t log;
+    std::uint64_t order;
+    std::string_view topic;
+    std::vector<std::byte> bytes;
+  };
+  TraceSink& sink_;
+  std::vector<Pending> pending_;
+  std::uint64_t order_ = 0;
+  std::size_t emitted_ = 0;
+};
+
+// What the cell does during one segment of the CMM's trajectory.
+struct Activity {
+  enum Kind { Travel, Sweep, Trigger } kind = Travel;
+  const Scene* scene = nullptr;
+  std::string scene_name;  // marker name; empty: no marker
+  std::uint32_t index = 0;
+  bool first_of_scene = false, last_of_scene = false;
+};
+
+class SessionGenerator {
+ public:
+  SessionGenerator(const ScanParams& params, TraceSink& sink, const ScanProgress& progress)
+      : p_(params), sink_(sink), progress_(progress), emitter_(sink), rng_(params.seed) {}
+
+  ScanSummary run() {
+    part_ = params().part == PartKind::Dome ? std::unique_ptr<FormedPart>(std::make_unique<DomePart>())
+                                            : std::unique_ptr<FormedPart>(std::make_unique<StampedPanPart>());
+    part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
+    sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
+    makeTruth();
+    trajectory_ = CmmTrajectory({}, HeadState{Vec3(0, 0, 450), 0, 0, 0});
+    if (p_.calibration) {
+      planPlate();
+      planSphere();
+    }
+    if (p_.laser) planLaserStrips();
+    if (p_.stereo) planStereo();
+    trajectory_.moveTo(Vec3(0, 0, 450), 0, 0, 200, "home");
+    activities_.emplace_back();
+    writeMetadata();
+    play();
+    summary_.scan_seconds = trajectory_.duration();
+    summary_.messages = emitter_.emitted();
+    summary_.grid_elements = gridElements(p_.grid, part_->blank()).size();
+    summary_.truth = truth_;
+    return summary_;
+  }
+
+ private:
+  const ScanParams& params() const { return p_; }
+
+  void makeTruth() {
+    std::normal_distribution<double> g(0.0, 1.0);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const CameraIntrinsics nominal = p_.camera.scaled(p_.image_scale);
+    for (CameraIntrinsics* c : {&truth_.left, &truth_.right}) {
+      *c = nominal;
+      c->fx *= 1 + 0.004 * g(rng_);
+      c->fy = c->fx * (1 + 0.0005 * g(rng_));
+      c->cx += 8 * p_.image_scale * g(rng_);
+      c->cy += 8 * p_.image_scale * g(rng_);
+      c->k1 += 0.01 * g(rng_);
+      c->k2 += 0.02 * g(rng_);
+      c->p1 = 2e-4 * g(rng_);
+      c->p2 = 2e-4 * g(rng_);
+    }
+    const Vec3 look(0, 0, -kRigDrop - p_.stereo_standoff);
+    Eigen::Isometry3d left = cameraOnHead(Vec3(-kRigHalfBaseline, 0, -kRigDrop), look);
+    Eigen::Isometry3d right = cameraOnHead(Vec3(kRigHalfBaseline, 0, -kRigDrop), look);
+    for (Eigen::Isometry3d* T : {&left, &right}) {
+      T->linear() = smallRotation(rng_, 0.003) * T->linear();
+      T->translation() += Vec3(0.3 * g(rng_), 0.3 * g(rng_), 0.3 * g(rng_));
+    }
+    truth_.head_from_left = left;
+    truth_.head_from_right = right;
+    truth_.head_from_digitizer_nominal = Eigen::Isometry3d::Identity();
+    truth_.head_from_digitizer_nominal.translation() = kDigitizerMount;
+    truth_.head_from_digitizer = truth_.head_from_digitizer_nominal;
+    truth_.head_from_digitizer.linear() = smallRotation(rng_, 0.008);
+    truth_.head_from_digitizer.translation() += Vec3(g(rng_), g(rng_), g(rng_));
+    truth_.digitizer_clock_offset_ns = toNs(1 + 99 * u(rng_));
+    truth_.digitizer_latency_ns = toNs(0.002 + 0.002 * u(rng_));
+    truth_.camera_clock_offset_ns[0] = toNs(10 + 1000 * u(rng_));
+    truth_.camera_clock_offset_ns[1] = toNs(10 + 1000 * u(rng_));
+    truth_.sphere = p_.sphere;
+  }
+
+  // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
+  // nominal mount (the planner does not know the true one).
+  Vec3 headForSensor(const Vec3& sensor, double a, double b) const {
+    const HeadState h{Vec3::Zero(), a, b, 0};
+    return sensor - h.pose().linear() * truth_.head_from_digitizer_nominal.translation();
+  }
+
+  void addSegment(Activity activity) { activities_.push_back(std::move(activity)); }
+
+  void travelTo(const Vec3& head, double a, double b) {
+    trajectory_.moveTo(head, a, b, 200, "travel");
+    addSegment({});
+  }
+
+  void trigger(const Scene* scene, const std::string& name, std::uint32_t index, bool first, bool last) {
+    trajectory_.dwell(0.4, "settle and trigger");
+    addSegment({Activity::Trigger, scene, name, index, first, last});
+  }
+
+  void planPlate() {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const Vec3 station(-250, 0, -40);  // the plate's stand, beside the part
+    const CirclePlate& plate = p_.plate;
+    const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
+    for (int k = 0; k < p_.plate_poses; ++k) {
+      const double tilt_x = 0.5 * u(rng_), tilt_y = 0.5 * u(rng_), turn = 0.6 * u(rng_);
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.translate(station + Vec3(10 * u(rng_), 10 * u(rng_), 10 * u(rng_)));
+      pose.rotate(Eigen::AngleAxisd(turn, Vec3::UnitZ()) * Eigen::AngleAxisd(tilt_x, Vec3::UnitX()) *
+                  Eigen::AngleAxisd(tilt_y, Vec3::UnitY()));
+      pose.translate(-centre_on_plate);
+      truth_.plate_poses.push_back(pose);
+      plate_scenes_.push_back(std::make_unique<PlateScene>(plate, pose));
+      const double a = 0.2 * u(rng_), b = 0.3 * u(rng_);
+      const Vec3 target = pose * centre_on_plate;
+      const HeadState h{Vec3::Zero(), a, b, 0};
+      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
+      travelTo(head, a, b);
+      trigger(plate_scenes_.back().get(), "calibration_plate", static_cast<std::uint32_t>(k), k == 0,
+              k == p_.plate_poses - 1);
+    }
+  }
+
+  void sweep(const Scene* scene, const std::string& name, std::uint32_t index, const Vec3& sensor_from,
+             const Vec3& sensor_to, double a, double b, double speed, bool first, bool last) {
+    travelTo(headForSensor(sensor_from, a, b), a, b);
+    trajectory_.moveTo(headForSensor(sensor_to, a, b), a, b, speed, name + " sweep " + std::to_string(index));
+    addSegment({Activity::Sweep, scene, name, index, first, last});
+  }
+
+  void planSphere() {
+    const ReferenceSphere& s = p_.sphere;
+    for (int k = 0; k < p_.sphere_sweeps; ++k) {
+      const double b = (k / 2) % 2 ? std::numbers::pi / 2 : 0.0;
+      const double a = k >= 4 ? (k % 2 ? 0.3 : -0.3) : 0.0;
+      const double speed = (k / 4) % 2 ? 40.0 : 10.0;
+      const double direction = k % 2 ? -1.0 : 1.0;
+      const HeadState h{Vec3::Zero(), a, b, 0};
+      const Eigen::Matrix3d R = h.pose().linear() * truth_.head_from_digitizer_nominal.linear();
+      const Vec3 centre = s.centre + p_.digitizer.standoff * R.col(2);  // the mirror above the ball
+      const Vec3 along = direction * (s.radius + 8) * R.col(1);
+      sweep(sphere_scene_.get(), "reference_sphere", static_cast<std::uint32_t>(k), centre - along, centre + along, a, b,
+            speed, k == 0, k == p_.sphere_sweeps - 1);
+    }
+  }
+
+  BlankRect region() const {
+    const BlankRect whole = part_->footprint();
+    if (p_.scan_region.max.x() <= p_.scan_region.min.x()) return whole;
+    return {whole.min.cwiseMax(p_.scan_region.min), whole.max.cwiseMin(p_.scan_region.max)};
+  }
+
+  void planLaserStrips() {
+    const BlankRect r = region();
+    const DigitizerSpec& d = p_.digitizer;
+    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
+    const double width = 2 * d.standoff * std::tan(d.half_angle);
+    const double step = width * (1 - p_.strip_overlap);
+    const int strips = std::max(1, static_cast<int>(std::ceil((r.max.x() - r.min.x()) / step)));
+    const double x0 = 0.5 * (r.min.x() + r.max.x()) - 0.5 * (strips - 1) * step;
+    const double lead = 6;
+    for (int k = 0; k < strips; ++k) {
+      // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1.
+      const double b = (k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180;
+      const Vec3 along(-std::sin(b), std::cos(b), 0);
+      const Vec3 centre(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid + d.standoff);
+      const double half = 0.5 * (r.max.y() - r.min.y()) + lead;
+      const double direction = k % 2 ? -1.0 : 1.0;
+      sweep(part_scene_.get(), "part", static_cast<std::uint32_t>(k), centre - direction * half * along,
+            centre + direction * half * along, 0, b, p_.sweep_speed, k == 0, k == strips - 1 && !p_.stereo);
+    }
+  }
+
+  void planStereo() {
+    const BlankRect r = region();
+    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
+    const Vec2 mid = 0.5 * (r.min + r.max);
+    const Vec2 half = 0.5 * (r.max - r.min);
+    const int rows = std::max(1, p_.stereo_rows), cols = std::max(1, p_.stereo_columns);
+    std::uint32_t index = 0;
+    const double max_reach = half.norm() + 1e-9;
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < cols; ++i) {
+        const double fx = cols == 1 ? 0.0 : 2.0 * i / (cols - 1) - 1.0;
+        const double fy = rows == 1 ? 0.0 : 2.0 * j / (rows - 1) - 1.0;
+        const Vec2 at = mid + Vec2(fx * 0.6 * half.x(), fy * 0.6 * half.y());
+        // Outer views stand further out and look inwards, so that the walls are seen too.
+        const Vec2 offset = at - Vec2::Zero();
+        const double reach = std::min(1.0, offset.norm() / max_reach);
+        const double a = 0.35 * reach;
+        const double phi = std::atan2(offset.y(), offset.x());
+        const double b = reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0;
+        const HeadState h{Vec3::Zero(), a, b, 0};
+        const Vec3 target(at.x(), at.y(), z_mid);
+        const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff);
+        travelTo(head, a, b);
+        const bool first = index == 0 && !p_.laser, last = j == rows - 1 && i == cols - 1;
+        trigger(part_scene_.get(), "part", index, first, last);
+        ++index;
+      }
+  }
+
+  void writeMetadata() {
+    const DigitizerSpec& d = p_.digitizer;
+    const CameraIntrinsics nominal = p_.camera.scaled(p_.image_scale);
+    std::map<std::string, std::string> cell = {
+        {"part", part_->name()},
+        {"grid", toString(p_.grid.kind)},
+        {"grid_pitch_mm", number(p_.grid.pitch)},
+        {"grid_circle_diameter_mm", number(p_.grid.circle_diameter)},
+        {"grid_line_width_mm", number(p_.grid.line_width)},
+        {"digitizer_points_per_profile", std::to_string(d.points_per_profile)},
+        {"digitizer_profile_rate_hz", number(d.profile_rate)},
+        {"digitizer_standoff_mm", number(d.standoff)},
+        {"digitizer_measuring_range_mm", number(d.measuring_range)},
+        {"head_from_digitizer_nominal", poseText(truth_.head_from_digitizer_nominal)},
+        {"camera_nominal_intrinsics", intrinsicsText(nominal)},
+        {"camera_bits", std::to_string(p_.camera_sensor.bits)},
+        {"stereo_half_baseline_mm", number(kRigHalfBaseline)},
+        {"plate", "circles " + std::to_string(p_.plate.columns) + "x" + std::to_string(p_.plate.rows) + " pitch " +
+                      number(p_.plate.pitch) + " diameter " + number(p_.plate.dot_diameter)},
+        {"reference_sphere_radius_mm", number(p_.sphere.radius)},
+        {"station_clock", "CMM controller clock, ns since the Unix epoch"},
+    };
+    sink_.metadata("cell", cell);
+    std::map<std::string, std::string> truth = {
+        {"seed", std::to_string(p_.seed)},
+        {"camera_left_intrinsics", intrinsicsText(truth_.left)},
+        {"camera_right_intrinsics", intrinsicsText(truth_.right)},
+        {"head_from_camera_left", poseText(truth_.head_from_left)},
+        {"head_from_camera_right", poseText(truth_.head_from_right)},
+        {"stereo_baseline_mm", number((truth_.head_from_left.translation() - truth_.head_from_right.translation()).norm())},
+        {"head_from_digitizer", poseText(truth_.head_from_digitizer)},
+        {"digitizer_clock_offset_ns", std::to_string(truth_.digitizer_clock_offset_ns)},
+        {"digitizer_latency_ns", std::to_string(truth_.digitizer_latency_ns)},
+        {"camera_left_clock_offset_ns", std::to_string(truth_.camera_clock_offset_ns[0])},
+        {"camera_right_clock_offset_ns", std::to_string(truth_.camera_clock_offset_ns[1])},
+        {"reference_sphere_centre_mm", number(p_.sphere.centre.x()) + " " + number(p_.sphere.centre.y()) + " " +
+                                           number(p_.sphere.centre.z())},
+    };
+    for (std::size_t k = 0; k < truth_.plate_poses.size(); ++k)
+      truth["plate_pose_" + std::to_string(k)] = poseText(truth_.plate_poses[k]);
+    sink_.metadata("simulation_truth", truth);
+  }
+
+  // ---- Playing the plan ------------------------------------------------------------------------
+
+  void play() {
+    const auto& segments = trajectory_.segments();
+    double work_total = 0;
+    for (std::size_t s = 0; s < segments.size(); ++s) work_total += workOf(s);
+    double work_done = 0;
+    std::normal_distribution<double> jitter(0.0, 1.0);
+    std::int64_t next_position = 0, next_plc = 0, next_sync = 0;
+    const std::int64_t position_period = toNs(1.0 / 250), plc_period = toNs(0.1), sync_period = toNs(1.0);
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      const auto& seg = segments[s];
+      const Activity& act = activities_[s];
+      const std::int64_t t0 = toNs(seg.t0), t1 = toNs(seg.t1);
+      if (progress_) progress_(work_done / std::max(work_total, 1e-9), act.kind == Activity::Travel ? "moving" : act.scene_name);
+      // CMM events and scene markers.
+      if (act.kind != Activity::Travel && act.first_of_scene) marker(t0, act.scene_name, "begin", act.index);
+      event(t0, act.kind == Activity::Sweep ? "sweep_begin" : "move_begin", seg.label);
+      // Position reports at 250 Hz, PLC state at 10 Hz, clock pairs once a second.
+      for (; next_position < t1; next_position += position_period) {
+        const HeadState h = trajectory_.at(static_cast<double>(next_position) * 1e-9);
+        msg::CmmPosition m;
+        m.station_time_ns = kSessionStartNs + next_position;
+        m.x = h.position.x() + 0.0005 * jitter(rng_);
+        m.y = h.position.y() + 0.0005 * jitter(rng_);
+        m.z = h.position.z() + 0.0005 * jitter(rng_);
+        m.head_a = h.a;
+        m.head_b = h.b;
+        ++summary_.positions;
+        emitter_.add(msg::topics::kCmmPosition, m.station_time_ns + toNs(0.002), msg::encode(m));
+      }
+      for (; next_plc < t1; next_plc += plc_period) plc(next_plc, act.kind == Activity::Sweep);
+      for (; next_sync < t1; next_sync += sync_period) clockSyncs(next_sync, jitter);
+      if (act.kind == Activity::Sweep) profiles(seg, act);
+      if (act.kind == Activity::Trigger) frames(seg, act);
+      event(t1, act.kind == Activity::Sweep ? "sweep_end" : "move_end", seg.label);
+      if (act.kind != Activity::Travel && act.last_of_scene) marker(t1, act.scene_name, "end", act.index);
+      emitter_.flushBefore(kSessionStartNs + t1);
+      work_done += workOf(s);
+    }
+    emitter_.flushBefore(std::numeric_limits<std::int64_t>::max());
+    if (progress_) progress_(1.0, "done");
+  }
+
+  double workOf(std::size_t s) const {
+    const Activity& act = activities_[s];
+    const auto& seg = trajectory_.segments()[s];
+    if (act.kind == Activity::Sweep)
+      return (seg.t1 - seg.t0) * p_.digitizer.profile_rate * p_.digitizer.points_per_profile;
+    if (act.kind == Activity::Trigger) return 2.0 * truth_.left.width * truth_.left.height;
+    return 0;
+  }
+
+  void event(std::int64_t t, const char* kind, const std::string& detail) {
+    msg::CmmEvent e;
+    e.station_time_ns = kSessionStartNs + t;
+    e.kind = kind;
+    e.detail = detail;
+    emitter_.add(msg::topics::kCmmEvent, e.station_time_ns + toNs(0.002), msg::encode(e));
+  }
+
+  void marker(std::int64_t t, const std::string& scene, const char* phase, std::uint32_t index) {
+    msg::SceneMarker m;
+    m.station_time_ns = kSessionStartNs + t;
+    m.scene = scene;
+    m.phase = phase;
+    m.index = index;
+    emitter_.add(msg::topics::kScene, m.station_time_ns, msg::encode(m));
+  }
+
+  void plc(std::int64_t t, bool shutter_open) {
+    msg::PlcState s;
+    s.station_time_ns = kSessionStartNs + t;
+    s.door_closed = true;
+    s.estop_ok = true;
+    s.light_curtain_clear = true;
+    s.part_clamped = true;
+    s.laser_shutter_open = shutter_open;
+    s.stack_light = shutter_open ? 0b010 : 0b001;
+    s.heartbeat = plc_heartbeat_++;
+    emitter_.add(msg::topics::kPlcState, s.station_time_ns + toNs(0.001), msg::encode(s));
+  }
+
+  void clockSyncs(std::int64_t t, std::normal_distribution<double>& jitter) {
+    const std::pair<const char*, std::int64_t> devices[] = {{"digitizer", truth_.digitizer_clock_offset_ns},
+                                                            {"camera_left", truth_.camera_clock_offset_ns[0]},
+                                                            {"camera_right", truth_.camera_clock_offset_ns[1]}};
+    for (const auto& [name, offset] : devices) {
+      msg::ClockSync c;
+      c.device = name;
+      c.station_time_ns = kSessionStartNs + t;
+      c.device_time_ns = c.station_time_ns + offset + toNs(20e-6 * jitter(rng_));  // 20 us of jitter
+      emitter_.add(msg::topics::kClockSync, c.station_time_ns + toNs(0.001), msg::encode(c));
+    }
+  }
+
+  void profiles(const CmmTrajectory::Segment& seg, const Activity& act) {
+    const DigitizerSpec& d = p_.digitizer;
+    const double period = 1.0 / d.profile_rate;
+    const double first = std::ceil(seg.t0 / period) * period;
+    const int count = std::max(0, static_cast<int>(std::floor((seg.t1 - first) / period)) + 1);
+    std::vector<msg::LaserProfile> out(static_cast<std::size_t>(count));
+    const std::uint32_t base = profile_sequence_;
+    tbb::parallel_for(0, count, [&](int k) {
+      const double t = first + k * period;
+      const Eigen::Isometry3d sensor = trajectory_.at(t).pose() * truth_.head_from_digitizer;
+      // Each profile draws from its own stream: the same result for any number of threads.
+      std::mt19937_64 rng(p_.seed * 0x9E3779B97F4A7C15ull + 0x5EEDull + base + static_cast<std::uint64_t>(k));
+      ProfileMeasurement m = measureProfile(*act.scene, d, sensor, rng);
+      msg::LaserProfile& prof = out[static_cast<std::size_t>(k)];
+      prof.sequence = base + static_cast<std::uint32_t>(k);
+      prof.device_time_ns = kSessionStartNs + toNs(t) + truth_.digitizer_clock_offset_ns + truth_.digitizer_latency_ns;
+      prof.status = m.glare ? msg::kProfileOverexposed : msg::kProfileOk;
+      prof.angle_min = static_cast<float>(d.angle(0));
+      prof.angle_increment = static_cast<float>(d.angleIncrement());
+      prof.range = std::move(m.range);
+      prof.intensity = std::move(m.intensity);
+    });
+    profile_sequence_ += static_cast<std::uint32_t>(count);
+    for (int k = 0; k < count; ++k) {
+      const msg::LaserProfile& prof = out[static_cast<std::size_t>(k)];
+      const double t = first + k * period;
+      summary_.laser_points += static_cast<std::size_t>(
+          std::count_if(prof.range.begin(), prof.range.end(), [](float r) { return r > 0; }));
+      // It reaches the station over USB a little after its stamp.
+      emitter_.add(msg::topics::kLaserProfile, kSessionStartNs + toNs(t) + truth_.digitizer_latency_ns + toNs(0.001),
+                   msg::encode(prof));
+    }
+    summary_.profiles += static_cast<std::size_t>(count);
+  }
+
+  void frames(const CmmTrajectory::Segment& seg, const Activity& act) {
+    const double t = seg.t0 + 0.1;  // settled
+    const Eigen::Isometry3d head = trajectory_.at(t).pose();
+    const std::uint64_t trigger_id = ++trigger_id_;
+    for (int c = 0; c < 2; ++c) {
+      const CameraIntrinsics& in = c == 0 ? truth_.left : truth_.right;
+      const Eigen::Isometry3d camera = head * (c == 0 ? truth_.head_from_left : truth_.head_from_right);
+      const GrayImage image = renderImage(*act.scene, in, p_.camera_sensor, camera,
+                                          p_.seed * 1000003ull + trigger_id * 2 + static_cast<std::uint64_t>(c));
+      msg::CameraFrame f;
+      f.camera = c == 0 ? "left" : "right";
+      f.frame_id = ++frame_id_[c];
+      f.trigger_id = trigger_id;
+      f.device_time_ns = kSessionStartNs + toNs(t + 15e-6) + truth_.camera_clock_offset_ns[c];
+      f.width = static_cast<std::uint32_t>(image.width);
+      f.height = static_cast<std::uint32_t>(image.height);
+      f.encoding = image.bits == 8 ? "mono8" : "mono16";
+      f.step = f.width * (image.bits == 8 ? 1u : 2u);
+      f.data = image.bytes();
+      ++summary_.frames;
+      // Exposure, readout and transfer over GigE: the frame arrives some 40 ms after the trigger.
+      emitter_.add(c == 0 ? msg::topics::kCameraLeft : msg::topics::kCameraRight,
+                   kSessionStartNs + toNs(t + 0.040 + 0.002 * c), msg::encode(f));
+    }
+  }
+
+  const ScanParams& p_;
+  TraceSink& sink_;
+  const ScanProgress& progress_;
+  OrderedEmitter emitter_;
+  std::mt19937_64 rng_;
+  std::unique_ptr<FormedPart> part_;
+  std::unique_ptr<PartScene> part_scene_;
+  std::unique_ptr<SphereScene> sphere_scene_;
+  std::vector<std::unique_ptr<PlateScene>> plate_scenes_;
+  CellTruth truth_;
+  CmmTrajectory trajectory_;
+  std::vector<Activity> activities_;
+  ScanSummary summary_;
+  std::uint32_t profile_sequence_ = 0, plc_heartbeat_ = 0;
+  std::uint64_t trigger_id_ = 0, frame_id_[2] = {1000, 5000};
+};
+
+}  // namespace
+
+ScanSummary generateScan(const ScanParams& params, TraceSink& sink, const ScanProgress& progress) {
+  SessionGenerator generator(params, sink, progress);
+  return generator.run();
+}
+
+}  // namespace stampscan::sim

@@ -1,0 +1,174 @@
+#include "stampscan/sim/scene.hpp"
+
+#include "stampscan/sim/height_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace stampscan::sim {
+
+namespace {
+
+std::optional<Hit> hitTable(const Ray& ray, const Table& table) {
+  if (ray.direction.z() >= -1e-12) return std::nullopt;
+  const double t = (table.z - ray.origin.z()) / ray.direction.z();
+  if (t <= 0) return std::nullopt;
+  Hit hit;
+  hit.t = t;
+  hit.point = ray.origin + t * ray.direction;
+  hit.normal = Vec3::UnitZ();
+  hit.albedo = table.albedo;
+  return hit;
+}
+
+// Box-filtered coverage of a filled disc of radius r seen at distance d from its centre.
+double discCoverage(double d, double r, double f) {
+  if (f <= 1e-12) return d <= r ? 1.0 : 0.0;
+  return std::clamp((r - d) / f + 0.5, 0.0, 1.0);
+}
+
+// A stable hash of a material cell: where the sheet's coating happens to be polished.
+bool shinyCell(const Vec2& m) {
+  const auto i = static_cast<std::int64_t>(std::floor(m.x() / 9.0));
+  const auto j = static_cast<std::int64_t>(std::floor(m.y() / 9.0));
+  std::uint64_t h = static_cast<std::uint64_t>(i) * 0x9E3779B97F4A7C15ull ^ static_cast<std::uint64_t>(j) * 0xC2B2AE3D27D4EB4Full;
+  h ^= h >> 29;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 32;
+  return h % 100 < 4;  // 4 % of 9 mm cells
+}
+
+}  // namespace
+
+PartScene::PartScene(const FormedPart& part, const GridSpec& grid, Table table)
+    : part_(part), grid_(grid), printed_(printedArea(grid, part.blank())), table_(table) {
+  // A bound on the slope from a dense sample, with margin: marching by gap / (|dz| + slope |dxy|)
+  // can then never step through the surface.
+  const BlankRect box = part.footprint();
+  double slope = 0;
+  for (int i = 0; i <= 400; ++i)
+    for (int j = 0; j <= 400; ++j) {
+      const double x = box.min.x() + (box.max.x() - box.min.x()) * i / 400.0;
+      const double y = box.min.y() + (box.max.y() - box.min.y()) * j / 400.0;
+      slope = std::max(slope, heightGradient([&](double u, double v) { return part.height(u, v); }, x, y).norm());
+    }
+  max_slope_ = 1.3 * slope + 0.1;
+}
+
+std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, double t_hint) const {
+  const Vec3& o = ray.origin;
+  const Vec3& d = ray.direction;
+  const auto gap = [&](double t) {
+    const Vec3 p = o + t * d;
+    return p.z() - part_.height(p.x(), p.y());
+  };
+  // The search interval: between the slab of heights the part occupies.
+  const double z_top = part_.maxHeight() + 0.5, z_bottom = part_.minHeight() - 0.5;
+  double t0 = 0, t1 = 0;
+  if (std::abs(d.z()) < 1e-12) return std::nullopt;
+  t0 = std::max(0.0, (z_top - o.z()) / d.z());
+  t1 = (z_bottom - o.z()) / d.z();
+  if (t1 < t0) std::swap(t0, t1);
+  t0 = std::max(t0, 0.0);
+  const double denominator = std::abs(d.z()) + max_slope_ * std::hypot(d.x(), d.y());
+  double t = t0;
+  if (t_hint > 0 && t_hint - 1.0 > t0 && gap(t_hint - 1.0) > 0) t = t_hint - 1.0;
+  double g = gap(t);
+  if (g < 0) return hitTable(ray, table_);  // starts below the surface: looking from underneath
+  // March with steps that cannot cross the surface (the gap shrinks by at most `denominator` per
+  // unit step), then bracket and refine by the Illinois variant of regula falsi.
+  double t_prev = t, g_prev = g;
+  bool bracketed = false;
+  while (t < t1) {
+    t_prev = t;
+    g_prev = g;
+    t += std::max(g / denominator, 0.02);
+    g = gap(t);
+    if (g <= 0) {
+      bracketed = true;
+      break;
+    }
+  }
+  if (!bracketed) return hitTable(ray, table_);
+  double a = t_prev, fa = g_prev, b = t, fb = g;
+  int side = 0;
+  for (int it = 0; it < 60 && b - a > 1e-9; ++it) {
+    const double c = (a * fb - b * fa) / (fb - fa);
+    const double fc = gap(c);
+    if (fc > 0) {
+      a = c;
+      fa = fc;
+      if (side == 1) fb *= 0.5;
+      side = 1;
+    } else {
+      b = c;
+      fb = fc;
+      if (side == -1) fa *= 0.5;
+      side = -1;
+    }
+  }
+  const double t_hit = 0.5 * (a + b);
+  const Vec3 p = o + t_hit * d;
+  const Vec2 m = part_.materialAt(p.x(), p.y());
+  if (!part_.blank().contains(m)) return hitTable(ray, table_);  // past the blank's edge
+  Hit hit;
+  hit.t = t_hit;
+  hit.point = p;
+  hit.normal = part_.normal(p.x(), p.y());
+  const double coverage = inkCoverage(grid_, printed_, m, footprint_per_mm * t_hit);
+  hit.albedo = kSheetAlbedo + (kInkAlbedo - kSheetAlbedo) * coverage;
+  hit.shiny = shinyCell(m);
+  return hit;
+}
+
+PlateScene::PlateScene(const CirclePlate& plate, const Eigen::Isometry3d& machine_from_plate, Table table)
+    : plate_(plate), machine_from_plate_(machine_from_plate), table_(table) {}
+
+std::optional<Hit> PlateScene::cast(const Ray& ray, double footprint_per_mm, double) const {
+  const Eigen::Isometry3d plate_from_machine = machine_from_plate_.inverse();
+  const Vec3 o = plate_from_machine * ray.origin;
+  const Vec3 d = plate_from_machine.linear() * ray.direction;
+  if (d.z() < -1e-12) {
+    const double t = -o.z() / d.z();
+    const Vec3 p = o + t * d;
+    const double x_max = (plate_.columns - 1) * plate_.pitch + plate_.margin;
+    const double y_max = (plate_.rows - 1) * plate_.pitch + plate_.margin;
+    if (t > 0 && p.x() >= -plate_.margin && p.x() <= x_max && p.y() >= -plate_.margin && p.y() <= y_max) {
+      const int i = std::clamp(static_cast<int>(std::lround(p.x() / plate_.pitch)), 0, plate_.columns - 1);
+      const int j = std::clamp(static_cast<int>(std::lround(p.y() / plate_.pitch)), 0, plate_.rows - 1);
+      const double dist = (p.head<2>() - plate_.dotCentre(i, j).head<2>()).norm();
+      const double cover = discCoverage(dist, 0.5 * plate_.dot_diameter, footprint_per_mm * t);
+      Hit hit;
+      hit.t = t;
+      hit.point = ray.origin + t * ray.direction;
+      hit.normal = machine_from_plate_.linear() * Vec3::UnitZ();
+      hit.albedo = 0.85 + (0.04 - 0.85) * cover;
+      return hit;
+    }
+  }
+  return hitTable(ray, table_);
+}
+
+SphereScene::SphereScene(const ReferenceSphere& sphere, Table table) : sphere_(sphere), table_(table) {}
+
+std::optional<Hit> SphereScene::cast(const Ray& ray, double, double) const {
+  const Vec3 oc = ray.origin - sphere_.centre;
+  const double b = oc.dot(ray.direction);
+  const double c = oc.squaredNorm() - sphere_.radius * sphere_.radius;
+  const double disc = b * b - c;
+  if (disc >= 0) {
+    const double t = -b - std::sqrt(disc);
+    if (t > 0) {
+      Hit hit;
+      hit.t = t;
+      hit.point = ray.origin + t * ray.direction;
+      hit.normal = (hit.point - sphere_.centre) / sphere_.radius;
+      hit.albedo = sphere_.albedo;
+      return hit;
+    }
+  }
+  return hitTable(ray, table_);
+}
+
+}  // namespace stampscan::sim

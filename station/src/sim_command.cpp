@@ -1,0 +1,153 @@
+// `station sim generate`: simulate a session of the cell (calibration scenes, laser sweeps, stereo
+// views of a formed part) and record it as an MCAP trace, as the real devices would have delivered
+// it; optionally write the ground truth of every grid element.
+#include "stampscan/acquisition/mcap_writer.hpp"
+#include "stampscan/acquisition/trace_recorder.hpp"
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/station/commands.hpp"
+#include "stampscan/station/progress.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+
+namespace stampscan::station {
+
+namespace {
+
+struct GenerateOptions {
+  std::string output;
+  std::string truth;
+  std::string part = "dome";
+  std::string grid = "circle";
+  std::string sensors = "laser,stereo,calibration";
+  std::uint64_t seed = 1;
+  bool quick = false;
+  double image_scale = 0;  // 0: the preset's
+  int bits = 8;
+  std::string compression = "zstd";
+};
+
+// The MCAP side of the generator: every message through the recorder, which registers the topics.
+class McapSink final : public sim::TraceSink {
+ public:
+  explicit McapSink(trace::TraceRecorder& recorder) : recorder_(recorder) {}
+  void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) override {
+    recorder_.write(topic, log_time_ns, bytes);
+  }
+  void metadata(const std::string& name, const std::map<std::string, std::string>& values) override {
+    recorder_.metadata(name, values);
+  }
+
+ private:
+  trace::TraceRecorder& recorder_;
+};
+
+void checkOutputFolder(const std::string& file, const char* what) {
+  const auto parent = std::filesystem::absolute(file).parent_path();
+  if (!std::filesystem::is_directory(parent))
+    throw std::runtime_error(std::string(what) + " folder '" + parent.string() + "' does not exist");
+}
+
+sim::ScanParams paramsFrom(const GenerateOptions& o) {
+  sim::ScanParams p = o.quick ? sim::ScanParams::quick() : sim::ScanParams{};
+  if (o.part == "dome") p.part = sim::PartKind::Dome;
+  else if (o.part == "pan") p.part = sim::PartKind::Pan;
+  else throw std::invalid_argument("unknown part '" + o.part + "' (expected dome or pan)");
+  p.grid.kind = sim::gridKindFromString(o.grid);
+  p.laser = p.stereo = p.calibration = false;
+  std::stringstream list(o.sensors);
+  for (std::string item; std::getline(list, item, ',');) {
+    if (item == "laser") p.laser = true;
+    else if (item == "stereo") p.stereo = true;
+    else if (item == "calibration") p.calibration = true;
+    else throw std::invalid_argument("unknown sensor set '" + item + "' in --sensors (expected laser, stereo, calibration)");
+  }
+  if (!p.laser && !p.stereo && !p.calibration) throw std::invalid_argument("--sensors names nothing to simulate");
+  p.seed = o.seed;
+  if (o.image_scale > 0) p.image_scale = o.image_scale;
+  p.camera_sensor.bits = o.bits;
+  return p;
+}
+
+std::string megabytes(std::uintmax_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return buf;
+}
+
+}  // namespace
+
+CommandRunner addSimCommand(CLI::App& app) {
+  auto opt = std::make_shared<GenerateOptions>();
+  CLI::App* sim_cmd = app.add_subcommand("sim", "The simulated cell: generate scan traces with ground truth");
+  sim_cmd->require_subcommand(1);
+  CLI::App* gen = sim_cmd->add_subcommand(
+      "generate", "Simulate a scan session (calibration scenes, laser sweeps, stereo views) into an MCAP trace");
+  gen->add_option("-o,--output", opt->output, "Output trace (.mcap)")->required();
+  gen->add_option("--part", opt->part, "Formed part: dome (punch-stretched) or pan (stamped, with walls and flange)")
+      ->check(CLI::IsMember({"dome", "pan"}));
+  gen->add_option("--grid", opt->grid, "Printed grid: circle or square (2.54 mm)")->check(CLI::IsMember({"circle", "square"}));
+  gen->add_option("--sensors", opt->sensors, "Comma-separated: laser, stereo, calibration (default: all)");
+  gen->add_option("--truth", opt->truth, "Also write the ground truth of every grid element (PLY)");
+  gen->add_option("--seed", opt->seed, "Random seed (default 1); the same seed gives the same trace");
+  gen->add_flag("--quick", opt->quick, "A small session: a region of the part, quarter-resolution images, few poses");
+  gen->add_option("--image-scale", opt->image_scale, "Camera resolution factor (1 = 2048x1536)")->check(CLI::Range(0.05, 2.0));
+  gen->add_option("--bits", opt->bits, "Camera pixel depth: 8 (mono8) or 16 (mono16)")->check(CLI::IsMember({8, 16}));
+  gen->add_option("--compression", opt->compression, "Chunk compression: zstd, lz4 or none")
+      ->check(CLI::IsMember({"zstd", "lz4", "none"}));
+  return [opt]() {
+    namespace fs = std::filesystem;
+    const sim::ScanParams params = paramsFrom(*opt);
+    checkOutputFolder(opt->output, "output");
+    if (!opt->truth.empty()) checkOutputFolder(opt->truth, "truth");
+    // Written under a temporary name and renamed when complete: a failed run leaves no trace file
+    // that looks whole.
+    const fs::path final_path(opt->output);
+    const fs::path partial = fs::path(opt->output + ".partial");
+    const auto start = std::chrono::steady_clock::now();
+    sim::ScanSummary summary;
+    std::uintmax_t size = 0;
+    try {
+      trace::McapWriterOptions w;
+      w.compression = opt->compression == "zstd" ? trace::Compression::Zstd
+                      : opt->compression == "lz4" ? trace::Compression::Lz4
+                                                  : trace::Compression::None;
+      trace::McapWriter writer(partial, w);
+      trace::TraceRecorder recorder(writer);
+      McapSink sink(recorder);
+      ProgressBar bar;
+      summary = sim::generateScan(params, sink, [&](double f, std::string_view stage) { bar.update(std::string(stage), f); });
+      bar.finish();
+      writer.close();
+      size = fs::file_size(partial);
+      fs::rename(partial, final_path);
+    } catch (...) {
+      std::error_code ignored;
+      fs::remove(partial, ignored);
+      throw;
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("station sim generate: %s part, %s grid, seed %llu\n", opt->part.c_str(), opt->grid.c_str(),
+                static_cast<unsigned long long>(opt->seed));
+    std::printf("  session     %.1f s simulated, generated in %.1f s (%.1fx faster than the scan)\n", summary.scan_seconds,
+                seconds, summary.scan_seconds / std::max(seconds, 1e-9));
+    std::printf("  laser       %zu profiles, %zu points\n", summary.profiles, summary.laser_points);
+    std::printf("  cameras     %zu frames (%dx%d)\n", summary.frames, summary.truth.left.width, summary.truth.left.height);
+    std::printf("  CMM         %zu position reports\n", summary.positions);
+    std::printf("  wrote       %s: %zu messages, %s\n", opt->output.c_str(), summary.messages, megabytes(size).c_str());
+    if (!opt->truth.empty()) {
+      const std::unique_ptr<sim::FormedPart> part = sim::makePart(params.part);
+      const fitting::Cloud truth = sim::groundTruth(*part, params.grid);
+      sim::writeGroundTruth(opt->truth, truth);
+      std::printf("  truth       %s: %zu grid elements\n", opt->truth.c_str(), truth.size());
+    }
+    return 0;
+  };
+}
+
+}  // namespace stampscan::station
