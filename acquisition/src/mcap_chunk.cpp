@@ -30,7 +30,9 @@ DecodedChunk decodeChunk(Bytes content, const ChunkHeader& header, std::uint64_t
     d.records = stored;
   } else {
     buffer.clear();
-    buffer.reserve(static_cast<std::size_t>(header.uncompressed_size));
+    // Reserve no more than a sane amount up front: the declared size is not trusted yet, and the
+    // decoder grows the buffer as output actually comes.
+    buffer.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(header.uncompressed_size, std::uint64_t{64} << 20)));
     StreamDecompressor decoder(*compression);
     std::string error;
     const auto status = decoder.feed(stored, buffer, header.uncompressed_size, error);

@@ -44,7 +44,7 @@ class RecordBuilder {
   void u16(std::uint16_t v) { little(v, 2); }
   void u32(std::uint32_t v) { little(v, 4); }
   void u64(std::uint64_t v) { little(v, 8); }
-  void raw(Bytes b) { bytes_.insert(bytes_.end(), b.begin(), b.end()); }
+  void raw(Bytes b);
   void string(std::string_view s);  // spec String: uint32 length + UTF-8
   void bytes32(Bytes b);            // uint32 length-prefixed Bytes
   void keyValues(const KeyValues& map);                          // Map<string, string>

@@ -153,7 +153,8 @@ std::optional<Summary> McapReader::summary(std::vector<Damage>* problems) {
 }
 
 bool McapReader::readChunk(const ChunkIndex& index, const std::map<std::uint16_t, Channel>& channels,
-                           const MessageCallback& callback, std::vector<Damage>* problems) {
+                           const MessageCallback& callback, std::vector<Damage>* problems,
+                           const ReadOptions& options) {
   ByteSource& src = impl_->source;
   const std::uint64_t at = index.chunk_start_offset;
   const auto fail = [&](std::uint64_t offset, DamageKind kind, std::string what) {
@@ -170,7 +171,7 @@ bool McapReader::readChunk(const ChunkIndex& index, const std::map<std::uint16_t
   ChunkHeader header;
   if (parseChunkHeader(content, length, header) != ParseResult::kOk)
     return fail(at, DamageKind::BadRecord, "malformed Chunk record");
-  const DecodedChunk chunk = decodeChunk(content, header, ReadOptions{}.max_chunk_bytes, impl_->chunk_buffer);
+  const DecodedChunk chunk = decodeChunk(content, header, options.max_chunk_bytes, impl_->chunk_buffer);
   if (!chunk.ok) return fail(at, chunk.kind, chunk.what);
   // Reading the message indexes moves the source's window, so keep the records apart from it.
   Bytes records = chunk.records;
@@ -220,15 +221,19 @@ bool McapReader::readChunk(const ChunkIndex& index, const std::map<std::uint16_t
       return fail(at, DamageKind::BadRecord,
                   "message index entry (channel " + std::to_string(channel_id) + ", log time " + std::to_string(time) +
                       ", offset " + std::to_string(where) + ") does not point at that message");
-    if (!callback) continue;
+    const auto c = channels.find(m.channel_id);
+    const Channel* channel = c == channels.end() ? nullptr : &c->second;
+    if (!callback || (!options.channels.empty() && !options.channels.count(m.channel_id)) ||
+        (!options.topics.empty() && (!channel || !options.topics.count(channel->topic))) ||
+        m.log_time < options.start_time || m.log_time > options.end_time)
+      continue;
     TraceMessage t;
     t.channel_id = m.channel_id;
     t.sequence = m.sequence;
     t.log_time = m.log_time;
     t.publish_time = m.publish_time;
     t.data = m.data;
-    const auto c = channels.find(m.channel_id);
-    t.channel = c == channels.end() ? nullptr : &c->second;
+    t.channel = channel;
     t.record_offset = at;
     t.verified = chunk.verified;
     if (!callback(t)) break;

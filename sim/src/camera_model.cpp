@@ -88,17 +88,33 @@ void blur(std::vector<float>& image, int width, int height, double sigma) {
 
 }  // namespace
 
-GrayImage renderImage(const Scene& scene, const CameraIntrinsics& in, const CameraSensor& sensor,
+CameraRenderer::CameraRenderer(const CameraIntrinsics& intrinsics) : intrinsics_(intrinsics) {
+  const int W = intrinsics.width, H = intrinsics.height;
+  rays_.resize(static_cast<std::size_t>(W) * H);
+  tbb::parallel_for(0, H, [&](int v) {
+    for (int u = 0; u < W; ++u) rays_[static_cast<std::size_t>(v) * W + u] = intrinsics.ray(u, v).cast<float>();
+  });
+}
+
+GrayImage renderImage(const Scene& scene, const CameraIntrinsics& intrinsics, const CameraSensor& sensor,
                       const Eigen::Isometry3d& machine_from_camera, std::uint64_t seed) {
+  return CameraRenderer(intrinsics).render(scene, sensor, machine_from_camera, seed);
+}
+
+GrayImage CameraRenderer::render(const Scene& scene, const CameraSensor& sensor,
+                                 const Eigen::Isometry3d& machine_from_camera, std::uint64_t seed) const {
+  const CameraIntrinsics& in = intrinsics_;
   const int W = in.width, H = in.height;
   std::vector<float> radiance(static_cast<std::size_t>(W) * H);
   const Vec3 eye = machine_from_camera.translation();
+  const Eigen::Matrix3d rotation = machine_from_camera.linear();
   const double footprint_per_mm = 1.0 / std::sqrt(in.fx * in.fy);  // one pixel's angular size
   tbb::parallel_for(0, H, [&](int v) {
     double t_hint = -1;
     for (int u = 0; u < W; ++u) {
-      const Vec3 dir_camera = in.ray(u, v);
-      const Ray ray{eye, machine_from_camera.linear() * dir_camera};
+      const std::size_t i = static_cast<std::size_t>(v) * W + u;
+      const Vec3 dir_camera = rays_[i].cast<double>();
+      const Ray ray{eye, rotation * dir_camera};
       const auto hit = scene.cast(ray, footprint_per_mm, t_hint);
       float value = 0;
       if (hit) {
@@ -106,12 +122,14 @@ GrayImage renderImage(const Scene& scene, const CameraIntrinsics& in, const Came
         // A ring light around the lens: Lambertian, falling off with the square of the distance;
         // plus a little room light. Lens falloff (cos^4) darkens the corners.
         const double cos_light = std::max(0.0, -hit->normal.dot(ray.direction));
-        const double falloff = std::pow(sensor.standoff / hit->t, 2);
-        const double cos_field = dir_camera.z();
-        const double light = (1 - sensor.ambient) * cos_light * falloff + sensor.ambient;
-        value = static_cast<float>(hit->albedo / PartScene::kSheetAlbedo * light * std::pow(cos_field, 4));
+        const double ratio = sensor.standoff / hit->t;
+        const double cos_field_sq = dir_camera.z() * dir_camera.z();
+        const double light = (1 - sensor.ambient) * cos_light * ratio * ratio + sensor.ambient;
+        value = static_cast<float>(hit->albedo / PartScene::kSheetAlbedo * light * cos_field_sq * cos_field_sq);
+      } else {
+        t_hint = -1;
       }
-      radiance[static_cast<std::size_t>(v) * W + u] = value;
+      radiance[i] = value;
     }
   });
   blur(radiance, W, H, sensor.blur_sigma);

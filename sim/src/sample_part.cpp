@@ -23,7 +23,7 @@ PanPart::PanPart(const PanParams& params) : params_(params) {}
 
 double PanPart::pocketRadius(double x, double y) const {
   const double u = x / params_.pocket_a, v = y / params_.pocket_b;
-  return std::pow(u * u * u * u + v * v * v * v, 0.25);
+  return std::sqrt(std::sqrt(u * u * u * u + v * v * v * v));
 }
 
 double PanPart::wallHeight(double s) const {
@@ -36,7 +36,7 @@ double PanPart::wallHeight(double s) const {
 double PanPart::height(double x, double y) const {
   double z = wallHeight(pocketRadius(x, y));
   // Dome in the floor: a smooth cap.
-  const double r = std::hypot(x, y) / params_.dome_radius;
+  const double r = std::sqrt(x * x + y * y) / params_.dome_radius;
   if (r < 1.0) z += params_.dome_height * (1.0 - smoother(r));
   return z;
 }

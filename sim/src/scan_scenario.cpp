@@ -492,8 +492,9 @@ class SessionGenerator {
     for (int c = 0; c < 2; ++c) {
       const CameraIntrinsics& in = c == 0 ? truth_.left : truth_.right;
       const Eigen::Isometry3d camera = head * (c == 0 ? truth_.head_from_left : truth_.head_from_right);
-      const GrayImage image = renderImage(*act.scene, in, p_.camera_sensor, camera,
-                                          p_.seed * 1000003ull + trigger_id * 2 + static_cast<std::uint64_t>(c));
+      if (!renderers_[c]) renderers_[c] = std::make_unique<CameraRenderer>(in);
+      const GrayImage image = renderers_[c]->render(*act.scene, p_.camera_sensor, camera,
+                                                    p_.seed * 1000003ull + trigger_id * 2 + static_cast<std::uint64_t>(c));
       msg::CameraFrame f;
       f.camera = c == 0 ? "left" : "right";
       f.frame_id = ++frame_id_[c];
@@ -520,6 +521,7 @@ class SessionGenerator {
   std::unique_ptr<PartScene> part_scene_;
   std::unique_ptr<SphereScene> sphere_scene_;
   std::vector<std::unique_ptr<PlateScene>> plate_scenes_;
+  std::unique_ptr<CameraRenderer> renderers_[2];  // made at the first frame: the pixel rays are cached
   CellTruth truth_;
   CmmTrajectory trajectory_;
   std::vector<Activity> activities_;

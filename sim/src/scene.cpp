@@ -73,7 +73,14 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
   t0 = std::max(t0, 0.0);
   const double denominator = std::abs(d.z()) + max_slope_ * std::hypot(d.x(), d.y());
   double t = t0;
-  if (t_hint > 0 && t_hint - 1.0 > t0 && gap(t_hint - 1.0) > 0) t = t_hint - 1.0;
+  // A neighbouring ray's hit is a close start (coherent rays of a row or a profile); the gap must
+  // still be positive there, i.e. the start above the surface.
+  for (const double back : {0.05, 0.5}) {
+    if (t_hint > 0 && t_hint - back > t0 && gap(t_hint - back) > 0) {
+      t = t_hint - back;
+      break;
+    }
+  }
   double g = gap(t);
   if (g < 0) return hitTable(ray, table_);  // starts below the surface: looking from underneath
   // March with steps that cannot cross the surface (the gap shrinks by at most `denominator` per
@@ -93,9 +100,15 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
   if (!bracketed) return hitTable(ray, table_);
   double a = t_prev, fa = g_prev, b = t, fb = g;
   int side = 0;
+  // Regula falsi keeps one end fixed, so the bracket need not shrink: stop on a small gap instead
+  // (1e-8 mm of height is far below any noise the sensors add).
   for (int it = 0; it < 60 && b - a > 1e-9; ++it) {
     const double c = (a * fb - b * fa) / (fb - fa);
     const double fc = gap(c);
+    if (std::abs(fc) < 1e-8) {
+      a = b = c;
+      break;
+    }
     if (fc > 0) {
       a = c;
       fa = fc;
@@ -123,12 +136,12 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
 }
 
 PlateScene::PlateScene(const CirclePlate& plate, const Eigen::Isometry3d& machine_from_plate, Table table)
-    : plate_(plate), machine_from_plate_(machine_from_plate), table_(table) {}
+    : plate_(plate), machine_from_plate_(machine_from_plate), plate_from_machine_(machine_from_plate.inverse()),
+      table_(table) {}
 
 std::optional<Hit> PlateScene::cast(const Ray& ray, double footprint_per_mm, double) const {
-  const Eigen::Isometry3d plate_from_machine = machine_from_plate_.inverse();
-  const Vec3 o = plate_from_machine * ray.origin;
-  const Vec3 d = plate_from_machine.linear() * ray.direction;
+  const Vec3 o = plate_from_machine_ * ray.origin;
+  const Vec3 d = plate_from_machine_.linear() * ray.direction;
   if (d.z() < -1e-12) {
     const double t = -o.z() / d.z();
     const Vec3 p = o + t * d;

@@ -83,6 +83,11 @@ inline ReadBack readAll(std::span<const std::byte> bytes, const ReadOptions& opt
   return readAll(reader, options);
 }
 
+// Names the cases of a test parameterised on compression: none, zstd, lz4.
+inline std::string compressionCase(const ::testing::TestParamInfo<Compression>& p) {
+  return p.param == Compression::None ? std::string("none") : compressionName(p.param);
+}
+
 // A scratch folder per test, removed afterwards.
 class TraceTest : public ::testing::Test {
  protected:

@@ -66,8 +66,7 @@ TEST_P(FlippedByte, IsReportedAndNeverDeliversAlteredMessages) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Compression, FlippedByte, ::testing::Values(Compression::None, Compression::Zstd),
-                         [](const auto& info) { return info.param == Compression::None ? std::string("none")
-                                                                                         : compressionName(info.param); });
+                         compressionCase);
 
 TEST_F(TraceTest, ChunkCrcMismatchDropsOnlyThatChunk) {
   const fs::path file = dir() / "small.mcap";

@@ -190,8 +190,7 @@ TEST_P(RoundTrip, EveryRecordComesBackAndTheSummaryAgrees) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Compression, RoundTrip, ::testing::Values(Compression::None, Compression::Zstd, Compression::Lz4),
-                         [](const auto& info) { return info.param == Compression::None ? std::string("none")
-                                                                                         : compressionName(info.param); });
+                         compressionCase);
 
 TEST_F(TraceTest, FiltersSelectChannelsTopicsAndTimes) {
   const fs::path file = dir() / "small.mcap";

@@ -105,15 +105,16 @@ TEST_P(Truncation, EveryCutYieldsAPrefixAndSaysWhere) {
     if (HasFailure()) break;
   }
   // Uncompressed chunks give up their complete records before the chunk itself is complete.
-  if (GetParam() == Compression::None) EXPECT_GT(partial_recoveries, 0u);
+  if (GetParam() == Compression::None) {
+    EXPECT_GT(partial_recoveries, 0u);
+  }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   RecordProperty("cuts", static_cast<int>(bytes.size()));
   RecordProperty("seconds", std::to_string(seconds));
 }
 
 INSTANTIATE_TEST_SUITE_P(Compression, Truncation, ::testing::Values(Compression::None, Compression::Zstd, Compression::Lz4),
-                         [](const auto& info) { return info.param == Compression::None ? std::string("none")
-                                                                                         : compressionName(info.param); });
+                         compressionCase);
 
 // zstd and lz4 chunks are decoded as far as their cut bytes go: a chunk of many compressed blocks
 // (zstd blocks hold up to 128 KiB, lz4 frame blocks 64 KiB) yields the messages of its complete blocks.

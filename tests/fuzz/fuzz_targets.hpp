@@ -10,5 +10,7 @@ namespace stampscan::fuzz {
 
 int fuzzPly(const std::uint8_t* data, std::size_t size);
 int fuzzText(const std::uint8_t* data, std::size_t size);
+// The MCAP trace reader never throws on content; 0 always (failures throw std::logic_error).
+int fuzzMcap(const std::uint8_t* data, std::size_t size);
 
 }  // namespace stampscan::fuzz

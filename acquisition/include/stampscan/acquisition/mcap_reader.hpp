@@ -179,12 +179,14 @@ class McapReader {
   TraceHealth readMessages(const MessageCallback& callback, const ReadOptions& options = {});
   TraceHealth check() { return readMessages(nullptr); }
 
-  // Reads one chunk through its index: checks its CRC and delivers its messages in log-time order
-  // as its Message Index records list them, checking each entry against the message found at its
-  // offset. Returns false, with the reasons in `problems`, when the chunk or its index is damaged
-  // (messages already delivered were verified).
+  // Reads one chunk through its index (random access, e.g. to a time): checks its CRC and delivers
+  // its messages in log-time order as its Message Index records list them, checking each entry
+  // against the message at its offset. `options` filters as in readMessages. Returns false, with
+  // the reasons in `problems`, when the chunk or its index is damaged; then nothing was delivered
+  // unless the damage is in an index entry, found only after the entries before it.
   bool readChunk(const ChunkIndex& index, const std::map<std::uint16_t, Channel>& channels,
-                 const MessageCallback& callback, std::vector<Damage>* problems = nullptr);
+                 const MessageCallback& callback, std::vector<Damage>* problems = nullptr,
+                 const ReadOptions& options = {});
 
  private:
   struct Impl;

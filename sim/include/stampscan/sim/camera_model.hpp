@@ -47,8 +47,22 @@ struct GrayImage {
   std::vector<std::uint8_t> bytes() const;
 };
 
-// Renders `scene` seen by a camera at `machine_from_camera`. Deterministic for a given seed,
-// whatever the number of threads (each row draws its noise from its own stream).
+// Renders scenes seen by one camera. Deterministic for a given seed, whatever the number of
+// threads (each row draws its noise from its own stream). The undistorted ray of every pixel is
+// computed once, when the renderer is made.
+class CameraRenderer {
+ public:
+  explicit CameraRenderer(const CameraIntrinsics& intrinsics);
+  GrayImage render(const Scene& scene, const CameraSensor& sensor, const Eigen::Isometry3d& machine_from_camera,
+                   std::uint64_t seed) const;
+  const CameraIntrinsics& intrinsics() const { return intrinsics_; }
+
+ private:
+  CameraIntrinsics intrinsics_;
+  std::vector<Eigen::Vector3f> rays_;  // unit, camera frame, row-major
+};
+
+// One image with a renderer made for it.
 GrayImage renderImage(const Scene& scene, const CameraIntrinsics& intrinsics, const CameraSensor& sensor,
                       const Eigen::Isometry3d& machine_from_camera, std::uint64_t seed);
 

@@ -75,7 +75,7 @@ class PlateScene final : public Scene {
 
  private:
   CirclePlate plate_;
-  Eigen::Isometry3d machine_from_plate_;
+  Eigen::Isometry3d machine_from_plate_, plate_from_machine_;
   Table table_;
 };
 
