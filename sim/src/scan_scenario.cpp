@@ -127,8 +127,7 @@ class SessionGenerator {
       : p_(params), sink_(sink), progress_(progress), emitter_(sink), rng_(params.seed) {}
 
   ScanSummary run() {
-    part_ = params().part == PartKind::Dome ? std::unique_ptr<FormedPart>(std::make_unique<DomePart>())
-                                            : std::unique_ptr<FormedPart>(std::make_unique<StampedPanPart>());
+    part_ = makePart(p_);
     part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
     makeTruth();
@@ -531,6 +530,11 @@ class SessionGenerator {
 };
 
 }  // namespace
+
+std::unique_ptr<FormedPart> makePart(const ScanParams& params) {
+  if (params.part == PartKind::Dome) return std::make_unique<DomePart>(params.dome);
+  return std::make_unique<StampedPanPart>(params.pan);
+}
 
 ScanSummary generateScan(const ScanParams& params, TraceSink& sink, const ScanProgress& progress) {
   SessionGenerator generator(params, sink, progress);

@@ -30,6 +30,9 @@ struct GenerateOptions {
   double image_scale = 0;  // 0: the preset's
   int bits = 8;
   std::string compression = "zstd";
+  double scale = 1;     // lateral size factor of the part
+  double depth = 0;     // mm; 0: the part's default
+  double strain = -1;   // strain level; negative: the part's default
 };
 
 // The MCAP side of the generator: every message through the recorder, which registers the topics.
@@ -68,6 +71,17 @@ sim::ScanParams paramsFrom(const GenerateOptions& o) {
     else throw std::invalid_argument("unknown sensor set '" + item + "' in --sensors (expected laser, stereo, calibration)");
   }
   if (!p.laser && !p.stereo && !p.calibration) throw std::invalid_argument("--sensors names nothing to simulate");
+  // Size, depth and strain level of the part.
+  p.dome.blank_half_size *= o.scale;
+  p.dome.die_radius *= o.scale;
+  p.pan.half_length *= o.scale;
+  p.pan.half_width *= o.scale;
+  p.pan.pocket_a *= o.scale;
+  p.pan.pocket_b *= o.scale;
+  p.pan.wall_width *= o.scale;
+  p.pan.dome_radius *= o.scale;
+  if (o.depth > 0) p.dome.depth = p.pan.depth = o.depth;
+  if (o.strain >= 0) p.dome.pole_strain = p.pan.peak_strain = o.strain;
   p.seed = o.seed;
   if (o.image_scale > 0) p.image_scale = o.image_scale;
   p.camera_sensor.bits = o.bits;
@@ -93,6 +107,11 @@ CommandRunner addSimCommand(CLI::App& app) {
       ->check(CLI::IsMember({"dome", "pan"}));
   gen->add_option("--grid", opt->grid, "Printed grid: circle or square (2.54 mm)")->check(CLI::IsMember({"circle", "square"}));
   gen->add_option("--sensors", opt->sensors, "Comma-separated: laser, stereo, calibration (default: all)");
+  gen->add_option("--scale", opt->scale, "Lateral size of the part relative to the default (dome: 150 mm blank)")
+      ->check(CLI::Range(0.3, 2.5));
+  gen->add_option("--depth", opt->depth, "Depth of the part in mm (dome: 30, pan: 20)")->check(CLI::Range(1.0, 60.0));
+  gen->add_option("--strain", opt->strain, "Strain level: the dome's pole strain (0.12) or the pan's peak strain (0.3)")
+      ->check(CLI::Range(0.0, 0.5));
   gen->add_option("--truth", opt->truth, "Also write the ground truth of every grid element (PLY)");
   gen->add_option("--seed", opt->seed, "Random seed (default 1); the same seed gives the same trace");
   gen->add_flag("--quick", opt->quick, "A small session: a region of the part, quarter-resolution images, few poses");
@@ -141,7 +160,7 @@ CommandRunner addSimCommand(CLI::App& app) {
     std::printf("  CMM         %zu position reports\n", summary.positions);
     std::printf("  wrote       %s: %zu messages, %s\n", opt->output.c_str(), summary.messages, megabytes(size).c_str());
     if (!opt->truth.empty()) {
-      const std::unique_ptr<sim::FormedPart> part = sim::makePart(params.part);
+      const std::unique_ptr<sim::FormedPart> part = sim::makePart(params);
       const fitting::Cloud truth = sim::groundTruth(*part, params.grid);
       sim::writeGroundTruth(opt->truth, truth);
       std::printf("  truth       %s: %zu grid elements\n", opt->truth.c_str(), truth.size());

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -34,6 +35,8 @@ class TraceSink {
 
 struct ScanParams {
   PartKind part = PartKind::Dome;
+  DomeParams dome;          // used when part is Dome
+  StampedPanParams pan;     // used when part is Pan
   GridSpec grid;
   bool laser = true, stereo = true, calibration = true;
   std::uint64_t seed = 1;
@@ -79,6 +82,9 @@ struct ScanSummary {
 };
 
 using ScanProgress = std::function<void(double fraction, std::string_view stage)>;
+
+// The formed part the parameters describe.
+std::unique_ptr<FormedPart> makePart(const ScanParams& params);
 
 // Builds the part, plans the session and streams it to `sink`.
 ScanSummary generateScan(const ScanParams& params, TraceSink& sink, const ScanProgress& progress = {});
