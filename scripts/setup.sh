@@ -9,7 +9,7 @@ shift || true
 
 packages=(build-essential cmake ninja-build pkg-config
           libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev libgtest-dev
-          libzstd-dev liblz4-dev zlib1g-dev libopencv-dev)
+          libzstd-dev liblz4-dev zlib1g-dev libopencv-dev libmodbus-dev mbpoll)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -20,6 +20,21 @@ if [ ${#missing[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# The MCAP interoperability test (tests/acquisition/test_mcap_interop.cpp) reads our traces with the
+# reference reader, @mcap/core, under node; the npm packages are pinned in its package-lock.json.
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  echo "setup: installing nodejs npm"
+  if [ "$(id -u)" -ne 0 ]; then sudo=sudo; else sudo=; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
+fi
+interop=tests/acquisition/interop
+if [ ! -d "$interop/node_modules" ] || [ "$interop/package-lock.json" -nt "$interop/node_modules/.package-lock.json" ]; then
+  echo "setup: npm ci in $interop"
+  npm ci --prefix "$interop" --no-audit --no-fund --loglevel=error
 fi
 
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="${STAMPSCAN_BUILD_TYPE:-Release}" "$@" >/dev/null

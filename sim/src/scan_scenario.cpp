@@ -208,21 +208,22 @@ class SessionGenerator {
   }
 
   void planPlate() {
+    // The plate stands still on its fixture beside the part, tilted a little; the head looks at it
+    // from many directions and distances. That gives the view diversity intrinsic calibration needs,
+    // and, with the plate fixed, the head-to-camera (hand-eye) transform is observable too.
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const Vec3 station(-250, 0, -40);  // the plate's stand, beside the part
     const CirclePlate& plate = p_.plate;
     const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translate(Vec3(-250, 0, -40));
+    pose.rotate(Eigen::AngleAxisd(0.2, Vec3::UnitZ()) * Eigen::AngleAxisd(0.15, Vec3::UnitX()) *
+                Eigen::AngleAxisd(-0.1, Vec3::UnitY()));
+    pose.translate(-centre_on_plate);
+    plate_scenes_.push_back(std::make_unique<PlateScene>(plate, pose));
     for (int k = 0; k < p_.plate_poses; ++k) {
-      const double tilt_x = 0.5 * u(rng_), tilt_y = 0.5 * u(rng_), turn = 0.6 * u(rng_);
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.translate(station + Vec3(10 * u(rng_), 10 * u(rng_), 10 * u(rng_)));
-      pose.rotate(Eigen::AngleAxisd(turn, Vec3::UnitZ()) * Eigen::AngleAxisd(tilt_x, Vec3::UnitX()) *
-                  Eigen::AngleAxisd(tilt_y, Vec3::UnitY()));
-      pose.translate(-centre_on_plate);
       truth_.plate_poses.push_back(pose);
-      plate_scenes_.push_back(std::make_unique<PlateScene>(plate, pose));
-      const double a = 0.2 * u(rng_), b = 0.3 * u(rng_);
-      const Vec3 target = pose * centre_on_plate;
+      const double a = 0.4 * u(rng_), b = 0.8 * u(rng_);
+      const Vec3 target = pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
       const HeadState h{Vec3::Zero(), a, b, 0};
       const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
       travelTo(head, a, b);

@@ -70,7 +70,7 @@ struct CellTruth {
   std::int64_t digitizer_clock_offset_ns = 0;  // digitizer clock minus station clock
   std::int64_t digitizer_latency_ns = 0;       // profile stamp minus its true exposure time
   std::int64_t camera_clock_offset_ns[2] = {0, 0};
-  std::vector<Eigen::Isometry3d> plate_poses;  // machine_from_plate per calibration pose
+  std::vector<Eigen::Isometry3d> plate_poses;  // machine_from_plate per calibration view (the plate stays put)
   ReferenceSphere sphere;
 };
 

@@ -60,10 +60,10 @@ class PartScene final : public Scene {
 
 // A flat calibration plate with a symmetric grid of black dots on white, at a pose on the table.
 struct CirclePlate {
-  int columns = 11, rows = 9;  // dots; odd counts keep the pattern's orientation unambiguous
-  double pitch = 8;            // mm between dot centres
-  double dot_diameter = 4;     // mm
-  double margin = 10;          // mm of white around the outer dots
+  int columns = 9, rows = 7;   // dots; odd counts keep the pattern's orientation unambiguous
+  double pitch = 6;            // mm between dot centres
+  double dot_diameter = 3;     // mm
+  double margin = 6;           // mm of white around the outer dots
   // Dot (i, j) is at (i * pitch, j * pitch, 0) in the plate frame; the plate faces +z.
   Vec3 dotCentre(int i, int j) const { return {i * pitch, j * pitch, 0}; }
 };
