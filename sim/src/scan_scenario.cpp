@@ -222,7 +222,9 @@ class SessionGenerator {
     plate_scenes_.push_back(std::make_unique<PlateScene>(plate, pose));
     for (int k = 0; k < p_.plate_poses; ++k) {
       truth_.plate_poses.push_back(pose);
-      const double a = 0.4 * u(rng_), b = 0.8 * u(rng_);
+      // Turns within +-30 degrees: the plate then stays within +-45 degrees of upright in the image,
+      // where its dots are numbered unambiguously.
+      const double a = 0.4 * u(rng_), b = 0.5 * u(rng_);
       const Vec3 target = pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
       const HeadState h{Vec3::Zero(), a, b, 0};
       const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));

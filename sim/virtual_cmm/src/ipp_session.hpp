@@ -1,0 +1,158 @@
+// One client connection of the virtual CMM: the I++ DME server's two queues (§4, picture 11).
+//
+// The reader thread hands every line to onLine(). Lines with an E tag run at once on that thread
+// (the fast queue: AbortE, GetErrStatusE, GetPropE, OnMoveReportE). Other commands are acknowledged
+// (`&`) and queued; one executor thread runs them in order, so responses keep the order of §6.2.3,
+// and moves run in real time on it while the reader thread stays free to take an AbortE.
+//
+// Errors follow §6.2.5 and §8: a class 2+ error aborts the queued transactions (0006) and puts the
+// server into the error state, where only ClearAllErrors and a few queries are served (0511, 0514).
+#pragma once
+
+#include "cmm_machine.hpp"
+#include "stampscan/drivers/cmm/ipp_protocol.hpp"
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace stampscan::sim::detail {
+
+namespace ipp = drivers::cmm::ipp;
+
+// Thrown by a command handler: the §8.2 number, and the particulars that GetErrorInfo explains.
+class CommandFailure : public std::runtime_error {
+ public:
+  CommandFailure(int number, const std::string& detail, std::optional<int> severity = {})
+      : std::runtime_error(detail), number_(number), severity_(severity) {}
+  int number() const { return number_; }
+  std::optional<int> severity() const { return severity_; }
+
+ private:
+  int number_;
+  std::optional<int> severity_;
+};
+
+// Faults a test asks for, shared by the server and its sessions.
+class FaultInjection {
+ public:
+  void failNext(int number, std::optional<int> severity);
+  // The injected failure, once: the next command takes it.
+  std::optional<CommandFailure> take();
+
+ private:
+  std::mutex mutex_;
+  std::optional<CommandFailure> next_;
+};
+
+class IppSession {
+ public:
+  using Sink = std::function<void(const std::string& line)>;  // one response line, without CR LF
+
+  IppSession(CmmMachine& machine, FaultInjection& faults, Sink sink);
+  // The connection is gone: stops the move where it is, drops queued commands and daemons.
+  ~IppSession();
+  IppSession(const IppSession&) = delete;
+  IppSession& operator=(const IppSession&) = delete;
+
+  void onLine(const ipp::LineFramer::Line& line);  // reader thread only
+
+  bool sessionActive() const;
+  bool errorState() const;
+
+ private:
+  struct Pending {
+    ipp::Tag tag;
+    std::optional<ipp::Command> command;
+    std::optional<ipp::ProtocolError> syntax_error;  // answered in queue order, §6.2.3
+    bool aborted = false;                            // by an error or AbortE before it started
+  };
+  struct MoveDaemon {  // OnMoveReportE (§6.3.2.7)
+    ipp::Tag tag;
+    double interval = 0;      // Time(s), 0 when not given
+    double min_distance = 0;  // Dis(d), 0 when not given
+    std::vector<std::string> items;  // X, Y, Z, SS.Time, in the order asked for
+    bool reported = false;
+    Clock::time_point last_time;
+    Vec3 last_position{};
+  };
+  class Responder;
+
+  // Reader thread.
+  void onCommand(ipp::Command command);
+  void runFast(const ipp::Command& command);
+  void abortE(const ipp::Command& command);
+  void onMoveReportE(const ipp::Command& command, Responder& out);
+  void replyToBadLine(const ipp::ProtocolError& error);
+
+  // Executor thread.
+  void executorLoop();
+  void execute(Pending& pending);
+  void dispatch(const ipp::Command& command, Responder& out);  // session_commands.cpp
+  bool runMove(const Vec3& target);                              // false when aborted
+  bool pause(Clock::time_point until);                           // false when aborted
+  std::optional<std::string> dueReport(Clock::time_point now, bool at_rest);  // with mutex_ held
+  Clock::time_point nextReportCheck(Clock::time_point now) const;             // with mutex_ held
+
+  // Command handlers (session_commands.cpp).
+  void startSession(const ipp::Command& c, Responder& out);
+  void endSession(const ipp::Command& c, Responder& out);
+  void stopDaemon(const ipp::Command& c, Responder& out);
+  void stopAllDaemons(const ipp::Command& c, Responder& out);
+  void clearAllErrors(const ipp::Command& c, Responder& out);
+  void getErrorInfo(const ipp::Command& c, Responder& out);
+  void getXtdErrStatus(const ipp::Command& c, Responder& out);
+  void home(const ipp::Command& c, Responder& out);
+  void goTo(const ipp::Command& c, Responder& out);
+  void get(const ipp::Command& c, Responder& out);
+  void getProp(const ipp::Command& c, Responder& out);
+  void setProp(const ipp::Command& c, Responder& out);
+  void changeTool(const ipp::Command& c, Responder& out);
+  void setTool(const ipp::Command& c, Responder& out);
+  void findTool(const ipp::Command& c, Responder& out);
+  void enumTools(const ipp::Command& c, Responder& out);
+  void userCommand(const ipp::Command& c, Responder& out);  // EnableUser, DisableUser, IsUserEnabled
+  void simpleQuery(const ipp::Command& c, Responder& out);  // IsHomed, GetMachineClass, GetDMEVersion
+  ipp::Argument propertyValue(const ipp::Argument& property) const;
+
+  // Either thread.
+  void send(const ipp::Reply& reply);
+  // Records an error response; class 2+ enters the error state and aborts what is queued. mutex_ held.
+  void recordError(const ipp::ErrorReport& report, const std::string& detail);
+  bool commandAllowed(const std::string& name, bool fast, Responder& out);
+
+  CmmMachine& machine_;
+  FaultInjection& faults_;
+  Sink sink_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable work_;    // queue_ changed, or closing_
+  std::condition_variable idle_;    // the executor finished a command
+  std::condition_variable motion_;  // abort_requested_ or closing_ changed: a running move stops
+  std::deque<Pending> queue_;
+  std::set<ipp::Tag> in_flight_;    // queued or executing (§6.2.1: unique while processed)
+  bool executing_ = false;
+  bool abort_requested_ = false;
+  bool closing_ = false;
+
+  bool session_active_ = false;
+  Clock::time_point session_start_;
+  bool error_state_ = false;
+  std::vector<ipp::ErrorReport> errors_;  // since the last ClearAllErrors, for GetXtdErrStatus
+  std::map<int, std::string> error_info_;  // number -> particulars of its last occurrence
+  bool user_enabled_ = false;
+  std::string found_tool_ = "UnDefTool";  // FindTool's pointer (§6.3.2.17)
+  std::optional<MoveDaemon> daemon_;
+
+  std::thread executor_;
+};
+
+}  // namespace stampscan::sim::detail

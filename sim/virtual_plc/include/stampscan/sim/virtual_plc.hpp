@@ -1,0 +1,100 @@
+// The virtual cell PLC: a libmodbus TCP server serving the register map of
+// drivers/plc/plc_register_map.hpp, with the PLC's interlock logic running in the server. The station
+// reaches it through the same ModbusPlc driver as the real PLC; tests and the simulator drive its
+// inputs (door, e-stop, light curtain, clamp, air) and inject faults (silence, slow replies, dropped
+// connections) through this class.
+//
+// Interlock (as documented in drivers/plc/REGISTER_MAP.md): while the door is open, the e-stop chain
+// is broken, the light curtain is interrupted, or the station heartbeat has not changed for longer
+// than watchdog_timeout_ms, the PLC forces laser_shutter_open_request and motion_enable to 0 (so the
+// shutter closes and motion stops) and reports interlock_state 1 with the causes in fault_word. The
+// coils stay 0 once the cause is gone, until the station writes them again: no automatic restart.
+//
+// Threads: one accepting connections, one per connection (each with its own libmodbus context, since
+// contexts are not thread-safe), one for the logic cycle. All of them share the register image under
+// one mutex. Every public method is thread-safe. The destructor stops and joins them all.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "stampscan/drivers/plc/plc_register_map.hpp"
+
+namespace stampscan::sim {
+
+struct VirtualPlcOptions {
+  std::string address = "127.0.0.1";  // IPv4 address to listen on
+  int port = drivers::plc::kDefaultTcpPort;  // 0: an ephemeral port, readable with port() after start()
+  std::uint16_t firmware_major = 1;
+  std::uint16_t firmware_minor = 0;
+  std::uint16_t watchdog_timeout_ms = drivers::plc::kDefaultWatchdogTimeoutMs;  // initial value
+  // The logic cycle: heartbeat watchdog, plc_heartbeat counter. Input changes made through this
+  // class and requests from clients are acted on at once, not at the next cycle.
+  std::chrono::milliseconds cycle{10};
+};
+
+class VirtualPlc {
+ public:
+  using DiscreteInput = drivers::plc::DiscreteInput;
+  using Coil = drivers::plc::Coil;
+  using HoldingRegister = drivers::plc::HoldingRegister;
+  using InputRegister = drivers::plc::InputRegister;
+
+  // The cell starts healthy: door closed, e-stop chain OK, curtain clear, air OK, part unclamped,
+  // shutter closed, every coil 0. Nothing listens until start().
+  explicit VirtualPlc(VirtualPlcOptions options = {});
+  ~VirtualPlc();
+  VirtualPlc(const VirtualPlc&) = delete;
+  VirtualPlc& operator=(const VirtualPlc&) = delete;
+
+  // Listens and starts serving; throws std::runtime_error naming the address when it cannot.
+  void start();
+  // Closes every connection and joins every thread; the register image is kept. Idempotent.
+  void stop() noexcept;
+  bool running() const;
+  int port() const;  // the bound port (the ephemeral one when options.port was 0); 0 before start()
+  const VirtualPlcOptions& options() const { return options_; }
+
+  // Inputs, as the cell's sensors would set them.
+  void setInput(DiscreteInput input, bool on);
+  void openDoor() { setInput(DiscreteInput::DoorClosed, false); }
+  void closeDoor() { setInput(DiscreteInput::DoorClosed, true); }
+  void breakEStopChain() { setInput(DiscreteInput::EStopChainOk, false); }
+  void restoreEStopChain() { setInput(DiscreteInput::EStopChainOk, true); }
+  void interruptLightCurtain() { setInput(DiscreteInput::LightCurtainClear, false); }
+  void clearLightCurtain() { setInput(DiscreteInput::LightCurtainClear, true); }
+  // The clamp follows clamp_request on its own; this overrides it (a part that slipped, a stuck clamp).
+  void setPartClamped(bool clamped) { setInput(DiscreteInput::PartClamped, clamped); }
+  void setAirPressureOk(bool ok) { setInput(DiscreteInput::AirPressureOk, ok); }
+
+  // The register image, as a client would read it.
+  bool input(DiscreteInput input) const;
+  bool coil(Coil coil) const;
+  std::uint16_t holdingRegister(HoldingRegister reg) const;
+  std::uint16_t inputRegister(InputRegister reg) const;
+  bool interlockTripped() const;
+  std::uint16_t faultWord() const;
+  // How many times the station heartbeat register changed value.
+  std::uint64_t stationHeartbeatChanges() const;
+
+  // Fault injection.
+  // Silent: requests are read and dropped, never answered (a PLC whose program hangs).
+  void setSilent(bool silent);
+  // Every reply waits this long first (0: none); beyond the client's timeout, the client times out.
+  void setReplyDelay(std::chrono::milliseconds delay);
+  // Closes every open client connection now; clients may connect again.
+  void dropConnections();
+
+  std::size_t connectionCount() const;
+  std::uint64_t requestsAnswered() const;
+
+ private:
+  struct Impl;
+  VirtualPlcOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stampscan::sim

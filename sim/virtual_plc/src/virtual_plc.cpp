@@ -1,0 +1,316 @@
+#include "stampscan/sim/virtual_plc.hpp"
+
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <condition_variable>
+#include <cstring>
+#include <list>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include <modbus.h>
+
+#include "plc_logic.hpp"
+
+namespace stampscan::sim {
+
+using namespace drivers::plc;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Connection {
+  int fd;  // -1 once closed; guarded by Impl::connections_mutex
+  std::thread thread;
+  bool finished = false;
+};
+
+}  // namespace
+
+struct VirtualPlc::Impl {
+  explicit Impl(const VirtualPlcOptions& options)
+      : image(modbus_mapping_new_start_address(0, kCoilCount, 0, kDiscreteInputCount, 0,
+                                               kHoldingRegisterCount, 0, kInputRegisterCount)) {
+    if (image == nullptr) throw std::runtime_error("virtual PLC: cannot allocate the register image");
+    logic.emplace(*image, options, Clock::now());
+  }
+  ~Impl() { modbus_mapping_free(image); }
+
+  mutable std::mutex image_mutex;  // the image and the logic
+  modbus_mapping_t* image;
+  std::optional<detail::PlcLogic> logic;
+
+  std::atomic<bool> silent{false};
+  std::atomic<std::int64_t> reply_delay_ms{0};
+  std::atomic<std::uint64_t> requests_answered{0};
+
+  mutable std::mutex lifecycle_mutex;  // start/stop, running, port
+  bool running = false;
+  int port = 0;
+  int listen_fd = -1;
+  // A byte written here wakes every poll() at once: the stop signal of the socket threads.
+  std::array<int, 2> wake_pipe{-1, -1};
+  std::thread acceptor;
+  std::thread cycler;
+
+  std::mutex stop_mutex;  // `stopping` and the waits on it (logic cycle, reply delays)
+  std::condition_variable stop_wake;
+  bool stopping = false;
+
+  mutable std::mutex connections_mutex;
+  std::list<Connection> connections;  // a list: each thread holds a reference to its element
+
+  bool waitForStop(Clock::duration duration) {
+    std::unique_lock lock(stop_mutex);
+    return stop_wake.wait_for(lock, duration, [&] { return stopping; });
+  }
+
+  template <class Operation>
+  auto withImage(Operation&& operation) const {
+    std::lock_guard lock(image_mutex);
+    return operation(*image);
+  }
+
+  void acceptLoop(const VirtualPlcOptions& options);
+  void serve(Connection& connection, const VirtualPlcOptions& options);
+  void cycleLoop(std::chrono::milliseconds period);
+  void reapFinished();
+};
+
+void VirtualPlc::Impl::acceptLoop(const VirtualPlcOptions& options) {
+  for (;;) {
+    std::array<pollfd, 2> fds{{{listen_fd, POLLIN, 0}, {wake_pipe[0], POLLIN, 0}}};
+    if (::poll(fds.data(), fds.size(), -1) < 0) {
+      if (errno == EINTR) continue;
+      return;
+    }
+    if (fds[1].revents != 0) return;
+    const int fd = ::accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
+    if (fd < 0) continue;  // the client gave up meanwhile, or a transient shortage: keep serving
+    // Replies are small single writes; without this, Nagle and delayed ACKs add up to 40 ms.
+    const int on = 1;
+    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
+    reapFinished();
+    std::lock_guard lock(connections_mutex);
+    Connection& connection = connections.emplace_back(Connection{fd, {}, false});
+    connection.thread = std::thread([this, &connection, &options] { serve(connection, options); });
+  }
+}
+
+void VirtualPlc::Impl::serve(Connection& connection, const VirtualPlcOptions& options) {
+  // One libmodbus context per connection thread: contexts are not thread-safe. The context only
+  // frames requests and replies on the accepted socket; its address is never used to connect.
+  modbus_t* context = modbus_new_tcp(options.address.c_str(), options.port);
+  int fd = -1;
+  {
+    std::lock_guard lock(connections_mutex);
+    fd = connection.fd;
+  }
+  if (context != nullptr) {
+    modbus_set_socket(context, fd);
+    std::array<std::uint8_t, MODBUS_TCP_MAX_ADU_LENGTH> query{};
+    for (;;) {
+      std::array<pollfd, 2> fds{{{fd, POLLIN, 0}, {wake_pipe[0], POLLIN, 0}}};
+      if (::poll(fds.data(), fds.size(), -1) < 0) {
+        if (errno == EINTR) continue;
+        break;
+      }
+      if (fds[1].revents != 0) break;
+      const int length = modbus_receive(context, query.data());
+      if (length < 0) break;   // closed by the client or by dropConnections(), or a broken frame
+      if (length == 0) continue;  // a request for another unit
+      if (silent) continue;
+      const std::chrono::milliseconds delay(reply_delay_ms.load());
+      if (delay.count() > 0 && waitForStop(delay)) break;
+      std::lock_guard lock(image_mutex);
+      const Clock::time_point now = Clock::now();
+      logic->evaluate(now);  // the reply shows the state as of now (the watchdog may have expired)
+      const int sent = modbus_reply(context, query.data(), length, image);
+      logic->evaluate(now);  // a write takes effect before anyone can read it back
+      if (sent >= 0) ++requests_answered;
+    }
+    modbus_free(context);  // frees the context only; the socket is closed below
+  }
+  std::lock_guard lock(connections_mutex);
+  ::close(connection.fd);
+  connection.fd = -1;
+  connection.finished = true;
+}
+
+void VirtualPlc::Impl::cycleLoop(std::chrono::milliseconds period) {
+  Clock::time_point next = Clock::now();
+  for (;;) {
+    next += period;
+    {
+      std::unique_lock lock(stop_mutex);
+      if (stop_wake.wait_until(lock, next, [&] { return stopping; })) return;
+    }
+    std::lock_guard lock(image_mutex);
+    logic->cycle(Clock::now());
+  }
+}
+
+void VirtualPlc::Impl::reapFinished() {
+  std::vector<std::thread> done;
+  {
+    std::lock_guard lock(connections_mutex);
+    for (auto it = connections.begin(); it != connections.end();) {
+      if (it->finished) {
+        done.push_back(std::move(it->thread));
+        it = connections.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (std::thread& thread : done) thread.join();
+}
+
+VirtualPlc::VirtualPlc(VirtualPlcOptions options)
+    : options_(std::move(options)), impl_(std::make_unique<Impl>(options_)) {}
+
+VirtualPlc::~VirtualPlc() { stop(); }
+
+void VirtualPlc::start() {
+  std::lock_guard lifecycle(impl_->lifecycle_mutex);
+  if (impl_->running) return;
+  const std::string where = options_.address + ":" + std::to_string(options_.port);
+  modbus_t* listener = modbus_new_tcp(options_.address.c_str(), options_.port);
+  if (listener == nullptr)
+    throw std::runtime_error("virtual PLC: cannot create a Modbus context for " + where + ": " +
+                             modbus_strerror(errno));
+  const int fd = modbus_tcp_listen(listener, 8);
+  const int listen_error = errno;
+  modbus_free(listener);  // listening needs only the socket it returned
+  if (fd < 0)
+    throw std::runtime_error("virtual PLC: cannot listen on " + where + ": " +
+                             std::strerror(listen_error));
+  sockaddr_in bound{};
+  socklen_t bound_size = sizeof bound;
+  if (::getsockname(fd, reinterpret_cast<sockaddr*>(&bound), &bound_size) != 0 ||
+      ::pipe2(impl_->wake_pipe.data(), O_CLOEXEC) != 0) {
+    const int error = errno;
+    ::close(fd);
+    throw std::runtime_error("virtual PLC: cannot set up " + where + ": " + std::strerror(error));
+  }
+  impl_->listen_fd = fd;
+  impl_->port = ntohs(bound.sin_port);
+  {
+    std::lock_guard lock(impl_->stop_mutex);
+    impl_->stopping = false;
+  }
+  impl_->acceptor = std::thread([this] { impl_->acceptLoop(options_); });
+  impl_->cycler = std::thread([this] { impl_->cycleLoop(options_.cycle); });
+  impl_->running = true;
+}
+
+void VirtualPlc::stop() noexcept {
+  std::lock_guard lifecycle(impl_->lifecycle_mutex);
+  if (!impl_->running) return;
+  {
+    std::lock_guard lock(impl_->stop_mutex);
+    impl_->stopping = true;
+  }
+  impl_->stop_wake.notify_all();
+  const char wake = 's';
+  [[maybe_unused]] const ssize_t written = ::write(impl_->wake_pipe[1], &wake, 1);
+  impl_->acceptor.join();
+  impl_->cycler.join();
+  dropConnections();  // wakes a thread that is inside modbus_receive() mid-frame
+  std::list<Connection> connections;
+  {
+    std::lock_guard lock(impl_->connections_mutex);
+    connections.swap(impl_->connections);
+  }
+  for (Connection& connection : connections) connection.thread.join();
+  ::close(impl_->listen_fd);
+  ::close(impl_->wake_pipe[0]);
+  ::close(impl_->wake_pipe[1]);
+  impl_->listen_fd = -1;
+  impl_->wake_pipe = {-1, -1};
+  impl_->running = false;
+}
+
+bool VirtualPlc::running() const {
+  std::lock_guard lifecycle(impl_->lifecycle_mutex);
+  return impl_->running;
+}
+
+int VirtualPlc::port() const {
+  std::lock_guard lifecycle(impl_->lifecycle_mutex);
+  return impl_->port;
+}
+
+void VirtualPlc::setInput(DiscreteInput input, bool on) {
+  impl_->withImage([&](modbus_mapping_t& image) {
+    image.tab_input_bits[address(input)] = on ? 1 : 0;
+    impl_->logic->evaluate(Clock::now());
+  });
+}
+
+bool VirtualPlc::input(DiscreteInput input) const {
+  return impl_->withImage(
+      [&](const modbus_mapping_t& image) { return image.tab_input_bits[address(input)] != 0; });
+}
+
+bool VirtualPlc::coil(Coil coil) const {
+  return impl_->withImage(
+      [&](const modbus_mapping_t& image) { return image.tab_bits[address(coil)] != 0; });
+}
+
+std::uint16_t VirtualPlc::holdingRegister(HoldingRegister reg) const {
+  return impl_->withImage(
+      [&](const modbus_mapping_t& image) { return image.tab_registers[address(reg)]; });
+}
+
+std::uint16_t VirtualPlc::inputRegister(InputRegister reg) const {
+  return impl_->withImage(
+      [&](const modbus_mapping_t& image) { return image.tab_input_registers[address(reg)]; });
+}
+
+bool VirtualPlc::interlockTripped() const {
+  return inputRegister(InputRegister::InterlockState) != 0;
+}
+
+std::uint16_t VirtualPlc::faultWord() const { return inputRegister(InputRegister::FaultWord); }
+
+std::uint64_t VirtualPlc::stationHeartbeatChanges() const {
+  std::lock_guard lock(impl_->image_mutex);
+  return impl_->logic->stationHeartbeatChanges();
+}
+
+void VirtualPlc::setSilent(bool silent) { impl_->silent = silent; }
+
+void VirtualPlc::setReplyDelay(std::chrono::milliseconds delay) {
+  impl_->reply_delay_ms = delay.count();
+}
+
+void VirtualPlc::dropConnections() {
+  // shutdown() rather than close(): the serving thread sees end-of-file and closes the descriptor
+  // itself, so no descriptor is closed twice or reused under a thread still reading it.
+  std::lock_guard lock(impl_->connections_mutex);
+  for (const Connection& connection : impl_->connections)
+    if (connection.fd >= 0) ::shutdown(connection.fd, SHUT_RDWR);
+}
+
+std::size_t VirtualPlc::connectionCount() const {
+  std::lock_guard lock(impl_->connections_mutex);
+  std::size_t open = 0;
+  for (const Connection& connection : impl_->connections) open += connection.finished ? 0 : 1;
+  return open;
+}
+
+std::uint64_t VirtualPlc::requestsAnswered() const { return impl_->requests_answered; }
+
+}  // namespace stampscan::sim
