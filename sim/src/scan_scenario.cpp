@@ -242,18 +242,29 @@ class SessionGenerator {
   }
 
   void planSphere() {
+    // Sweeps that look different from the sensor: the ball passes through the left, middle and right
+    // of the fan and near and far in the measuring range (otherwise a turn of the mount could not be
+    // told from a shift); the head turns and tilts between sweeps (otherwise the mount's offset could
+    // not be told from the ball's position); speeds and directions vary (the latency shifts points
+    // along the sweep by speed x latency).
+    struct SweepPlan {
+      double b, a, speed, direction, lateral, depth;
+    };
+    const double quarter = std::numbers::pi / 2;
+    const SweepPlan plans[] = {{0, 0, 10, 1, -12, 0},           {quarter, 0.3, 40, -1, 12, 8},
+                               {0, -0.3, 40, 1, 0, 15},         {quarter, 0, 10, -1, 0, -15},
+                               {0, 0.3, 10, -1, 8, -8},         {quarter, -0.3, 40, 1, -8, 0},
+                               {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
     const ReferenceSphere& s = p_.sphere;
     for (int k = 0; k < p_.sphere_sweeps; ++k) {
-      const double b = (k / 2) % 2 ? std::numbers::pi / 2 : 0.0;
-      const double a = k >= 4 ? (k % 2 ? 0.3 : -0.3) : 0.0;
-      const double speed = (k / 4) % 2 ? 40.0 : 10.0;
-      const double direction = k % 2 ? -1.0 : 1.0;
-      const HeadState h{Vec3::Zero(), a, b, 0};
+      const SweepPlan& plan = plans[k % 8];
+      const HeadState h{Vec3::Zero(), plan.a, plan.b, 0};
       const Eigen::Matrix3d R = h.pose().linear() * truth_.head_from_digitizer_nominal.linear();
-      const Vec3 centre = s.centre + p_.digitizer.standoff * R.col(2);  // the mirror above the ball
-      const Vec3 along = direction * (s.radius + 8) * R.col(1);
-      sweep(sphere_scene_.get(), "reference_sphere", static_cast<std::uint32_t>(k), centre - along, centre + along, a, b,
-            speed, k == 0, k == p_.sphere_sweeps - 1);
+      // The mirror above the ball, offset across the fan and along the view.
+      const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
+      const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
+      sweep(sphere_scene_.get(), "reference_sphere", static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a,
+            plan.b, plan.speed, k == 0, k == p_.sphere_sweeps - 1);
     }
   }
 

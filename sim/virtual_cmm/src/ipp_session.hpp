@@ -92,6 +92,7 @@ class IppSession {
   void abortE(const ipp::Command& command);
   void onMoveReportE(const ipp::Command& command, Responder& out);
   void replyToBadLine(const ipp::ProtocolError& error);
+  bool tagInUse(ipp::Tag tag) const;
 
   // Executor thread.
   void executorLoop();
@@ -153,6 +154,26 @@ class IppSession {
   std::optional<MoveDaemon> daemon_;
 
   std::thread executor_;
+};
+
+// The responses of one transaction, in order: data lines, errors and warnings, then `%`.
+class IppSession::Responder {
+ public:
+  Responder(IppSession& session, ipp::Tag tag, std::string method)
+      : session_(session), tag_(tag), method_(std::move(method)) {}
+
+  ipp::Tag tag() const { return tag_; }
+  void data(std::vector<ipp::Argument> items);
+  // An error or warning of §8.2 with its default class unless `severity` is given; `detail` is what
+  // GetErrorInfo will tell.
+  void error(int number, const std::string& detail, std::optional<int> severity = {});
+  void fail(const CommandFailure& failure) { error(failure.number(), failure.what(), failure.severity()); }
+  void complete();
+
+ private:
+  IppSession& session_;
+  ipp::Tag tag_;
+  std::string method_;
 };
 
 }  // namespace stampscan::sim::detail

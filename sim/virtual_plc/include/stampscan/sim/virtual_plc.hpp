@@ -58,7 +58,9 @@ class VirtualPlc {
   int port() const;  // the bound port (the ephemeral one when options.port was 0); 0 before start()
   const VirtualPlcOptions& options() const { return options_; }
 
-  // Inputs, as the cell's sensors would set them.
+  // Inputs, as the cell's sensors would set them; the PLC logic acts on the change at once.
+  // laser_shutter_closed is the shutter's own feedback and always follows its request: setting it
+  // here is overwritten.
   void setInput(DiscreteInput input, bool on);
   void openDoor() { setInput(DiscreteInput::DoorClosed, false); }
   void closeDoor() { setInput(DiscreteInput::DoorClosed, true); }

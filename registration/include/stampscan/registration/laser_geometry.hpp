@@ -1,0 +1,71 @@
+// The laser path's geometry: the CMM's head track, a digitizer profile, and where its points lie in
+// the machine frame given the digitizer's calibration (mount on the head, clock offset, latency).
+#pragma once
+
+#include "stampscan/fitting/cloud.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <vector>
+
+namespace stampscan::registration {
+
+using fitting::Vec3;
+
+// The head frame in machine coordinates from a CMM position report: the ram's reference point,
+// then the indexing head's turn b about z and tilt a about x: translation * Rz(b) * Rx(a).
+Eigen::Isometry3d headPose(const Vec3& position, double a, double b);
+
+struct HeadSample {
+  std::int64_t time_ns = 0;  // station clock
+  Vec3 position = Vec3::Zero();
+  double a = 0, b = 0;
+};
+
+// The CMM's reported positions over time, interpolated linearly (reports come at 250 Hz or more;
+// between two of them the head moves on a nearly straight line at a nearly constant speed).
+class HeadTrack {
+ public:
+  // Samples in time order; throws std::invalid_argument otherwise or with fewer than two.
+  explicit HeadTrack(std::vector<HeadSample> samples);
+  bool covers(std::int64_t t) const { return t >= samples_.front().time_ns && t <= samples_.back().time_ns; }
+  // Throws std::out_of_range outside the track.
+  HeadSample at(std::int64_t t) const;
+  Eigen::Isometry3d poseAt(std::int64_t t) const;
+  const std::vector<HeadSample>& samples() const { return samples_; }
+
+ private:
+  std::vector<HeadSample> samples_;
+};
+
+// A digitizer profile as the device sent it (see the trace's LaserProfile message).
+struct Profile {
+  std::int64_t device_time_ns = 0;
+  float angle_min = 0, angle_increment = 0;
+  std::vector<float> range;               // mm, 0 = no return
+  std::vector<std::uint16_t> intensity;
+  bool overexposed = false;
+};
+
+struct DigitizerCalibration {
+  Eigen::Isometry3d head_from_digitizer = Eigen::Isometry3d::Identity();
+  std::int64_t clock_offset_ns = 0;  // digitizer clock minus station clock
+  std::int64_t latency_ns = 0;       // profile stamp minus its exposure (digitizer clock)
+  std::int64_t exposureTime(const Profile& p) const { return p.device_time_ns - clock_offset_ns - latency_ns; }
+};
+
+// Point i of a profile in the sensor frame: along the ray at angle_min + i * increment in the x-z
+// plane, from -z towards +x.
+Vec3 sensorPoint(const Profile& p, std::size_t i);
+
+// The profile's returns in the machine frame, appended to `points` (and their intensities to
+// `intensity` when given). Saturated intensities are kept; the caller decides. Returns false (and
+// appends nothing) when the exposure time is outside the head track.
+bool profileToMachine(const Profile& p, const HeadTrack& track, const DigitizerCalibration& calibration,
+                      std::vector<Vec3>& points, std::vector<std::uint16_t>* intensity = nullptr);
+
+// The median of device-minus-station differences of clock-sync pairs.
+std::int64_t clockOffset(const std::vector<std::pair<std::int64_t, std::int64_t>>& station_and_device_times);
+
+}  // namespace stampscan::registration
