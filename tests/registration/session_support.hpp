@@ -40,6 +40,8 @@ class DecodedSession final : public sim::TraceSink {
       ++count;
     } else if (topic == msg::topics::kLaserProfile) {
       profiles.push_back(msg::decode<msg::LaserProfile>(bytes));
+    } else if (topic == msg::topics::kCmmEvent) {
+      events.push_back(msg::decode<msg::CmmEvent>(bytes));
     } else if (topic == msg::topics::kScene) {
       scenes.push_back(msg::decode<msg::SceneMarker>(bytes));
     }
@@ -81,6 +83,19 @@ class DecodedSession final : public sim::TraceSink {
   std::vector<msg::CmmPosition> positions;
   std::vector<msg::LaserProfile> profiles;
   std::vector<msg::SceneMarker> scenes;
+  std::vector<msg::CmmEvent> events;
+
+  // Station-time windows of the sweeps whose label starts with `prefix` ("part", "reference_sphere").
+  std::vector<std::pair<std::int64_t, std::int64_t>> sweepWindows(const std::string& prefix) const {
+    std::vector<std::pair<std::int64_t, std::int64_t>> out;
+    std::int64_t begin = -1;
+    for (const msg::CmmEvent& e : events) {
+      if (e.detail.rfind(prefix, 0) != 0) continue;
+      if (e.kind == "sweep_begin") begin = e.station_time_ns;
+      if (e.kind == "sweep_end" && begin >= 0) out.emplace_back(begin, e.station_time_ns), begin = -1;
+    }
+    return out;
+  }
   std::map<std::string, std::pair<double, std::size_t>> sync;
   std::map<std::string, std::map<std::string, std::string>> metadata_records;
 };

@@ -1,0 +1,32 @@
+// One measured grid element: where it is and the strain its printed shape shows. The rows of the
+// Cloud4D the station writes.
+#pragma once
+
+#include "stampscan/fitting/cloud.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace stampscan::registration {
+
+using fitting::Vec3;
+
+enum class Source : std::uint8_t { Laser = 0, Stereo = 1 };
+
+struct GridElement {
+  Vec3 position = Vec3::Zero();  // on the surface, machine frame (mm)
+  Vec3 normal = Vec3::UnitZ();   // unit, facing the sensor
+  double major_strain = 0, minor_strain = 0, thickness_strain = 0;  // true strains
+  Vec3 major_direction = Vec3::UnitX();  // unit, in the surface
+  double semi_major = 0, semi_minor = 0;  // mm, of the printed circle's centre line
+  double fit_rms = 0;     // mm, of the edge points about the fitted ellipse: the quality measure
+  std::size_t edge_points = 0;
+  Source source = Source::Laser;
+  std::uint32_t view = 0;  // sweep or stereo pose
+};
+
+// As a Cloud4D: x y z, nx ny nz, strain (thickness), major_strain, minor_strain, major_dir_x/y/z,
+// source, view, quality (fit_rms).
+fitting::Cloud toCloud(const std::vector<GridElement>& elements);
+
+}  // namespace stampscan::registration
