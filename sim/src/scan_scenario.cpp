@@ -21,10 +21,8 @@ ScanParams ScanParams::quick() {
   p.image_scale = 0.25;
   p.stereo_rows = 1;
   p.stereo_columns = 2;
-  p.plate_poses = 4;
+  p.plate_poses = 6;
   p.sphere_sweeps = 4;
-  p.digitizer.points_per_profile = 256;
-  p.digitizer.profile_rate = 125;
   p.scan_region = {Vec2(-20, -15), Vec2(20, 15)};
   return p;
 }
@@ -343,6 +341,8 @@ class SessionGenerator {
         {"stereo_half_baseline_mm", number(kRigHalfBaseline)},
         {"plate", "circles " + std::to_string(p_.plate.columns) + "x" + std::to_string(p_.plate.rows) + " pitch " +
                       number(p_.plate.pitch) + " diameter " + number(p_.plate.dot_diameter)},
+        {"camera_plate_spec", std::to_string(p_.plate.columns) + " " + std::to_string(p_.plate.rows) + " " +
+                                  number(p_.plate.pitch) + " " + number(p_.plate.dot_diameter)},
         {"reference_sphere_radius_mm", number(p_.sphere.radius)},
         {"station_clock", "CMM controller clock, ns since the Unix epoch"},
     };

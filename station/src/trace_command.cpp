@@ -77,7 +77,9 @@ int traceInfo(const TraceInfoOptions& opt) {
   for (const auto& [id, t] : tally) channels.try_emplace(id, trace::Channel{id, 0, "(no Channel record)", "", {}});
 
   std::printf("trace         %s\n", opt.path.c_str());
-  std::printf("  size        %" PRIu64 " bytes (%s)\n", h.file_size, bytes(h.file_size).c_str());
+  std::printf("  size        %" PRIu64 " bytes", h.file_size);
+  if (h.file_size >= 10 * 1024) std::printf(" (%s)", bytes(h.file_size).c_str());
+  std::printf("\n");
   if (h.header) std::printf("  header      profile %s, library %s\n", orNone(h.header->profile), orNone(h.header->library));
   std::printf("  channels    %zu\n", channels.size());
   Tally all;
@@ -143,7 +145,7 @@ int traceInfo(const TraceInfoOptions& opt) {
                 t.file_size, t.record.c_str(), t.record_offset, t.bytes_present, t.bytes_needed);
   }
   for (const trace::Damage& d : h.damage)
-    std::printf("  damage      at byte %" PRIu64 ": %s: %s\n", d.offset, trace::toString(d.kind).c_str(), d.what.c_str());
+    std::printf("  damage      at byte %" PRIu64 ": %s\n", d.offset, d.what.c_str());
   for (const std::string& i : inconsistencies) std::printf("  damage      %s\n", i.c_str());
   if (!h.data_end_found && !h.truncated) std::printf("  damage      no Data End record found\n");
   if (h.footer_found && !summary)

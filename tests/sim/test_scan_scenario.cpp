@@ -88,7 +88,7 @@ TEST(ScanSession, MessagesComeInLogTimeOrderAndDecode) {
     ++counts[m.topic];
     if (m.topic == msg::topics::kLaserProfile) {
       const auto p = msg::decode<msg::LaserProfile>(m.bytes);
-      EXPECT_EQ(p.range.size(), 256u);
+      EXPECT_EQ(p.range.size(), static_cast<std::size_t>(small().digitizer.points_per_profile));
     } else if (m.topic == msg::topics::kCameraLeft || m.topic == msg::topics::kCameraRight) {
       const auto f = msg::decode<msg::CameraFrame>(m.bytes);
       EXPECT_EQ(f.data.size(), static_cast<std::size_t>(f.step) * f.height);

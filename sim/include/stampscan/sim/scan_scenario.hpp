@@ -56,7 +56,8 @@ struct ScanParams {
   // Limits the laser strips and stereo poses to a part of the footprint (machine xy); empty = all.
   BlankRect scan_region{Vec2::Zero(), Vec2::Zero()};
 
-  // A small scene for tests and demos: quarter-resolution images, few poses and sweeps.
+  // A small session for tests and demos: a 40 x 30 mm region of the part, quarter-resolution images,
+  // few poses and sweeps; the digitizer at its full resolution (the grid needs it).
   static ScanParams quick();
 };
 

@@ -14,6 +14,7 @@ CommandRunner addFitCommand(CLI::App& app);
 CommandRunner addSampleCommand(CLI::App& app);
 CommandRunner addDemoCommand(CLI::App& app);
 CommandRunner addSimCommand(CLI::App& app);
+CommandRunner addProcessCommand(CLI::App& app);
 CommandRunner addTraceCommand(CLI::App& app);
 
 }  // namespace stampscan::station

@@ -1,0 +1,149 @@
+// The cell PLC over Modbus TCP (libmodbus). The same driver talks to the real PLC and to the virtual
+// PLC of sim/virtual_plc; only the address differs. What each bit and register means is in
+// plc_register_map.hpp (and REGISTER_MAP.md).
+//
+// Thread safety: every public method may be called from any thread. libmodbus contexts are not
+// thread-safe, so each context has exactly one user at a time:
+//  - the API's context (one TCP connection) is shared by the public methods behind a mutex;
+//  - the watchdog thread owns a second context (its own TCP connection) outright.
+// Two connections rather than one shared context, so that the watchdog is never queued behind a slow
+// API call (nor the reverse): its silence deadline then holds to within a few milliseconds.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "stampscan/drivers/device.hpp"
+#include "stampscan/drivers/plc/plc_register_map.hpp"
+
+namespace stampscan::drivers::plc {
+
+namespace detail {
+class ModbusClient;
+}
+
+struct ModbusPlcOptions {
+  std::string host = "127.0.0.1";
+  int port = kDefaultTcpPort;
+  int unit_id = 1;
+  // How long one Modbus request may wait for its reply before it fails with fault "timeout".
+  std::chrono::milliseconds response_timeout{500};
+  // Run the watchdog thread after connect: heartbeat write + state read every poll_period, change
+  // events, and "plc-silent" when the PLC has not answered for silence_limit.
+  bool watchdog = true;
+  std::chrono::milliseconds poll_period{100};
+  std::chrono::milliseconds silence_limit{1000};
+  // Written to the PLC's watchdog_timeout_ms at connect when set (the PLC keeps its own otherwise).
+  std::optional<std::uint16_t> plc_watchdog_timeout_ms;
+};
+
+// The whole input state: discrete inputs and input registers, read in two requests.
+struct PlcInputs {
+  bool door_closed = false;
+  bool e_stop_chain_ok = false;
+  bool light_curtain_clear = false;
+  bool part_clamped = false;
+  bool laser_shutter_closed = false;
+  bool air_pressure_ok = false;
+  std::uint16_t plc_heartbeat = 0;
+  std::uint16_t station_heartbeat_echo = 0;
+  std::uint16_t firmware_major = 0;
+  std::uint16_t firmware_minor = 0;
+  std::uint16_t fault_word = 0;  // FaultBit bits
+  InterlockState interlock = InterlockState::Tripped;
+
+  bool has(FaultBit bit) const { return (fault_word & mask(bit)) != 0; }
+  bool interlockTripped() const { return interlock != InterlockState::Clear; }
+};
+
+// The coils, as the PLC holds them (after its interlock has had its say).
+struct PlcOutputs {
+  bool stack_light_green = false;
+  bool stack_light_amber = false;
+  bool stack_light_red = false;
+  bool laser_shutter_open_request = false;
+  bool clamp_request = false;
+  bool motion_enable = false;
+  bool operator==(const PlcOutputs&) const = default;
+};
+
+enum class PlcEventKind {
+  DoorOpened, DoorClosed,
+  EStopBroken, EStopRestored,
+  LightCurtainInterrupted, LightCurtainCleared,
+  AirPressureLost, AirPressureRestored,
+  InterlockTripped, InterlockCleared,  // from the PLC's interlock_state (covers its heartbeat watchdog)
+  ConnectionLost, Reconnected,
+  PlcSilent, PlcAnswering,
+};
+const char* toString(PlcEventKind kind);
+
+struct PlcEvent {
+  std::chrono::system_clock::time_point when;  // station clock, when the driver saw the change
+  PlcEventKind kind;
+  std::string text;
+};
+
+class ModbusPlc : public Device {
+ public:
+  using EventCallback = std::function<void(const PlcEvent&)>;
+  using StopCallback = std::function<void(const DeviceFault&)>;
+
+  // Throws std::invalid_argument for options that cannot work (port 0, a zero timeout, ...).
+  explicit ModbusPlc(ModbusPlcOptions options = {}, std::string name = "plc");
+  ~ModbusPlc() override;
+
+  // Reads discrete inputs and input registers (two requests). Throws DeviceError: "timeout" when
+  // the PLC does not reply within response_timeout, "disconnected" when it cannot be reached (one
+  // reconnect is tried first), "protocol" on an exception reply or a malformed frame.
+  PlcInputs readInputs();
+  PlcOutputs readOutputs();
+  void writeOutputs(const PlcOutputs& outputs);  // all coils in one request
+  void setOutput(Coil coil, bool on);
+  // Writes the next station heartbeat value and returns it (the watchdog thread also does this).
+  std::uint16_t writeHeartbeat();
+  void setPlcWatchdogTimeout(std::chrono::milliseconds timeout);
+
+  // The callbacks run on the watchdog thread (connection events of the API connection: on the
+  // calling thread), until disconnect(); what they capture must live until then. They must not call
+  // disconnect() or destroy the driver, and should return quickly: the watchdog waits for them.
+  // Change events: door, e-stop, light curtain, air, interlock, connection, silence.
+  void setEventCallback(EventCallback callback);
+  // Called once when the PLC falls silent for longer than silence_limit (fault "plc-silent"): the
+  // scan must stop. Re-armed when the PLC answers again.
+  void setStopCallback(StopCallback callback);
+
+  std::vector<PlcEvent> events() const;
+  // The last state the watchdog thread read, if any.
+  std::optional<PlcInputs> lastInputs() const;
+  const ModbusPlcOptions& options() const { return options_; }
+
+ protected:
+  void connectDevice() override;
+  void disconnectDevice() noexcept override;
+  DeviceIdentity identifyDevice() override;
+  // Reads the inputs; throws DeviceError (without logging it) when the PLC reports a fault.
+  void checkDevice() override;
+
+ private:
+  struct Impl;
+  // Runs one operation on the API connection under its mutex: reconnects first if the connection
+  // was lost, retries once after a lost connection, records a fault and throws on failure.
+  void request(const char* what, const std::function<void(detail::ModbusClient&)>& operation);
+  void watchdogLoop();
+  // Compares with the last state the watchdog saw; records and delivers the change events.
+  void noteInputs(const PlcInputs& inputs);
+  PlcEvent recordEvent(PlcEventKind kind, std::string text);
+  void deliver(const std::vector<PlcEvent>& events);
+  std::string endpoint() const;
+
+  ModbusPlcOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stampscan::drivers::plc
