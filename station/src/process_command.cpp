@@ -189,13 +189,15 @@ CommandRunner addProcessCommand(CLI::App& app) {
                               {stereo, hand_eye, utcNow(), opt->input + " (calibration-plate views)"});
     }
 
-    // 4. The laser path: rings in every part sweep.
-    if (trace.cell.count("grid") && trace.cell.at("grid") != "circle")
-      throw std::runtime_error("the trace's grid is '" + trace.cell.at("grid") +
-                               "': the laser path measures circle grids only so far");
+    // 4. The laser path: rings (or square cells) in every part sweep.
+    const std::string grid = trace.cell.count("grid") ? trace.cell.at("grid") : "circle";
+    if (grid != "circle" && grid != "square")
+      throw std::runtime_error("the trace's grid is '" + grid + "': expected circle or square");
     registration::RingDetectionParams rings;
+    registration::SquareDetectionParams squares;
     if (trace.cell.count("grid_circle_diameter_mm")) rings.printed_radius = 0.5 * cellNumbers(trace, "grid_circle_diameter_mm", 1)[0];
-    if (trace.cell.count("grid_line_width_mm")) rings.line_width = cellNumbers(trace, "grid_line_width_mm", 1)[0];
+    if (trace.cell.count("grid_pitch_mm")) squares.pitch = cellNumbers(trace, "grid_pitch_mm", 1)[0];
+    if (trace.cell.count("grid_line_width_mm")) rings.line_width = squares.line_width = cellNumbers(trace, "grid_line_width_mm", 1)[0];
     std::vector<SweepWindow> part;
     for (const auto& w : trace.sweeps)
       if (w.is("part")) part.push_back(w);
@@ -203,7 +205,9 @@ CommandRunner addProcessCommand(CLI::App& app) {
     std::vector<registration::RingDetectionStats> stats(part.size());
     tbb::parallel_for(std::size_t{0}, part.size(), [&](std::size_t k) {
       const auto profiles = profilesIn(trace, part[k], digitizer.clock_offset_ns, digitizer.latency_ns);
-      per_sweep[k] = registration::detectLaserRings(profiles, track, digitizer, rings, static_cast<std::uint32_t>(k), &stats[k]);
+      const auto id = static_cast<std::uint32_t>(k);
+      per_sweep[k] = grid == "circle" ? registration::detectLaserRings(profiles, track, digitizer, rings, id, &stats[k])
+                                      : registration::detectLaserSquares(profiles, track, digitizer, squares, id, &stats[k]);
     });
     std::vector<registration::GridElement> elements;
     registration::RingDetectionStats total;
@@ -213,8 +217,8 @@ CommandRunner addProcessCommand(CLI::App& app) {
       total.rejected_gap += stats[k].rejected_gap;
       total.rejected_fit += stats[k].rejected_fit;
     }
-    std::printf("  laser       %zu sweeps: %zu grid elements (%zu incomplete rings and %zu poor fits left out) (%.2f s)\n",
-                part.size(), elements.size(), total.rejected_gap, total.rejected_fit, clock.lap());
+    std::printf("  laser       %zu sweeps, %s grid: %zu grid elements (%zu incomplete and %zu poor fits left out) (%.2f s)\n",
+                part.size(), grid.c_str(), elements.size(), total.rejected_gap, total.rejected_fit, clock.lap());
     if (elements.empty()) throw std::runtime_error(opt->input + ": no grid element was found in the laser sweeps");
 
     // 5. Write.

@@ -31,9 +31,11 @@ struct Measured {
   std::size_t found = 0, matched = 0, false_found = 0, truth_in_view = 0, truth_found = 0;
 };
 
-Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margin = 2.0) {
+Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margin = 2.0,
+                  sim::GridKind grid = sim::GridKind::Circle) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
+  p.grid.kind = grid;
   p.grid.margin = unprinted_margin;
   p.digitizer = sim::DigitizerSpec{};  // the real resolution: 1024 points at 500 profiles/s
   p.stereo = p.calibration = false;
@@ -60,7 +62,8 @@ Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margi
       if (t >= t0 && t <= t1) sweep.push_back(prof);
     }
     registration::RingDetectionStats stats;
-    const auto rings = registration::detectLaserRings(sweep, track, cal, {}, id++, &stats);
+    const auto rings = grid == sim::GridKind::Circle ? registration::detectLaserRings(sweep, track, cal, {}, id++, &stats)
+                                                     : registration::detectLaserSquares(sweep, track, cal, {}, id++, &stats);
     std::printf("  sweep %u: %zu profiles, %zu candidates, %zu found (rejected: %zu size, %zu gap, %zu fit)\n", id - 1,
                 sweep.size(), stats.candidates, stats.found, stats.rejected_size, stats.rejected_gap, stats.rejected_fit);
     found.insert(found.end(), rings.begin(), rings.end());
@@ -117,7 +120,7 @@ Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margi
     bool covered = true;
     for (int a = 0; a < 72 && covered; ++a) {
       const double th = 2 * M_PI * a / 72;
-      const Eigen::Vector3d q = truth.positions[i] + 1.7 * (std::cos(th) * frame.col(0) + std::sin(th) * frame.col(1));
+      const Eigen::Vector3d q = truth.positions[i] + (grid == sim::GridKind::Circle ? 1.7 : 2.0) * (std::cos(th) * frame.col(0) + std::sin(th) * frame.col(1));
       scan_tree.knn(q, 1, nn);
       covered = !nn.empty() && nn[0].distance_sq < 0.1 * 0.1;
     }
@@ -146,6 +149,24 @@ TEST(LaserRings, DomeElementsMatchTheGroundTruth) {
 TEST(LaserRings, PanElementsMatchTheGroundTruth) {
   // The scanned region of the quick session is the pan's floor with its dome and the start of the walls.
   const Measured m = runLaser(sim::PartKind::Pan, 32);
+  EXPECT_GT(m.matched, 50u);
+  EXPECT_EQ(m.false_found, 0u);
+  EXPECT_LE(m.position_rms, 0.05);
+  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+}
+
+TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
+  const Measured m = runLaser(sim::PartKind::Dome, 34, 2.0, sim::GridKind::Square);
+  EXPECT_GT(m.matched, 50u);
+  EXPECT_EQ(m.false_found, 0u);
+  EXPECT_LE(m.position_rms, 0.05);
+  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+}
+
+TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
+  const Measured m = runLaser(sim::PartKind::Pan, 35, 2.0, sim::GridKind::Square);
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);

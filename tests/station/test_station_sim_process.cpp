@@ -84,6 +84,31 @@ TEST_F(StationTest, ProcessMeasuresASimulatedTraceAgainstItsTruth) {
   EXPECT_GT(fitting::readPly(out2).size(), 300u);
 }
 
+TEST_F(StationTest, ProcessMeasuresASquareGridOnThePan) {
+  const fs::path trace = work() / "pan.mcap", truth = work() / "truth.ply", out = work() / "cloud4d.ply";
+  ASSERT_EQ(run("sim generate --quick --part pan --grid square --seed 8 --sensors laser,calibration -o " + quote(trace) +
+                " --truth " + quote(truth)).exit_code, 0);
+  const RunResult r = run("process " + quote(trace) + " -o " + quote(out) + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("square grid"), std::string::npos) << r.out;
+  const Cloud measured = fitting::readPly(out), t = fitting::readPly(truth);
+  ASSERT_GT(measured.size(), 300u);
+  const fitting::KdTree tree(t.positions);
+  std::vector<fitting::Neighbor> nn;
+  double sq_pos = 0, sq_strain = 0;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    tree.knn(measured.positions[i], 1, nn);
+    ASSERT_LT(nn[0].distance_sq, 0.5 * 0.5) << "element " << i;
+    sq_pos += nn[0].distance_sq;
+    sq_strain += std::pow(measured.strain[i] - t.strain[nn[0].index], 2);
+  }
+  const double n = static_cast<double>(measured.size());
+  std::printf("station process, pan with squares: %zu cells, position RMS %.4f mm, thickness strain RMS %.4f\n",
+              measured.size(), std::sqrt(sq_pos / n), std::sqrt(sq_strain / n));
+  EXPECT_LE(std::sqrt(sq_pos / n), 0.05);
+  EXPECT_LE(std::sqrt(sq_strain / n), 0.005);
+}
+
 TEST_F(StationTest, ProcessRejectsForeignFilesAndBadCalibrations) {
   const fs::path junk = work() / "junk.mcap", out = work() / "o.ply";
   writeFile(junk, "this is not a trace\n");

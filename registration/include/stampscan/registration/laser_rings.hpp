@@ -39,4 +39,25 @@ std::vector<GridElement> detectLaserRings(const std::vector<Profile>& sweep, con
                                           const DigitizerCalibration& calibration, const RingDetectionParams& params,
                                           std::uint32_t sweep_id, RingDetectionStats* stats = nullptr);
 
+// Square grids. The interior of a printed square cell (side p - w between the lines' inner edges)
+// becomes, under the local deformation gradient F, a parallelogram whose second moments are
+// F (p - w)^2 / 12 F^T. So B = F F^T = 12 Cov / (p - w)^2, from the area moments of the cell's
+// sub-pixel inner edge (a polygon of 360 points), gives the principal stretches and the major
+// direction: the deformation gradient of the cell's corners, without locating the corners one by one.
+struct SquareDetectionParams {
+  double pitch = 2.54;       // mm between grid lines
+  double line_width = 0.15;  // mm
+  double ink_ratio = 0.6;
+  double max_shape_error = 0.02;  // relative: a parallelogram's area is sqrt(det(12 Cov)); an ellipse's 1.047x
+  double min_strain = -0.7, max_strain = 1.0;
+  double min_edge_share = 0.85;
+  double max_edge_gap_deg = 15;
+};
+
+// The square cells of one sweep; each element is a cell's centre. fit_rms holds the relative shape
+// error. All profiles must have the same number of points.
+std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, const HeadTrack& track,
+                                            const DigitizerCalibration& calibration, const SquareDetectionParams& params,
+                                            std::uint32_t sweep_id, RingDetectionStats* stats = nullptr);
+
 }  // namespace stampscan::registration

@@ -1,0 +1,212 @@
+#include "laser_raster.hpp"
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace stampscan::registration::detail {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+double Raster::sample(double x, double y) const {
+  const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
+  if (!ok(r, c) || !ok(r, c + 1) || !ok(r + 1, c) || !ok(r + 1, c + 1)) return kNaN;
+  const double fx = x - c, fy = y - r;
+  const auto I = [&](int rr, int cc) { return static_cast<double>(intensity.at<float>(rr, cc)); };
+  return (1 - fy) * ((1 - fx) * I(r, c) + fx * I(r, c + 1)) + fy * ((1 - fx) * I(r + 1, c) + fx * I(r + 1, c + 1));
+}
+
+bool Raster::lift(double x, double y, Vec3& out) const {
+  const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
+  if (!ok(r, c) || !ok(r, c + 1) || !ok(r + 1, c) || !ok(r + 1, c + 1)) return false;
+  const double fx = x - c, fy = y - r;
+  out = (1 - fy) * ((1 - fx) * at(r, c) + fx * at(r, c + 1)) + fy * ((1 - fx) * at(r + 1, c) + fx * at(r + 1, c + 1));
+  return true;
+}
+
+Raster buildRaster(const std::vector<Profile>& sweep, const HeadTrack& track, const DigitizerCalibration& cal) {
+  Raster R;
+  R.rows = static_cast<int>(sweep.size());
+  R.cols = sweep.empty() ? 0 : static_cast<int>(sweep.front().range.size());
+  R.intensity = cv::Mat::zeros(R.rows, R.cols, CV_32F);
+  R.valid = cv::Mat::zeros(R.rows, R.cols, CV_8U);
+  R.position.assign(static_cast<std::size_t>(R.rows) * R.cols, Vec3::Constant(kNaN));
+  for (int r = 0; r < R.rows; ++r) {
+    const Profile& p = sweep[static_cast<std::size_t>(r)];
+    const std::int64_t t = cal.exposureTime(p);
+    if (static_cast<int>(p.range.size()) != R.cols || !track.covers(t)) continue;
+    const Eigen::Isometry3d pose = track.poseAt(t) * cal.head_from_digitizer;
+    if (r == R.rows / 2) R.viewpoint = pose.translation();
+    for (int c = 0; c < R.cols; ++c) {
+      const auto i = static_cast<std::size_t>(c);
+      if (!(p.range[i] > 0) || i >= p.intensity.size() || p.intensity[i] == 65535) continue;
+      R.position[static_cast<std::size_t>(r) * R.cols + c] = pose * sensorPoint(p, i);
+      R.intensity.at<float>(r, c) = static_cast<float>(p.intensity[i]);
+      R.valid.at<std::uint8_t>(r, c) = 255;
+    }
+  }
+  std::vector<double> dc, dr;
+  for (int r = 0; r + 1 < R.rows; r += 7)
+    for (int c = 0; c + 1 < R.cols; c += 7) {
+      if (R.ok(r, c) && R.ok(r, c + 1)) dc.push_back((R.at(r, c + 1) - R.at(r, c)).norm());
+      if (R.ok(r, c) && R.ok(r + 1, c)) dr.push_back((R.at(r + 1, c) - R.at(r, c)).norm());
+    }
+  R.col_mm = median(dc);
+  R.row_mm = median(dr);
+  return R;
+}
+
+std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& params, RingDetectionStats& st) {
+  std::vector<Interior> out;
+  const double w = params.line_width;
+  // 1. Ink against the local sheet level: a grey closing wider than the line removes the lines.
+  const int kc = 2 * static_cast<int>(std::ceil(1.5 * w / R.col_mm)) + 1;
+  const int kr = 2 * static_cast<int>(std::ceil(1.5 * w / R.row_mm)) + 1;
+  cv::Mat sheet;
+  cv::morphologyEx(R.intensity, sheet, cv::MORPH_CLOSE, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kc, kr)));
+  cv::Mat interior = (R.intensity >= params.ink_ratio * sheet) & R.valid;
+  // 2. Bright regions of about the interior's size. 4-connectivity: a thin diagonal line separates.
+  cv::Mat labels, comp_stats, centroids;
+  const int n = cv::connectedComponentsWithStats(interior, labels, comp_stats, centroids, 4, CV_32S);
+  const double nominal_area = params.nominal_area_mm2 / (R.col_mm * R.row_mm);
+  const double min_area = nominal_area * std::exp(2 * params.min_strain), max_area = nominal_area * std::exp(2 * params.max_strain);
+  cv::Mat gaps;
+  cv::dilate(~R.valid, gaps, cv::Mat());
+  for (int label = 1; label < n; ++label) {
+    const int area = comp_stats.at<int>(label, cv::CC_STAT_AREA);
+    if (area < 0.5 * min_area || area > max_area) continue;  // lines, background, merged cells
+    ++st.candidates;
+    const int x0 = comp_stats.at<int>(label, cv::CC_STAT_LEFT), y0 = comp_stats.at<int>(label, cv::CC_STAT_TOP);
+    const int bw = comp_stats.at<int>(label, cv::CC_STAT_WIDTH), bh = comp_stats.at<int>(label, cv::CC_STAT_HEIGHT);
+    if (bw < 5 || bh < 5) {
+      ++st.rejected_size;
+      continue;
+    }
+    // A ring's or a cell's interior is convex; the four-pointed gaps between touching rings are not.
+    {
+      const cv::Mat mask = labels(cv::Rect(x0, y0, bw, bh)) == label;
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+      double hull_area = 0;
+      if (!contours.empty()) {
+        std::vector<cv::Point> hull;
+        cv::convexHull(contours.front(), hull);
+        hull_area = cv::contourArea(hull);
+      }
+      if (hull_area <= 0 || area < 0.85 * hull_area) {
+        ++st.rejected_size;
+        continue;
+      }
+    }
+    if (x0 <= 1 || y0 <= 1 || x0 + bw >= R.cols - 1 || y0 + bh >= R.rows - 1) {
+      ++st.rejected_gap;
+      continue;
+    }
+    bool touches_gap = false;
+    std::vector<double> sheet_level;
+    for (int r = y0; r < y0 + bh && !touches_gap; ++r)
+      for (int c = x0; c < x0 + bw; ++c)
+        if (labels.at<int>(r, c) == label) {
+          if (gaps.at<std::uint8_t>(r, c)) touches_gap = true;
+          sheet_level.push_back(R.intensity.at<float>(r, c));
+        }
+    if (touches_gap) {
+      ++st.rejected_gap;
+      continue;
+    }
+    const double sheet_mid = median(sheet_level);
+    // 3. Sub-pixel inner edge along rays from the centroid, isotropic on the part.
+    const double cx = centroids.at<double>(label, 0), cy = centroids.at<double>(label, 1);
+    std::vector<Vec3> edge;
+    int last_ray = -1, first_ray = -1;
+    double max_gap_deg = 0;
+    const double reach = 1.5 * params.inner_reach_mm * std::exp(params.max_strain);
+    for (int k = 0; k < 360; ++k) {
+      const double th = 2 * std::numbers::pi * k / 360;
+      const double ux = std::cos(th) / R.col_mm, uy = std::sin(th) / R.row_mm;  // px per mm along the ray
+      const double step = 0.25 / std::hypot(ux, uy);                            // a quarter pixel, in mm
+      // March until the ray has crossed the line (dark, then bright again); it needs valid data only
+      // that far.
+      std::vector<double> values;
+      bool broken = false, in_ink = false, crossed = false;
+      const double dark = params.ink_ratio * sheet_mid;
+      for (double s = 0; s <= reach && !crossed; s += step) {
+        const double v = R.sample(cx + s * ux, cy + s * uy);
+        if (std::isnan(v)) {
+          broken = true;
+          break;
+        }
+        values.push_back(v);
+        if (v < dark) in_ink = true;
+        else if (in_ink) crossed = true;
+      }
+      if (broken || !crossed || values.size() < 4) continue;
+      const double ink = *std::min_element(values.begin(), values.end());
+      const double mid = 0.5 * (sheet_mid + ink);
+      for (std::size_t i = 1; i < values.size(); ++i)
+        if (values[i] < mid && values[i - 1] >= mid) {
+          const double f = (values[i - 1] - mid) / (values[i - 1] - values[i]);
+          const double s = (static_cast<double>(i - 1) + f) * step;
+          Vec3 p;
+          if (R.lift(cx + s * ux, cy + s * uy, p)) {
+            edge.push_back(p);
+            if (last_ray >= 0) max_gap_deg = std::max(max_gap_deg, static_cast<double>(k - last_ray));
+            if (first_ray < 0) first_ray = k;
+            last_ray = k;
+          }
+          break;
+        }
+    }
+    if (first_ray >= 0) max_gap_deg = std::max(max_gap_deg, static_cast<double>(360 - last_ray + first_ray));
+    // Only whole rings: an arc leaves the ellipse's axes poorly determined.
+    if (edge.size() < static_cast<std::size_t>(params.min_edge_share * 360) || max_gap_deg > params.max_edge_gap_deg) {
+      ++st.rejected_gap;
+      continue;
+    }
+    // 4. The plane through the edge, and the edge in it.
+    Vec3 mean = Vec3::Zero();
+    for (const Vec3& p : edge) mean += p;
+    mean /= static_cast<double>(edge.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const Vec3& p : edge) cov += (p - mean) * (p - mean).transpose();
+    Vec3 normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+    if (normal.dot(R.viewpoint - mean) < 0) normal = -normal;
+    const Eigen::Matrix3d frame = fitting::frameAround(normal);
+    std::vector<Eigen::Vector2d> plane;
+    for (const Vec3& p : edge) plane.emplace_back(frame.col(0).dot(p - mean), frame.col(1).dot(p - mean));
+    Interior in;
+    in.edge = std::move(edge);
+    in.plane = std::move(plane);
+    in.mean = mean;
+    in.normal = normal;
+    in.frame = frame;
+    for (int r = y0; r < y0 + bh; ++r)
+      for (int c = x0; c < x0 + bw; ++c)
+        if (labels.at<int>(r, c) == label) in.pixels.push_back(R.at(r, c));
+    out.push_back(std::move(in));
+  }
+  return out;
+}
+
+double surfaceOffset(const Interior& interior, const Vec3& centre, double radius) {
+  double offset = 0;
+  int count = 0;
+  for (const Vec3& p : interior.pixels) {
+    const Vec3 d = p - centre;
+    const double along = d.dot(interior.normal);
+    if ((d - along * interior.normal).norm() < radius) {
+      offset += along;
+      ++count;
+    }
+  }
+  return count > 0 ? offset / count : 0.0;
+}
+
+}  // namespace stampscan::registration::detail

@@ -1,0 +1,66 @@
+// Internal to registration/: the intensity raster of one laser sweep and the search for the bright
+// interiors of printed grid elements in it (ring interiors or square cells), shared by the circle
+// and the square grid paths. See laser_rings.hpp for the steps.
+#pragma once
+
+#include "stampscan/registration/laser_geometry.hpp"
+#include "stampscan/registration/laser_rings.hpp"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <limits>
+#include <vector>
+
+namespace stampscan::registration::detail {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double median(std::vector<double> v);
+
+// The sweep as images: intensity, validity, and the machine position behind every pixel.
+struct Raster {
+  int rows = 0, cols = 0;
+  cv::Mat intensity;  // CV_32F
+  cv::Mat valid;      // CV_8U, 255 where the point returned and is not saturated
+  std::vector<Vec3> position;
+  Vec3 viewpoint = Vec3::Zero();  // the sensor, mid-sweep: normals face it
+  double col_mm = 0, row_mm = 0;  // typical pixel spacing on the part
+
+  const Vec3& at(int r, int c) const { return position[static_cast<std::size_t>(r) * cols + c]; }
+  bool ok(int r, int c) const { return r >= 0 && c >= 0 && r < rows && c < cols && valid.at<std::uint8_t>(r, c); }
+  // Bilinear value at raster point (x = column, y = row); NaN where a corner is missing.
+  double sample(double x, double y) const;
+  // Bilinear machine position at a raster point; false where a corner is missing.
+  bool lift(double x, double y, Vec3& out) const;
+};
+
+Raster buildRaster(const std::vector<Profile>& sweep, const HeadTrack& track, const DigitizerCalibration& cal);
+
+struct InteriorSearch {
+  double nominal_area_mm2 = 0;   // of an unstrained interior
+  double inner_reach_mm = 0;     // an unstrained interior's largest centre-to-edge distance
+  double line_width = 0.15;      // mm
+  double ink_ratio = 0.6;
+  double min_strain = -0.7, max_strain = 1.0;
+  double min_edge_share = 0.85;
+  double max_edge_gap_deg = 15;
+};
+
+// A bright region enclosed by ink, with its inner edge found along 360 rays from its centroid.
+struct Interior {
+  std::vector<Vec3> edge;                // machine frame, in ray order
+  std::vector<Eigen::Vector2d> plane;    // the same in the plane fitted to the edge
+  Vec3 mean = Vec3::Zero();              // the plane's origin
+  Vec3 normal = Vec3::UnitZ();           // facing the sensor
+  Eigen::Matrix3d frame;                 // columns: plane axes and normal
+  std::vector<Vec3> pixels;              // the interior's own points
+};
+
+std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& search, RingDetectionStats& stats);
+
+// The edge plane is a chord: the surface at a centre bulges off it. The distance along the normal
+// to the interior's own points near `centre` (within `radius` of it, across the normal).
+double surfaceOffset(const Interior& interior, const Vec3& centre, double radius);
+
+}  // namespace stampscan::registration::detail

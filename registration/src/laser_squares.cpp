@@ -1,0 +1,104 @@
+#include "stampscan/registration/laser_rings.hpp"
+
+#include "laser_raster.hpp"
+
+#include <Eigen/Dense>
+
+#include <cmath>
+
+namespace stampscan::registration {
+
+namespace {
+
+// Area, centroid and central second moments of a closed polygon (Green's theorem).
+struct PolygonMoments {
+  double area = 0;
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // of the region, per unit area
+};
+
+PolygonMoments momentsOf(const std::vector<Eigen::Vector2d>& poly) {
+  PolygonMoments m;
+  double a = 0, cx = 0, cy = 0, ixx = 0, iyy = 0, ixy = 0;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Eigen::Vector2d& p = poly[i];
+    const Eigen::Vector2d& q = poly[(i + 1) % poly.size()];
+    const double cross = p.x() * q.y() - q.x() * p.y();
+    a += cross;
+    cx += (p.x() + q.x()) * cross;
+    cy += (p.y() + q.y()) * cross;
+    ixx += (p.x() * p.x() + p.x() * q.x() + q.x() * q.x()) * cross;
+    iyy += (p.y() * p.y() + p.y() * q.y() + q.y() * q.y()) * cross;
+    ixy += (p.x() * q.y() + 2 * p.x() * p.y() + 2 * q.x() * q.y() + q.x() * p.y()) * cross;
+  }
+  a *= 0.5;
+  if (std::abs(a) < 1e-12) return m;
+  m.area = std::abs(a);
+  m.centroid = Eigen::Vector2d(cx, cy) / (6 * a);
+  const double xx = ixx / (12 * a), yy = iyy / (12 * a), xy = ixy / (24 * a);
+  m.covariance << xx - m.centroid.x() * m.centroid.x(), xy - m.centroid.x() * m.centroid.y(),
+      xy - m.centroid.x() * m.centroid.y(), yy - m.centroid.y() * m.centroid.y();
+  return m;
+}
+
+}  // namespace
+
+std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, const HeadTrack& track,
+                                            const DigitizerCalibration& calibration, const SquareDetectionParams& params,
+                                            std::uint32_t sweep_id, RingDetectionStats* stats) {
+  RingDetectionStats local;
+  RingDetectionStats& st = stats ? *stats : local;
+  std::vector<GridElement> out;
+  if (sweep.size() < 3) return out;
+  const detail::Raster R = detail::buildRaster(sweep, track, calibration);
+  if (!(R.col_mm > 0) || !(R.row_mm > 0)) return out;
+  const double side = params.pitch - params.line_width;  // the interior's side before forming
+  detail::InteriorSearch search;
+  search.nominal_area_mm2 = side * side;
+  search.inner_reach_mm = side / std::sqrt(2.0);  // to a corner
+  search.line_width = params.line_width;
+  search.ink_ratio = params.ink_ratio;
+  search.min_strain = params.min_strain;
+  search.max_strain = params.max_strain;
+  search.min_edge_share = params.min_edge_share;
+  search.max_edge_gap_deg = params.max_edge_gap_deg;
+  for (const detail::Interior& in : detail::findInteriors(R, search, st)) {
+    const PolygonMoments m = momentsOf(in.plane);
+    if (m.area <= 0) {
+      ++st.rejected_fit;
+      continue;
+    }
+    // A parallelogram's area is sqrt(det(12 Cov)); anything rounder or more ragged is not a cell.
+    const double shape_error = m.area / std::sqrt(std::max(144 * m.covariance.determinant(), 1e-30)) - 1;
+    const Eigen::Matrix2d B = 12 * m.covariance / (side * side);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(B);
+    if (std::abs(shape_error) > params.max_shape_error || !(eig.eigenvalues()(0) > 0)) {
+      ++st.rejected_fit;
+      continue;
+    }
+    GridElement g;
+    g.major_strain = 0.5 * std::log(eig.eigenvalues()(1));
+    g.minor_strain = 0.5 * std::log(eig.eigenvalues()(0));
+    if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) {
+      ++st.rejected_fit;
+      continue;
+    }
+    g.thickness_strain = -(g.major_strain + g.minor_strain);
+    const Eigen::Vector2d d = eig.eigenvectors().col(1);
+    g.major_direction = (d.x() * in.frame.col(0) + d.y() * in.frame.col(1)).normalized();
+    g.semi_major = 0.5 * params.pitch * std::exp(g.major_strain);
+    g.semi_minor = 0.5 * params.pitch * std::exp(g.minor_strain);
+    g.normal = in.normal;
+    const Vec3 centre = in.mean + m.centroid.x() * in.frame.col(0) + m.centroid.y() * in.frame.col(1);
+    g.position = centre + detail::surfaceOffset(in, centre, 0.3 * side) * in.normal;
+    g.fit_rms = std::abs(shape_error);
+    g.edge_points = in.plane.size();
+    g.source = Source::Laser;
+    g.view = sweep_id;
+    out.push_back(g);
+    ++st.found;
+  }
+  return out;
+}
+
+}  // namespace stampscan::registration
