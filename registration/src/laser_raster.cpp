@@ -209,4 +209,46 @@ double surfaceOffset(const Interior& interior, const Vec3& centre, double radius
   return count > 0 ? offset / count : 0.0;
 }
 
+double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q) {
+  const Eigen::Vector2d d = q - e.centre;
+  const double c = std::cos(e.angle), s = std::sin(e.angle);
+  const double x = c * d.x() + s * d.y(), y = -s * d.x() + c * d.y();
+  const double rho = std::sqrt((x / e.a) * (x / e.a) + (y / e.b) * (y / e.b));
+  return rho > 0 ? d.norm() * (1 - 1 / rho) : -d.norm();
+}
+
+namespace {
+bool fitEllipseOnce(const std::vector<Eigen::Vector2d>& pts, PlaneEllipse& out) {
+  if (pts.size() < 20) return false;
+  std::vector<cv::Point2f> cvp;
+  // Micrometres: the direct fit works in floats.
+  for (const auto& q : pts) cvp.emplace_back(static_cast<float>(1000 * q.x()), static_cast<float>(1000 * q.y()));
+  const cv::RotatedRect r = cv::fitEllipseDirect(cvp);
+  if (!(r.size.width > 0) || !(r.size.height > 0)) return false;
+  const bool width_major = r.size.width >= r.size.height;
+  out.a = 0.0005 * std::max(r.size.width, r.size.height);
+  out.b = 0.0005 * std::min(r.size.width, r.size.height);
+  out.centre = Eigen::Vector2d(0.001 * r.center.x, 0.001 * r.center.y);
+  out.angle = (width_major ? r.angle : r.angle + 90.0) * std::numbers::pi / 180;
+  double sum = 0;
+  for (const auto& q : pts) sum += std::pow(ellipseResidual(out, q), 2);
+  out.rms = std::sqrt(sum / static_cast<double>(pts.size()));
+  out.used = pts.size();
+  return true;
+}
+}  // namespace
+
+
+
+bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& plane, PlaneEllipse& e) {
+  if (!fitEllipseOnce(plane, e)) return false;
+  std::vector<double> res;
+  for (const auto& q : plane) res.push_back(std::abs(ellipseResidual(e, q)));
+  const double cut = std::max(3 * 1.4826 * median(res), 0.004);
+  std::vector<Eigen::Vector2d> kept;
+  for (std::size_t i = 0; i < plane.size(); ++i)
+    if (res[i] <= cut) kept.push_back(plane[i]);
+  return fitEllipseOnce(kept, e);
+}
+
 }  // namespace stampscan::registration::detail

@@ -63,4 +63,19 @@ std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& searc
 // to the interior's own points near `centre` (within `radius` of it, across the normal).
 double surfaceOffset(const Interior& interior, const Vec3& centre, double radius);
 
+// An ellipse in a plane (2D coordinates, mm).
+struct PlaneEllipse {
+  double a = 0, b = 0;  // semi-axes, a >= b
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  double angle = 0;     // of the major axis from the plane's first axis
+  double rms = 0;       // of the points used, about the ellipse
+  std::size_t used = 0;
+};
+
+// Distance of a point from an ellipse, along the ray from its centre.
+double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q);
+// OpenCV's direct fit, then points farther than 3 robust sigmas (at least 4 um) dropped and the fit
+// repeated: a stray edge point (a neighbour's line, a speck) does not bend the ellipse.
+bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& points, PlaneEllipse& out);
+
 }  // namespace stampscan::registration::detail
