@@ -2,14 +2,17 @@
 // triangulated, and measured in 3D.
 //
 //  1. In each image, ring interiors as in the laser path (ink against a grey closing, convex bright
-//     regions of the expected size), and their inner edge to sub-pixel precision along rays.
+//     regions of the expected size), and the printed line's centre to sub-pixel precision along
+//     rays from them (the darkest point of the dip: the optics' blur leaves it in place, where it
+//     moves the half-level edge of a line only two or three pixels wide).
 //  2. Matching: the grid repeats every pitch, so the epipolar line alone is ambiguous (one pitch
 //     along it is a few millimetres of depth). A depth prior resolves it: the laser's surface when
 //     the trace has one, projected into the left image; the right ring must then lie where the
 //     prior puts it, within a fraction of the pitch, and on the epipolar line.
-//  3. The ring's centre triangulated (midpoint of the two rays); the surface's tangent plane there
-//     from the triangulated neighbours; both images' edge points cast onto that plane and one
-//     robust ellipse fitted to them; strains from its axes as in the laser path.
+//  3. The ring's centre triangulated (midpoint of the two rays); the surface around it from the
+//     triangulated neighbours (a quadric height field); both images' line points cast onto that
+//     surface, taken into its tangent plane, and one robust ellipse fitted to them; strains from
+//     its axes.
 #pragma once
 
 #include "stampscan/registration/camera_calibration.hpp"
@@ -23,9 +26,10 @@
 
 namespace stampscan::registration {
 
-// A ring's inner edge as the image shows it (pixel coordinates, distortion not removed).
+// A ring's printed line as the image shows it: the line's centre along 360 rays from the ring's
+// interior (pixel coordinates, distortion not removed).
 struct ImageRing {
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // of the edge points
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // of the line points
   std::vector<Eigen::Vector2d> edge;
 };
 
