@@ -119,7 +119,7 @@ void Scanner::walkSummary(std::uint64_t start) {
     const std::uint64_t available = size_ - p - kRecordPrefix;
     if (opcode == op(Opcode::Footer)) {
       if (length > available && !trailer_valid_)
-        return truncate("Footer", p, kRecordPrefix + std::min<std::uint64_t>(length, kFooterContent), kRecordPrefix + available);
+        return truncate("Footer", p, kRecordPrefix + std::min(length, size_), kRecordPrefix + available);
       return handleFooter(p, std::min(length, available), start);
     }
     if (length > available || (trailer_valid_ && p + kRecordPrefix + length > footer_offset_)) {

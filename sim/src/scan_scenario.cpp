@@ -72,6 +72,7 @@ Eigen::Isometry3d cameraOnHead(const Vec3& position, const Vec3& target) {
   return T;
 }
 
+constexpr double kLoadSeconds = 1.0, kUnloadSeconds = 0.6;  // part loading and unloading, door open
 constexpr double kRigHalfBaseline = 60;  // mm: cameras at x = -+60 on the head
 constexpr double kRigDrop = 60;          // mm below the head's reference point
 const Vec3 kDigitizerMount(0, 0, -120);  // nominal: the mirror 120 mm below the reference point
@@ -130,6 +131,10 @@ class SessionGenerator {
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
     makeTruth();
     trajectory_ = CmmTrajectory({}, HeadState{Vec3(0, 0, 450), 0, 0, 0});
+    // The operator loads the part: the door is open, then closes, then the clamp closes; the CMM
+    // waits for both (the PLC's timeline below).
+    trajectory_.dwell(kLoadSeconds, "load part");
+    addSegment({});
     if (p_.calibration) {
       planPlate();
       planSphere();
@@ -138,6 +143,8 @@ class SessionGenerator {
     if (p_.stereo) planStereo();
     trajectory_.moveTo(Vec3(0, 0, 450), 0, 0, 200, "home");
     activities_.emplace_back();
+    trajectory_.dwell(kUnloadSeconds, "unload part");
+    addSegment({});
     writeMetadata();
     play();
     summary_.scan_seconds = trajectory_.duration();
@@ -438,12 +445,15 @@ class SessionGenerator {
   }
 
   void plc(std::int64_t t, bool shutter_open) {
+    // The timeline: door open while the part is loaded, closed at 0.5 s, clamp closed at 0.8 s; at
+    // the end the clamp opens, then the door.
+    const double seconds = static_cast<double>(t) * 1e-9, end = trajectory_.duration();
     msg::PlcState s;
     s.station_time_ns = kSessionStartNs + t;
-    s.door_closed = true;
+    s.door_closed = seconds >= 0.5 && seconds < end - 0.2;
     s.estop_ok = true;
-    s.light_curtain_clear = true;
-    s.part_clamped = true;
+    s.light_curtain_clear = s.door_closed;
+    s.part_clamped = seconds >= 0.8 && seconds < end - 0.4;
     s.laser_shutter_open = shutter_open;
     s.stack_light = shutter_open ? 0b010 : 0b001;
     s.heartbeat = plc_heartbeat_++;

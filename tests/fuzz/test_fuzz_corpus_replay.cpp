@@ -167,8 +167,8 @@ TEST(FuzzCorpusReplay, TextReader) {
 TEST(FuzzCorpusReplay, McapReader) {
   const std::vector<std::string> seeds = loadSeeds("mcap");
   ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/mcap";
-  const std::size_t cases = replay(&fuzzMcap, seeds, seeds, 1500, 20240503);
-  EXPECT_GT(cases, 6000u);
+  const std::size_t cases = replay(&fuzzMcap, seeds, seeds, 4000, 20240503);
+  EXPECT_GT(cases, 20000u);
   RecordProperty("cases", static_cast<int>(cases));
 }
 

@@ -213,24 +213,36 @@ TEST(ScanSession, ProfilesPlacedWithTheTrueCalibrationLieOnPartAndSphere) {
   EXPECT_GT(shifted_rms, 1.5 * sphere_rms);
 }
 
-TEST(ScanSession, PlcHeartbeatRunsAndTheShutterOpensOnlyForSweeps) {
+TEST(ScanSession, PlcTimelineAndTheShutterOpenOnlyForSweeps) {
   const Session& s = dome();
   std::uint32_t expected = 0;
-  bool in_sweep = false;
+  bool in_sweep = false, moving = false, door_was_open = false, door_closed_later = false;
   std::size_t open = 0;
+  msg::PlcState last;
   for (const Stored& m : s.sink.messages) {
     if (m.topic == msg::topics::kCmmEvent) {
       const auto e = msg::decode<msg::CmmEvent>(m.bytes);
       if (e.kind == "sweep_begin") in_sweep = true;
       if (e.kind == "sweep_end") in_sweep = false;
+      if (e.kind == "move_begin" && e.detail != "load part" && e.detail != "unload part") {
+        moving = true;
+        // The CMM moves only with the door closed and the part clamped.
+        EXPECT_TRUE(last.door_closed && last.part_clamped) << "motion at " << e.station_time_ns;
+      }
     }
     if (m.topic != msg::topics::kPlcState) continue;
     const auto st = msg::decode<msg::PlcState>(m.bytes);
     EXPECT_EQ(st.heartbeat, expected++);
-    EXPECT_TRUE(st.door_closed && st.estop_ok);
+    EXPECT_TRUE(st.estop_ok);
+    if (!st.door_closed && !moving) door_was_open = true;
+    if (door_was_open && st.door_closed) door_closed_later = true;
     EXPECT_EQ(st.laser_shutter_open, in_sweep);
+    EXPECT_FALSE(st.laser_shutter_open && !st.door_closed);
     open += st.laser_shutter_open;
+    last = st;
   }
+  EXPECT_TRUE(door_was_open && door_closed_later);
+  EXPECT_FALSE(last.door_closed);  // opened again to unload
   EXPECT_GT(open, 10u);
 }
 
