@@ -1,0 +1,80 @@
+// The virtual laser digitizer: a scripted USB device under umockdev. A umockdev testbed holds the
+// device (sysfs attributes, USB descriptors, vendor 1d50:61a5) and an ioctl handler that answers the
+// usbfs ioctls libusb sends (claim, control and bulk URBs, reap, discard, clear halt) speaking the
+// protocol of drivers/digitizer/PROTOCOL.md. The unmodified UsbDigitizer driver talks to it exactly
+// as to the real head. Profiles come from a profile source (the simulator, or a test pattern).
+//
+// umockdev's preload library must be active in the process (run under `umockdev-wrapper`, or with
+// LD_PRELOAD=libumockdev-preload.so.0); preloadActive() says whether it is. The testbed redirects
+// /sys and /dev for the whole process: create the VirtualDigitizer before the driver's libusb
+// context (libusb enumerates at init) and only one per process at a time.
+//
+// Timing: the device answers a posted bulk transfer as soon as the host reaps it (as fast as the
+// host can take profiles) unless `paced` is set, when it keeps the configured profile rate. Device
+// timestamps always follow the configured rate: sequence / rate.
+//
+// Threads: umockdev runs the ioctl handler on its own worker thread; the profile source runs there,
+// under the device's lock, so it must not call back into the VirtualDigitizer. Every public method
+// is thread-safe. The destructor removes the testbed; disconnect the driver first.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "stampscan/drivers/digitizer/digitizer_protocol.hpp"
+
+namespace stampscan::sim {
+
+struct VirtualDigitizerOptions {
+  drivers::digitizer::Identity identity{drivers::digitizer::kProtocolVersion, "SSD-1024 (virtual)",
+                                        "VD-0001", "1.0.0"};
+  int bus = 1;  // the device is /dev/bus/usb/<bus>/001
+  float half_angle = 0.21f;  // rad: the fan the GetConfig reply describes
+  bool paced = false;
+};
+
+class VirtualDigitizer {
+ public:
+  // Fills range and intensity (config.points_per_profile each) and the status word of one profile;
+  // sequence and timestamp are set by the device.
+  using ProfileSource =
+      std::function<void(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
+                         drivers::digitizer::Profile& profile)>;
+
+  // Throws std::runtime_error when the testbed cannot be built.
+  explicit VirtualDigitizer(VirtualDigitizerOptions options = {});
+  ~VirtualDigitizer();
+  VirtualDigitizer(const VirtualDigitizer&) = delete;
+  VirtualDigitizer& operator=(const VirtualDigitizer&) = delete;
+
+  static bool preloadActive();
+
+  // The source of profile data; the default is testPattern().
+  void setProfileSource(ProfileSource source);
+  // A deterministic pattern of the sequence number: ranges 80..120 mm with every 97th point a
+  // dropout (0), intensities cycling.
+  static void testPattern(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
+                          drivers::digitizer::Profile& profile);
+
+  // Fault injection.
+  void stallEndpoint();            // the next bulk transfer ends with STALL; halted until cleared
+  void setSilent(bool silent);     // stop answering bulk transfers (the host sees timeouts)
+  void dropSequence(int count = 1);  // the next `count` profiles are made but lost on the wire
+  void unplug();                   // the device goes away: transfers end, every ioctl fails ENODEV
+  void setMirrorFault(bool on);    // status bit in GetStatus and in the profiles
+
+  // What happened, for tests.
+  bool streaming() const;
+  drivers::digitizer::DigitizerConfig config() const;
+  std::uint32_t nextSequence() const;
+  std::uint64_t profilesSent() const;
+  std::uint64_t haltsCleared() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stampscan::sim
