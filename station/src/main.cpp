@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   stampscan::station::CommandRunner demo = stampscan::station::addDemoCommand(app);
   stampscan::station::CommandRunner sim = stampscan::station::addSimCommand(app);
   stampscan::station::CommandRunner process = stampscan::station::addProcessCommand(app);
+  stampscan::station::CommandRunner devices = stampscan::station::addDevicesCommand(app);
   stampscan::station::CommandRunner trace = stampscan::station::addTraceCommand(app);
   try {
     app.parse(argc, argv);
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("demo")) return demo();
     if (app.got_subcommand("sim")) return sim();
     if (app.got_subcommand("process")) return process();
+    if (app.got_subcommand("devices")) return devices();
     if (app.got_subcommand("trace")) return trace();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "station: error: %s\n", e.what());

@@ -5,7 +5,9 @@
 // grid elements with their strains as a Cloud4D PLY. With --fit it also fits the surface.
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
+#include "stampscan/registration/icp.hpp"
 #include "stampscan/registration/laser_rings.hpp"
+#include "stampscan/registration/stereo_rings.hpp"
 #include "stampscan/station/calibration_files.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/fit_runner.hpp"
@@ -19,6 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 
 namespace stampscan::station {
@@ -29,7 +32,7 @@ namespace {
 
 struct ProcessOptions {
   std::string input, output, fit, calibration_dir, save_calibration;
-  bool ascii = false, quiet = false;
+  bool ascii = false, quiet = false, with_stereo = false;
 };
 
 class StageClock {
@@ -84,6 +87,9 @@ CommandRunner addProcessCommand(CLI::App& app) {
   cmd->add_option("--calibration", opt->calibration_dir,
                   "Folder with digitizer.json (and cameras.json), used when the trace has no calibration scenes");
   cmd->add_option("--save-calibration", opt->save_calibration, "Write the calibrations made from the trace to this folder");
+  cmd->add_flag("--with-stereo", opt->with_stereo,
+                "Also measure the stereo views (matched on the laser's surface, registered to it by ICP); "
+                "their strain is not yet as accurate as the laser's");
   cmd->add_flag("--ascii", opt->ascii, "Write ASCII PLY");
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
@@ -98,9 +104,12 @@ CommandRunner addProcessCommand(CLI::App& app) {
     ScanTrace trace;
     {
       ProgressBar bar;
-      trace = loadScanTrace(opt->input, [&](double f) {
-        if (!opt->quiet) bar.update("reading", f);
-      });
+      trace = loadScanTrace(
+          opt->input,
+          [&](double f) {
+            if (!opt->quiet) bar.update("reading", f);
+          },
+          opt->with_stereo);
     }
     const double t_read = clock.lap();
     std::printf("  trace       %llu messages, %zu profiles, %zu plate frame pairs, %zu part frames; scan %.1f s (%.2f s)\n",
@@ -155,6 +164,8 @@ CommandRunner addProcessCommand(CLI::App& app) {
     digitizer.clock_offset_ns = digitizer_offset;
 
     // 3. The cameras, when the trace shows the plate.
+    std::optional<registration::StereoRig> rig;
+    std::int64_t camera_offset = 0;
     if (trace.plate_left.size() >= 5) {
       const std::vector<double> plate = cellNumbers(trace, "camera_plate_spec", 3);
       registration::CirclePlateSpec spec{static_cast<int>(plate[0]), static_cast<int>(plate[1]), plate[2]};
@@ -168,6 +179,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
       std::vector<Eigen::Isometry3d> heads, plates;
       if (camera_pairs != trace.clock_pairs.end()) {
         const std::int64_t offset = registration::clockOffset(camera_pairs->second);
+        camera_offset = offset;
         for (std::size_t v = 0; v < left.size(); ++v) {
           const std::int64_t t = trace.plate_left[v].device_time_ns - offset;
           if (stereo.left.plate_poses[v] && track.covers(t)) {
@@ -182,6 +194,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
       if (heads.size() >= 3) {
         hand_eye = registration::calibrateHeadToCamera(heads, plates);
         std::printf(", head mount residual %.3f mm", hand_eye.residual_mm);
+        rig = registration::StereoRig{stereo.left.model, stereo.right.model, hand_eye.head_from_camera, stereo.right_from_left};
       }
       std::printf(" (%.2f s)\n", clock.lap());
       if (!opt->save_calibration.empty())
@@ -220,6 +233,45 @@ CommandRunner addProcessCommand(CLI::App& app) {
     std::printf("  laser       %zu sweeps, %s grid: %zu grid elements (%zu incomplete and %zu poor fits left out) (%.2f s)\n",
                 part.size(), grid.c_str(), elements.size(), total.rejected_gap, total.rejected_fit, clock.lap());
     if (elements.empty()) throw std::runtime_error(opt->input + ": no grid element was found in the laser sweeps");
+
+    // 4b. The stereo views: rings matched on the laser's surface, each view's pose refined by ICP of
+    // its triangulated rings against the laser's (known pose first, then point-to-plane ICP).
+    if (opt->with_stereo) {
+      if (!rig) throw std::runtime_error("--with-stereo needs the cameras calibrated: the trace has no plate views");
+      std::vector<registration::Vec3> laser_positions, laser_normals;
+      for (const auto& g : elements) {
+        laser_positions.push_back(g.position);
+        laser_normals.push_back(g.normal);
+      }
+      const registration::PointToPlaneIcp icp(laser_positions, laser_normals);
+      std::size_t stereo_count = 0;
+      double worst_correction = 0;
+      for (std::size_t v = 0; v < trace.part_left.size(); ++v) {
+        const std::int64_t t = trace.part_left[v].device_time_ns - camera_offset;
+        if (!track.covers(t)) continue;
+        auto view = registration::measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, *rig,
+                                                    track.poseAt(t), laser_positions, rings,
+                                                    static_cast<std::uint32_t>(1000 + v));
+        if (view.size() < 10) continue;
+        std::vector<registration::Vec3> source;
+        for (const auto& g : view) source.push_back(g.position);
+        registration::IcpParams ip;
+        ip.max_correspondence_distance = 1.0;
+        const registration::IcpResult fit = icp.align(source, Eigen::Isometry3d::Identity(), ip);
+        if (fit.converged && fit.fitness > 0.5) {
+          worst_correction = std::max(worst_correction, fit.transform.translation().norm());
+          for (auto& g : view) {
+            g.position = fit.transform * g.position;
+            g.normal = fit.transform.linear() * g.normal;
+            g.major_direction = fit.transform.linear() * g.major_direction;
+          }
+        }
+        stereo_count += view.size();
+        elements.insert(elements.end(), view.begin(), view.end());
+      }
+      std::printf("  stereo      %zu views: %zu grid elements, ICP corrections up to %.3f mm (%.2f s)\n",
+                  trace.part_left.size(), stereo_count, worst_correction, clock.lap());
+    }
 
     // 5. Write.
     fitting::Cloud cloud = registration::toCloud(elements);

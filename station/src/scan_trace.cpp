@@ -19,12 +19,12 @@ cv::Mat imageOf(const msg::CameraFrame& f) {
 }
 }  // namespace
 
-ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress) {
+ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress, bool keep_part_frames) {
   ScanTrace out;
   trace::McapReader reader(file);
   const std::uint64_t size = std::max<std::uint64_t>(reader.fileSize(), 1);
   std::string scene;  // the scene the plate frames belong to, from the scene markers
-  std::map<std::uint64_t, std::pair<msg::CameraFrame, msg::CameraFrame>> plate_pairs;
+  std::map<std::uint64_t, std::pair<msg::CameraFrame, msg::CameraFrame>> plate_pairs, part_pairs;
   std::int64_t sweep_begin = -1;
   std::string sweep_label;
   std::size_t decode_errors = 0;
@@ -71,6 +71,11 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
           (f.camera == "left" ? pair.first : pair.second) = std::move(f);
         } else {
           ++out.part_frames;
+          if (keep_part_frames && scene == "part") {
+            auto f = msg::decode<msg::CameraFrame>(m.data);
+            auto& pair = part_pairs[f.trigger_id];
+            (f.camera == "left" ? pair.first : pair.second) = std::move(f);
+          }
         }
       }
     } catch (const msg::MessageError& e) {
@@ -88,6 +93,11 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
     if (pair.first.data.empty() || pair.second.data.empty()) continue;
     out.plate_left.push_back({trigger, pair.first.device_time_ns, imageOf(pair.first)});
     out.plate_right.push_back({trigger, pair.second.device_time_ns, imageOf(pair.second)});
+  }
+  for (auto& [trigger, pair] : part_pairs) {
+    if (pair.first.data.empty() || pair.second.data.empty()) continue;
+    out.part_left.push_back({trigger, pair.first.device_time_ns, imageOf(pair.first)});
+    out.part_right.push_back({trigger, pair.second.device_time_ns, imageOf(pair.second)});
   }
   if (out.head.size() < 2) throw std::runtime_error(file.string() + ": the trace holds no CMM position reports");
   out.scan_seconds = static_cast<double>(out.head.back().time_ns - out.head.front().time_ns) * 1e-9;

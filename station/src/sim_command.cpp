@@ -98,7 +98,7 @@ std::string megabytes(std::uintmax_t bytes) {
 
 CommandRunner addSimCommand(CLI::App& app) {
   auto opt = std::make_shared<GenerateOptions>();
-  CLI::App* sim_cmd = app.add_subcommand("sim", "The simulated cell: generate scan traces with ground truth");
+  CLI::App* sim_cmd = app.add_subcommand("sim", "The simulated cell: generate scan traces with ground truth, serve the virtual devices");
   sim_cmd->require_subcommand(1);
   CLI::App* gen = sim_cmd->add_subcommand(
       "generate", "Simulate a scan session (calibration scenes, laser sweeps, stereo views) into an MCAP trace");
@@ -119,7 +119,9 @@ CommandRunner addSimCommand(CLI::App& app) {
   gen->add_option("--bits", opt->bits, "Camera pixel depth: 8 (mono8) or 16 (mono16)")->check(CLI::IsMember({8, 16}));
   gen->add_option("--compression", opt->compression, "Chunk compression: zstd, lz4 or none")
       ->check(CLI::IsMember({"zstd", "lz4", "none"}));
-  return [opt]() {
+  const CommandRunner serve = addServeSubcommand(sim_cmd);
+  return [opt, serve, gen]() {
+    if (!gen->parsed()) return serve();
     namespace fs = std::filesystem;
     const sim::ScanParams params = paramsFrom(*opt);
     checkOutputFolder(opt->output, "output");

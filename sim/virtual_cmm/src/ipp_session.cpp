@@ -14,6 +14,7 @@ using namespace std::chrono_literals;
 namespace {
 constexpr auto kMinReportGap = 100ms;      // §6.3.2.7: at most 10 reports a second
 constexpr auto kDistancePollStep = 20ms;   // how often a Dis(d) daemon looks at the distance moved
+constexpr std::size_t kMaxQueued = 64;    // commands acknowledged but not yet started
 constexpr const char* kLineMethod = "CommandLine";  // F3 for errors found before a command was known
 
 // §6.2.5: in the error state only these are served (AbortE and GetErrStatusE on the fast queue).
@@ -25,12 +26,12 @@ bool allowedInErrorState(const std::string& name) {
 
 void FaultInjection::failNext(int number, std::optional<int> severity) {
   std::lock_guard lock(mutex_);
-  next_.emplace(number, "injected by the test (VirtualCmm::failNextCommand)", severity);
+  next_ = Failure{number, severity};
 }
 
-std::optional<CommandFailure> FaultInjection::take() {
+std::optional<FaultInjection::Failure> FaultInjection::take() {
   std::lock_guard lock(mutex_);
-  std::optional<CommandFailure> taken = std::move(next_);
+  std::optional<Failure> taken = next_;
   next_.reset();
   return taken;
 }
@@ -141,11 +142,7 @@ void IppSession::replyToBadLine(const ipp::ProtocolError& e) {
     out.complete();
     return;
   }
-  send(ipp::Reply::ack(tag));
-  std::lock_guard lock(mutex_);
-  in_flight_.insert(tag);
-  queue_.push_back({tag, std::nullopt, e, false});
-  work_.notify_all();
+  enqueue({tag, std::nullopt, Pending::SyntaxError{e.errorNumber(), e.what()}, false});
 }
 
 bool IppSession::tagInUse(ipp::Tag tag) const {
@@ -166,10 +163,20 @@ void IppSession::onCommand(ipp::Command command) {
     runFast(command);
     return;
   }
-  send(ipp::Reply::ack(tag));  // before queueing, so that it precedes everything the executor sends
+  enqueue({tag, std::move(command), std::nullopt, false});
+}
+
+void IppSession::enqueue(Pending pending) {
+  {
+    // §6.2.3: a server too busy for more delays the Ack. Not reading meanwhile pushes back on the
+    // client through TCP, and the queue stays bounded.
+    std::unique_lock lock(mutex_);
+    idle_.wait(lock, [this] { return closing_ || queue_.size() < kMaxQueued; });
+  }
+  send(ipp::Reply::ack(pending.tag));  // before queueing, so that it precedes everything the executor sends
   std::lock_guard lock(mutex_);
-  in_flight_.insert(tag);
-  queue_.push_back({tag, std::move(command), std::nullopt, false});
+  in_flight_.insert(pending.tag);
+  queue_.push_back(std::move(pending));
   work_.notify_all();
 }
 
@@ -297,7 +304,6 @@ void IppSession::executorLoop() {
     execute(pending);
     std::lock_guard lock(mutex_);
     executing_ = false;
-    in_flight_.erase(pending.tag);
     idle_.notify_all();
   }
 }
@@ -307,14 +313,25 @@ void IppSession::execute(Pending& pending) {
   if (pending.aborted) {
     out.error(error::kTransactionAborted, "aborted before it started");
   } else if (pending.syntax_error) {
-    out.error(pending.syntax_error->errorNumber(), pending.syntax_error->what());
+    out.error(pending.syntax_error->number, pending.syntax_error->message);
   } else if (commandAllowed(pending.command->name, false, out)) {
     try {
-      if (std::optional<CommandFailure> injected = faults_.take()) throw *injected;
+      if (const std::optional<FaultInjection::Failure> injected = faults_.take()) {
+        const CommandFailure failure(injected->number, "injected by the test (VirtualCmm::failNextCommand)",
+                                     injected->severity);
+        const int severity = injected->severity.value_or(ipp::makeError(injected->number, "").severity);
+        if (ipp::needsClearAllErrors(severity)) throw failure;
+        out.fail(failure);  // information or a warning: the command still runs
+      }
       dispatch(*pending.command, out);
     } catch (const CommandFailure& failure) {
       out.fail(failure);
     }
+  }
+  {
+    // The tag is free again once the client sees `%`, which may be at once.
+    std::lock_guard lock(mutex_);
+    in_flight_.erase(pending.tag);
   }
   out.complete();
 }

@@ -44,13 +44,17 @@ class CommandFailure : public std::runtime_error {
 // Faults a test asks for, shared by the server and its sessions.
 class FaultInjection {
  public:
+  struct Failure {
+    int number;
+    std::optional<int> severity;
+  };
   void failNext(int number, std::optional<int> severity);
   // The injected failure, once: the next command takes it.
-  std::optional<CommandFailure> take();
+  std::optional<Failure> take();
 
  private:
   std::mutex mutex_;
-  std::optional<CommandFailure> next_;
+  std::optional<Failure> next_;
 };
 
 class IppSession {
@@ -72,7 +76,13 @@ class IppSession {
   struct Pending {
     ipp::Tag tag;
     std::optional<ipp::Command> command;
-    std::optional<ipp::ProtocolError> syntax_error;  // answered in queue order, §6.2.3
+    // A line that did not parse, answered in queue order (§6.2.3). Plain data: an exception object
+    // is not handed to another thread (its message may be a shared, reference-counted string).
+    struct SyntaxError {
+      int number;
+      std::string message;
+    };
+    std::optional<SyntaxError> syntax_error;
     bool aborted = false;                            // by an error or AbortE before it started
   };
   struct MoveDaemon {  // OnMoveReportE (§6.3.2.7)
@@ -88,6 +98,7 @@ class IppSession {
 
   // Reader thread.
   void onCommand(ipp::Command command);
+  void enqueue(Pending pending);  // acknowledges and queues for the executor
   void runFast(const ipp::Command& command);
   void abortE(const ipp::Command& command);
   void onMoveReportE(const ipp::Command& command, Responder& out);

@@ -15,6 +15,9 @@ CommandRunner addSampleCommand(CLI::App& app);
 CommandRunner addDemoCommand(CLI::App& app);
 CommandRunner addSimCommand(CLI::App& app);
 CommandRunner addProcessCommand(CLI::App& app);
+CommandRunner addDevicesCommand(CLI::App& app);
+// `sim serve`, under the `sim` command.
+CommandRunner addServeSubcommand(CLI::App* sim);
 CommandRunner addTraceCommand(CLI::App& app);
 
 }  // namespace stampscan::station

@@ -38,14 +38,16 @@ struct ScanTrace {
   std::vector<registration::Profile> profiles;
   // Frames taken while the calibration plate was in view, paired by trigger (left[i] with right[i]).
   std::vector<CameraImage> plate_left, plate_right;
-  std::size_t part_frames = 0;  // frames of the part (the stereo path uses them)
+  std::size_t part_frames = 0;  // frames of the part
+  // Pairs of frames of the part, by trigger; kept only when asked for (they are large).
+  std::vector<CameraImage> part_left, part_right;
   double scan_seconds = 0;      // first to last CMM report
   trace::TraceHealth health;
 };
 
 using LoadProgress = std::function<void(double fraction)>;
 // Throws std::runtime_error naming the file when it is not an MCAP trace or holds no CMM reports.
-ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress = {});
+ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress = {}, bool keep_part_frames = false);
 
 // A cell metadata value parsed as numbers; throws naming the key when absent or malformed.
 std::vector<double> cellNumbers(const ScanTrace& trace, const std::string& key, std::size_t count);

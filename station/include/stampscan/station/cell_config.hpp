@@ -1,0 +1,34 @@
+// The cell configuration: where each device of the cell is. A TOML file (station/cells/virtual.toml
+// describes the virtual cell and is the default), read with toml++; errors name the file, the key
+// and what is wrong.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace stampscan::station {
+
+struct CellConfig {
+  std::string name = "virtual cell";
+  std::string source;  // the file it came from, or "built-in"
+  struct Endpoint {
+    std::string host = "127.0.0.1";
+    int port = 0;
+  };
+  Endpoint cmm{"127.0.0.1", 1294};
+  Endpoint plc{"127.0.0.1", 1502};
+  int plc_unit_id = 1;
+  std::uint16_t digitizer_vendor = 0x1d50, digitizer_product = 0x61a5;
+  std::string digitizer_serial;
+  // The virtual digitizer lives only inside a process running under umockdev (see
+  // sim/virtual_digitizer), so the virtual cell does not require it; a real cell does.
+  bool digitizer_required = true;
+};
+
+// The built-in virtual cell (the same as station/cells/virtual.toml).
+CellConfig virtualCell();
+// Throws std::runtime_error naming the file and the key.
+CellConfig loadCellConfig(const std::filesystem::path& file);
+
+}  // namespace stampscan::station

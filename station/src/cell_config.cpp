@@ -1,0 +1,63 @@
+#include "stampscan/station/cell_config.hpp"
+
+#include <toml++/toml.h>
+
+#include <stdexcept>
+
+namespace stampscan::station {
+
+CellConfig virtualCell() {
+  CellConfig c;
+  c.source = "built-in";
+  c.digitizer_required = false;
+  return c;
+}
+
+namespace {
+
+template <typename T>
+T get(const toml::table& t, const std::string& section, const std::string& key, T fallback, const std::string& file) {
+  const toml::node_view<const toml::node> node = t[section][key];
+  if (!node) return fallback;
+  if (const auto v = node.value<T>()) return *v;
+  throw std::runtime_error(file + ": [" + section + "] " + key + " has the wrong type");
+}
+
+void checkPort(int port, const std::string& file, const std::string& section) {
+  if (port < 1 || port > 65535) throw std::runtime_error(file + ": [" + section + "] port " + std::to_string(port) + " is not 1-65535");
+}
+
+}  // namespace
+
+CellConfig loadCellConfig(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  toml::table t;
+  try {
+    t = toml::parse_file(file);
+  } catch (const toml::parse_error& e) {
+    const auto& where = e.source().begin;
+    throw std::runtime_error(file + ":" + std::to_string(where.line) + ":" + std::to_string(where.column) + ": " +
+                             std::string(e.description()));
+  }
+  CellConfig c;
+  c.source = file;
+  c.name = t["name"].value_or(std::string("cell"));
+  c.cmm.host = get<std::string>(t, "cmm", "host", c.cmm.host, file);
+  c.cmm.port = static_cast<int>(get<std::int64_t>(t, "cmm", "port", c.cmm.port, file));
+  checkPort(c.cmm.port, file, "cmm");
+  c.plc.host = get<std::string>(t, "plc", "host", c.plc.host, file);
+  c.plc.port = static_cast<int>(get<std::int64_t>(t, "plc", "port", c.plc.port, file));
+  checkPort(c.plc.port, file, "plc");
+  c.plc_unit_id = static_cast<int>(get<std::int64_t>(t, "plc", "unit_id", c.plc_unit_id, file));
+  const auto vendor = get<std::int64_t>(t, "digitizer", "vendor_id", c.digitizer_vendor, file);
+  const auto product = get<std::int64_t>(t, "digitizer", "product_id", c.digitizer_product, file);
+  if (vendor < 0 || vendor > 0xffff || product < 0 || product > 0xffff)
+    throw std::runtime_error(file + ": [digitizer] vendor_id and product_id must be 16-bit");
+  c.digitizer_vendor = static_cast<std::uint16_t>(vendor);
+  c.digitizer_product = static_cast<std::uint16_t>(product);
+  c.digitizer_serial = get<std::string>(t, "digitizer", "serial", "", file);
+  c.digitizer_required = get<bool>(t, "digitizer", "required", true, file);
+  return c;
+}
+
+}  // namespace stampscan::station

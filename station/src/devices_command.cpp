@@ -1,0 +1,99 @@
+// `station devices [--cell CELL.toml]`: finds every device of the cell, checks it, and prints a
+// table of identity, address, firmware, state and faults. Exit 0 when every required device
+// answered and reports no fault; 1 otherwise.
+#include "stampscan/drivers/cmm/ipp_client.hpp"
+#include "stampscan/drivers/digitizer/usb_digitizer.hpp"
+#include "stampscan/drivers/plc/modbus_plc.hpp"
+#include "stampscan/station/cell_config.hpp"
+#include "stampscan/station/commands.hpp"
+
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace stampscan::station {
+
+namespace {
+
+struct Row {
+  std::string device, address, identity, firmware, state, faults;
+  bool ok = false, required = true;
+};
+
+Row probe(drivers::Device& device, const std::string& address, bool required) {
+  Row row;
+  row.device = device.name();
+  row.address = address;
+  row.required = required;
+  try {
+    device.connect();
+    const drivers::DeviceIdentity id = device.identity();
+    row.identity = id.vendor.empty() ? id.model : id.vendor + " " + id.model;
+    if (!id.serial.empty()) row.identity += " #" + id.serial;
+    row.firmware = id.firmware.empty() ? "-" : id.firmware;
+    row.ok = device.check();
+  } catch (const std::exception& e) {
+    row.identity = "-";
+    row.firmware = "-";
+    row.faults = e.what();
+  }
+  row.state = drivers::toString(device.state());
+  for (const drivers::DeviceFault& f : device.faults())
+    if (row.faults.find(f.text) == std::string::npos) row.faults += (row.faults.empty() ? "" : "; ") + f.code + ": " + f.text;
+  device.disconnect();
+  if (row.faults.empty()) row.faults = "-";
+  return row;
+}
+
+}  // namespace
+
+CommandRunner addDevicesCommand(CLI::App& app) {
+  auto cell_file = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("devices", "Find and check every device of the cell; a table of their identity and state");
+  cmd->add_option("--cell", *cell_file, "Cell configuration (TOML); default: the built-in virtual cell");
+  return [cell_file]() {
+    const CellConfig cell = cell_file->empty() ? virtualCell() : loadCellConfig(*cell_file);
+    std::printf("station devices: %s (%s)\n", cell.name.c_str(), cell.source.c_str());
+    std::vector<Row> rows;
+    {
+      drivers::cmm::IppCmmOptions o;
+      o.host = cell.cmm.host;
+      o.port = static_cast<std::uint16_t>(cell.cmm.port);
+      o.connect_timeout = std::chrono::milliseconds(1500);
+      drivers::cmm::IppCmm cmm(o);
+      rows.push_back(probe(cmm, o.host + ":" + std::to_string(o.port), true));
+    }
+    {
+      drivers::plc::ModbusPlcOptions o;
+      o.host = cell.plc.host;
+      o.port = cell.plc.port;
+      o.unit_id = cell.plc_unit_id;
+      o.watchdog = false;  // a check, not a session: the PLC's watchdog must not see a heartbeat start
+      drivers::plc::ModbusPlc plc(o);
+      rows.push_back(probe(plc, o.host + ":" + std::to_string(o.port), true));
+    }
+    {
+      drivers::digitizer::UsbDigitizerOptions o;
+      o.vendor_id = cell.digitizer_vendor;
+      o.product_id = cell.digitizer_product;
+      o.serial = cell.digitizer_serial;
+      drivers::digitizer::UsbDigitizer digitizer(o);
+      char address[32];
+      std::snprintf(address, sizeof address, "usb %04x:%04x", o.vendor_id, o.product_id);
+      rows.push_back(probe(digitizer, address, cell.digitizer_required));
+    }
+    std::printf("  %-10s %-22s %-28s %-10s %-12s %s\n", "device", "address", "identity", "firmware", "state", "faults");
+    bool all_ok = true;
+    for (const Row& r : rows) {
+      std::printf("  %-10s %-22s %-28s %-10s %-12s %s%s\n", r.device.c_str(), r.address.c_str(), r.identity.c_str(),
+                  r.firmware.c_str(), r.ok ? r.state.c_str() : (r.required ? "MISSING" : "absent"), r.faults.c_str(),
+                  r.required || r.ok ? "" : " (optional in this cell)");
+      if (r.required && !r.ok) all_ok = false;
+    }
+    std::printf("  %s\n", all_ok ? "all required devices answered" : "a required device is missing or faulty");
+    return all_ok ? 0 : 1;
+  };
+}
+
+}  // namespace stampscan::station

@@ -1,0 +1,63 @@
+// `station sim serve [--cell CELL.toml] [--for SECONDS]`: runs the virtual cell's devices on their
+// real protocols until interrupted, so that the station and independent tools (mbpoll, a plain TCP
+// client speaking I++ DME) can talk to them. Loopback only unless the cell file says otherwise.
+#include "stampscan/sim/virtual_cmm.hpp"
+#include "stampscan/sim/virtual_plc.hpp"
+#include "stampscan/station/cell_config.hpp"
+#include "stampscan/station/commands.hpp"
+
+#include <csignal>
+#include <cstdio>
+#include <ctime>
+#include <memory>
+
+namespace stampscan::station {
+
+CommandRunner addServeSubcommand(CLI::App* sim) {
+  struct Options {
+    std::string cell;
+    double seconds = 0;
+  };
+  auto opt = std::make_shared<Options>();
+  CLI::App* cmd = sim->add_subcommand("serve", "Run the virtual cell (CMM over I++ DME, PLC over Modbus TCP) until interrupted");
+  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell");
+  cmd->add_option("--for", opt->seconds, "Stop after this many seconds (default: run until Ctrl-C)")->check(CLI::PositiveNumber);
+  return [opt]() {
+    const CellConfig cell = opt->cell.empty() ? virtualCell() : loadCellConfig(opt->cell);
+    // Block the stop signals before any device thread starts, so that only sigtimedwait sees them.
+    sigset_t stop;
+    sigemptyset(&stop);
+    sigaddset(&stop, SIGINT);
+    sigaddset(&stop, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop, nullptr);
+
+    sim::VirtualCmmConfig cmm_config;
+    cmm_config.address = cell.cmm.host;
+    cmm_config.port = static_cast<std::uint16_t>(cell.cmm.port);
+    sim::VirtualCmm cmm(cmm_config);
+    cmm.start();
+    sim::VirtualPlcOptions plc_options;
+    plc_options.address = cell.plc.host;
+    plc_options.port = cell.plc.port;
+    sim::VirtualPlc plc(plc_options);
+    plc.start();
+    std::printf("station sim serve: %s\n", cell.name.c_str());
+    std::printf("  cmm         I++ DME on %s:%u   (try: printf '00001 StartSession()\\r\\n' | nc %s %u)\n",
+                cell.cmm.host.c_str(), cmm.port(), cell.cmm.host.c_str(), cmm.port());
+    std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a 1 -t 1 -r 1 -c 6 -1 -p %d %s)\n",
+                cell.plc.host.c_str(), plc.port(), plc.port(), cell.plc.host.c_str());
+    std::printf("  digitizer   served inside processes under umockdev only (see sim/virtual_digitizer)\n");
+    std::printf("  running; Ctrl-C stops%s\n", opt->seconds > 0 ? " (or the --for time)" : "");
+    std::fflush(stdout);
+    timespec wait{};
+    wait.tv_sec = opt->seconds > 0 ? static_cast<time_t>(opt->seconds) : 3600 * 24 * 365;
+    wait.tv_nsec = opt->seconds > 0 ? static_cast<long>((opt->seconds - static_cast<double>(wait.tv_sec)) * 1e9) : 0;
+    const int sig = sigtimedwait(&stop, nullptr, &wait);
+    std::printf("  stopping (%s)\n", sig > 0 ? "signal" : "time up");
+    plc.stop();
+    cmm.stop();
+    return 0;
+  };
+}
+
+}  // namespace stampscan::station
