@@ -1,0 +1,59 @@
+#include "aravis_glue.hpp"
+
+#include <mutex>
+
+// GLib's type-checking macros expand to C casts; this file is the only one that uses them.
+#pragma GCC diagnostic ignored "-Wold-style-cast"
+#pragma GCC diagnostic ignored "-Wcast-function-type"
+
+namespace stampscan::drivers::camera::glue {
+
+void GObjectUnref::operator()(void* object) const noexcept {
+  if (object != nullptr) g_object_unref(object);
+}
+
+Error::~Error() { clear(); }
+
+void Error::clear() {
+  if (error_ != nullptr) g_error_free(error_);
+  error_ = nullptr;
+}
+
+std::string Error::message() const {
+  return error_ != nullptr && error_->message != nullptr ? std::string(error_->message) : std::string();
+}
+
+unsigned long connectControlLost(ArvDevice* device, void (*on_lost)(ArvDevice*, void*), void* user) {
+  return g_signal_connect(device, "control-lost", G_CALLBACK(on_lost), user);
+}
+
+void disconnectSignal(ArvDevice* device, unsigned long handler) {
+  if (device != nullptr && handler != 0) g_signal_handler_disconnect(device, handler);
+}
+
+void setPacketResend(ArvStream* stream, bool enabled) {
+  if (!ARV_IS_GV_STREAM(stream)) return;
+  g_object_set(stream, "packet-resend",
+               enabled ? ARV_GV_STREAM_PACKET_RESEND_ALWAYS : ARV_GV_STREAM_PACKET_RESEND_NEVER, NULL);
+}
+
+std::string findDeviceIdBySerial(const std::string& serial, std::string* address_out) {
+  static std::mutex discovery_mutex;
+  std::lock_guard lock(discovery_mutex);
+  arv_update_device_list();
+  const unsigned n = arv_get_n_devices();
+  for (unsigned i = 0; i < n; ++i) {
+    const char* s = arv_get_device_serial_nbr(i);
+    if (s != nullptr && serial == s) {
+      if (address_out != nullptr) {
+        const char* a = arv_get_device_address(i);
+        *address_out = a != nullptr ? a : "";
+      }
+      const char* id = arv_get_device_id(i);
+      return id != nullptr ? id : "";
+    }
+  }
+  return {};
+}
+
+}  // namespace stampscan::drivers::camera::glue

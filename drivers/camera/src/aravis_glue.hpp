@@ -1,0 +1,47 @@
+// The few places where the driver touches GLib's C macros (G_CALLBACK, GObject casts), kept in one
+// file compiled with -Wold-style-cast relaxed, plus RAII owners for GObjects and GErrors. Only
+// src/ includes this (Aravis stays out of the public headers).
+#pragma once
+
+#include <arv.h>
+
+#include <memory>
+#include <string>
+
+namespace stampscan::drivers::camera::glue {
+
+struct GObjectUnref {
+  void operator()(void* object) const noexcept;
+};
+template <typename T>
+using GPtr = std::unique_ptr<T, GObjectUnref>;
+
+// Owns the GError an Aravis call may set; `message()` is "" when there was none.
+class Error {
+ public:
+  Error() = default;
+  ~Error();
+  Error(const Error&) = delete;
+  Error& operator=(const Error&) = delete;
+  GError** out() { return &error_; }
+  explicit operator bool() const { return error_ != nullptr; }
+  std::string message() const;
+  void clear();
+
+ private:
+  GError* error_ = nullptr;
+};
+
+// Connects `on_lost(user)` to the device's "control-lost" signal (emitted from Aravis' heartbeat
+// thread); returns the handler id for disconnectSignal().
+unsigned long connectControlLost(ArvDevice* device, void (*on_lost)(ArvDevice*, void*), void* user);
+void disconnectSignal(ArvDevice* device, unsigned long handler);
+
+// Resends make no sense against a device that ignores them (the fake camera) and are the
+// device's business on a real one; the option lets the caller choose.
+void setPacketResend(ArvStream* stream, bool enabled);
+
+// Runs Aravis' global device discovery under a process-wide lock (the device list is global).
+std::string findDeviceIdBySerial(const std::string& serial, std::string* address_out);
+
+}  // namespace stampscan::drivers::camera::glue

@@ -1,0 +1,123 @@
+// Streaming over GVSP from both virtual cameras: frame ids, images, software triggers, and the
+// frame rate at full resolution.
+#include <cstdio>
+
+#include "camera_test_support.hpp"
+
+namespace stampscan::test {
+namespace {
+
+using drivers::camera::CameraConfig;
+using drivers::camera::GigECamera;
+using drivers::camera::TriggerMode;
+
+class CameraStream : public VirtualCamerasTest {};
+
+CameraConfig smallFreeRun() {
+  CameraConfig c;
+  c.roi = {0, 0, 640, 480};
+  c.frame_rate_hz = 100.0;
+  c.packet_size = 8192;
+  return c;
+}
+
+TEST_F(CameraStream, BothCamerasDeliverTheSuppliedImages) {
+  GigECamera left("left", options(kLeftSerial, kLeftAddress));
+  GigECamera right("right", options(kRightSerial, kRightAddress));
+  left.connect();
+  right.connect();
+  left.configure(smallFreeRun());
+  right.configure(smallFreeRun());
+  FrameSink left_frames, right_frames;
+  left.startStreaming(std::ref(left_frames));
+  right.startStreaming(std::ref(right_frames));
+  constexpr std::size_t kFrames = 20;
+  EXPECT_TRUE(left_frames.waitFor(kFrames, std::chrono::seconds(5)));
+  EXPECT_TRUE(right_frames.waitFor(kFrames, std::chrono::seconds(5)));
+  left.stopStreaming();
+  right.stopStreaming();
+  EXPECT_EQ(left.state(), drivers::DeviceState::Ready);
+
+  for (const auto* side : {&left_frames, &right_frames}) {
+    const std::uint8_t tag = side == &left_frames ? 1 : 2;
+    const auto frames = side->frames();
+    ASSERT_GE(frames.size(), kFrames);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const auto& f = frames[i].info;
+      EXPECT_EQ(f.width, 640u);
+      EXPECT_EQ(f.height, 480u);
+      EXPECT_EQ(f.pixel_format, "Mono8");
+      EXPECT_EQ(f.bytes.size(), 640u * 480u);
+      EXPECT_TRUE(imageIsIntact(tag, f.bytes)) << "camera " << int(tag) << " frame " << f.frame_id;
+      if (i > 0) {
+        EXPECT_GT(f.frame_id, frames[i - 1].info.frame_id);
+      }
+    }
+  }
+  EXPECT_EQ(left.clockSyncMethod(), drivers::camera::ClockSyncMethod::FirstFrames);
+  // The fake camera stamps with the real-time clock, as the default station clock is: the offset
+  // is the transfer latency, well under a frame period.
+  EXPECT_LT(std::llabs(left.clockOffsetNs()), 50'000'000);
+  EXPECT_EQ(left.stats().incomplete, 0u);
+  EXPECT_GE(left.stats().delivered, kFrames);
+}
+
+TEST_F(CameraStream, SoftwareTriggerGivesOneFramePerTrigger) {
+  GigECamera cam("right", options(kRightSerial, kRightAddress));
+  cam.connect();
+  CameraConfig c = smallFreeRun();
+  c.frame_rate_hz.reset();
+  c.trigger = TriggerMode::Software;
+  cam.configure(c);
+  FrameSink frames;
+  cam.startStreaming(std::ref(frames));
+  for (std::uint64_t k = 1; k <= 5; ++k) {
+    EXPECT_EQ(cam.softwareTrigger(), k);
+    ASSERT_TRUE(frames.waitFor(k, std::chrono::seconds(2))) << "no frame for trigger " << k;
+  }
+  cam.stopStreaming();
+  const auto got = frames.frames();
+  ASSERT_EQ(got.size(), 5u);
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].info.trigger_id, i + 1);
+  EXPECT_FALSE(hasFault(cam, "timeout"));
+}
+
+// Full resolution, both cameras free-running as fast as they go; prints the measured rate.
+TEST_F(CameraStream, FullResolutionFrameRate) {
+  GigECamera left("left", options(kLeftSerial, kLeftAddress));
+  GigECamera right("right", options(kRightSerial, kRightAddress));
+  left.connect();
+  right.connect();
+  CameraConfig c;
+  c.roi = {0, 0, 2048, 1536};
+  c.frame_rate_hz = 1000.0;  // the fake camera's ceiling; the transport limits the rate
+  c.packet_size = 8192;      // jumbo-frame-like packets; loopback's MTU is 64 KiB
+  left.configure(c);
+  right.configure(c);
+  std::atomic<std::uint64_t> bytes{0};
+  auto count = [&bytes](const drivers::camera::FrameView& f) { bytes += f.bytes.size(); };
+  left.startStreaming(count);
+  right.startStreaming(count);
+  // Let both settle, then measure over a fixed window.
+  ASSERT_TRUE(waitUntil([&] { return left.stats().delivered >= 3 && right.stats().delivered >= 3; },
+                        std::chrono::seconds(5)));
+  const auto l0 = left.stats(), r0 = right.stats();
+  const auto t0 = std::chrono::steady_clock::now();
+  waitUntil([] { return false; }, std::chrono::milliseconds(2000));  // a fixed measuring window
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto l1 = left.stats(), r1 = right.stats();
+  left.stopStreaming();
+  right.stopStreaming();
+  const double lf = static_cast<double>(l1.delivered - l0.delivered) / seconds;
+  const double rf = static_cast<double>(r1.delivered - r0.delivered) / seconds;
+  std::printf("2048x1536 Mono8, two cameras: left %.1f fps, right %.1f fps; incomplete left %llu right %llu\n",
+              lf, rf, static_cast<unsigned long long>(l1.incomplete - l0.incomplete),
+              static_cast<unsigned long long>(r1.incomplete - r0.incomplete));
+  RecordProperty("left_fps", std::to_string(lf));
+  RecordProperty("right_fps", std::to_string(rf));
+  EXPECT_GT(lf, 5.0);
+  EXPECT_GT(rf, 5.0);
+}
+
+}  // namespace
+}  // namespace stampscan::test
