@@ -49,6 +49,10 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   c.plc.port = static_cast<int>(get<std::int64_t>(t, "plc", "port", c.plc.port, file));
   checkPort(c.plc.port, file, "plc");
   c.plc_unit_id = static_cast<int>(get<std::int64_t>(t, "plc", "unit_id", c.plc_unit_id, file));
+  c.left_camera.serial = get<std::string>(t, "cameras", "left_serial", c.left_camera.serial, file);
+  c.left_camera.address = get<std::string>(t, "cameras", "left_address", c.left_camera.address, file);
+  c.right_camera.serial = get<std::string>(t, "cameras", "right_serial", c.right_camera.serial, file);
+  c.right_camera.address = get<std::string>(t, "cameras", "right_address", c.right_camera.address, file);
   const auto vendor = get<std::int64_t>(t, "digitizer", "vendor_id", c.digitizer_vendor, file);
   const auto product = get<std::int64_t>(t, "digitizer", "product_id", c.digitizer_product, file);
   if (vendor < 0 || vendor > 0xffff || product < 0 || product > 0xffff)

@@ -1,6 +1,7 @@
 // `station devices [--cell CELL.toml]`: finds every device of the cell, checks it, and prints a
 // table of identity, address, firmware, state and faults. Exit 0 when every required device
 // answered and reports no fault; 1 otherwise.
+#include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
@@ -72,6 +73,14 @@ CommandRunner addDevicesCommand(CLI::App& app) {
       o.watchdog = false;  // a check, not a session: the PLC's watchdog must not see a heartbeat start
       drivers::plc::ModbusPlc plc(o);
       rows.push_back(probe(plc, o.host + ":" + std::to_string(o.port), true));
+    }
+    for (const auto& [name, cam] : {std::pair{"camera_l", cell.left_camera}, std::pair{"camera_r", cell.right_camera}}) {
+      drivers::camera::GigECameraOptions o;
+      o.serial = cam.serial;
+      o.address = cam.address;
+      o.auto_reconnect = false;
+      drivers::camera::GigECamera camera(name, o);
+      rows.push_back(probe(camera, cam.address.empty() ? "serial " + cam.serial : cam.address, true));
     }
     {
       drivers::digitizer::UsbDigitizerOptions o;

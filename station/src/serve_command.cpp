@@ -1,6 +1,7 @@
 // `station sim serve [--cell CELL.toml] [--for SECONDS]`: runs the virtual cell's devices on their
 // real protocols until interrupted, so that the station and independent tools (mbpoll, a plain TCP
 // client speaking I++ DME) can talk to them. Loopback only unless the cell file says otherwise.
+#include "stampscan/sim/virtual_camera.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
 #include "stampscan/sim/virtual_plc.hpp"
 #include "stampscan/station/cell_config.hpp"
@@ -10,6 +11,8 @@
 #include <cstdio>
 #include <ctime>
 #include <memory>
+#include <stdexcept>
+#include <vector>
 
 namespace stampscan::station {
 
@@ -19,7 +22,7 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     double seconds = 0;
   };
   auto opt = std::make_shared<Options>();
-  CLI::App* cmd = sim->add_subcommand("serve", "Run the virtual cell (CMM over I++ DME, PLC over Modbus TCP) until interrupted");
+  CLI::App* cmd = sim->add_subcommand("serve", "Run the virtual cell (CMM over I++ DME, PLC over Modbus TCP, GigE Vision cameras) until interrupted");
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell");
   cmd->add_option("--for", opt->seconds, "Stop after this many seconds (default: run until Ctrl-C)")->check(CLI::PositiveNumber);
   return [opt]() {
@@ -41,11 +44,26 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     plc_options.port = cell.plc.port;
     sim::VirtualPlc plc(plc_options);
     plc.start();
+    // The cameras: Aravis fake GigE Vision cameras, one per loopback address (the second address
+    // is added to lo when missing, which needs root).
+    std::vector<std::unique_ptr<sim::VirtualCamera>> cameras;
+    for (const CellConfig::Camera& c : {cell.left_camera, cell.right_camera}) {
+      const sim::LoopbackStatus lo = sim::VirtualCamera::ensureLoopbackAddress(c.address);
+      if (!lo.ok) throw std::runtime_error("camera " + c.serial + " on " + c.address + ": " + lo.reason);
+      sim::VirtualCameraOptions o;
+      o.address = c.address;
+      o.serial = c.serial;
+      cameras.push_back(std::make_unique<sim::VirtualCamera>(o));
+      cameras.back()->start();
+    }
     std::printf("station sim serve: %s\n", cell.name.c_str());
     std::printf("  cmm         I++ DME on %s:%u   (try: printf '00001 StartSession()\\r\\n' | nc %s %u)\n",
                 cell.cmm.host.c_str(), cmm.port(), cell.cmm.host.c_str(), cmm.port());
     std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a 1 -t 1 -r 1 -c 6 -1 -p %d %s)\n",
                 cell.plc.host.c_str(), plc.port(), plc.port(), cell.plc.host.c_str());
+    std::printf("  cameras     GigE Vision %s on %s, %s on %s\n",
+                cell.left_camera.serial.c_str(), cell.left_camera.address.c_str(), cell.right_camera.serial.c_str(),
+                cell.right_camera.address.c_str());
     std::printf("  digitizer   served inside processes under umockdev only (see sim/virtual_digitizer)\n");
     std::printf("  running; Ctrl-C stops%s\n", opt->seconds > 0 ? " (or the --for time)" : "");
     std::fflush(stdout);
@@ -54,6 +72,7 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     wait.tv_nsec = opt->seconds > 0 ? static_cast<long>((opt->seconds - static_cast<double>(wait.tv_sec)) * 1e9) : 0;
     const int sig = sigtimedwait(&stop, nullptr, &wait);
     std::printf("  stopping (%s)\n", sig > 0 ? "signal" : "time up");
+    for (auto& c : cameras) c->stop();
     plc.stop();
     cmm.stop();
     return 0;

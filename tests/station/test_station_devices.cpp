@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <thread>
+#include <csignal>
+#include <sys/types.h>
 #include <unistd.h>
 
 namespace stampscan::station::test {
@@ -23,10 +25,26 @@ int basePort() { return 20000 + static_cast<int>(getpid() % 20000); }
 TEST_F(StationTest, DevicesFindsTheServedVirtualCell) {
   const int port = basePort();
   const fs::path cell = cellFile(work(), port, port + 1);
-  // Serve in the background for a few seconds.
-  const std::string serve = quote(std::string(STATION_EXE)) + " sim serve --for 4 --cell " + quote(cell) + " >" +
-                            quote(work() / "serve.txt") + " 2>&1 &";
+  // Serve in the background; stopped (SIGTERM, then waited for) before the test ends, so that the
+  // fake cameras have left UDP 3956 when the next camera test starts.
+  const fs::path pid_file = work() / "serve.pid";
+  const std::string serve = "sh -c 'echo $$ > " + pid_file.string() + "; exec " + std::string(STATION_EXE) +
+                            " sim serve --for 30 --cell " + cell.string() + "' >" + quote(work() / "serve.txt") + " 2>&1 &";
   ASSERT_EQ(std::system(serve.c_str()), 0);
+  pid_t server = 0;
+  for (int attempt = 0; attempt < 50 && server == 0; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const std::string text = readFile(pid_file);
+    if (!text.empty() && text.back() == '\n') server = static_cast<pid_t>(std::stol(text));
+  }
+  ASSERT_GT(server, 0);
+  struct StopServer {
+    pid_t pid;
+    ~StopServer() {
+      ::kill(pid, SIGTERM);
+      for (int i = 0; i < 100 && ::kill(pid, 0) == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  } stop_server{server};
   RunResult r;
   for (int attempt = 0; attempt < 50; ++attempt) {  // until the servers listen
     r = run("devices --cell " + quote(cell));
@@ -37,6 +55,8 @@ TEST_F(StationTest, DevicesFindsTheServedVirtualCell) {
   EXPECT_NE(r.out.find("cmm        127.0.0.1:" + std::to_string(port)), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("I++ DME"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("plc"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("camera_l   127.0.0.1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("camera_r   127.0.0.2"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("all required devices answered"), std::string::npos) << r.out;
 }
 

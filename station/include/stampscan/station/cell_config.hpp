@@ -19,6 +19,10 @@ struct CellConfig {
   Endpoint cmm{"127.0.0.1", 1294};
   Endpoint plc{"127.0.0.1", 1502};
   int plc_unit_id = 1;
+  struct Camera {
+    std::string serial, address;
+  };
+  Camera left_camera{"STAMPSCAN-LEFT", "127.0.0.1"}, right_camera{"STAMPSCAN-RIGHT", "127.0.0.2"};
   std::uint16_t digitizer_vendor = 0x1d50, digitizer_product = 0x61a5;
   std::string digitizer_serial;
   // The virtual digitizer lives only inside a process running under umockdev (see
