@@ -251,4 +251,21 @@ bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& plane, PlaneEllipse& e
   return fitEllipseOnce(kept, e);
 }
 
+bool elementFromEllipse(const PlaneEllipse& e, double scale, const Eigen::Matrix3d& frame, const Vec3& origin,
+                        const RingDetectionParams& params, GridElement& g) {
+  const double r0 = params.printed_radius;
+  g.semi_major = e.a * scale;
+  g.semi_minor = e.b * scale;
+  g.major_strain = std::log(g.semi_major / r0);
+  g.minor_strain = std::log(g.semi_minor / r0);
+  if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) return false;
+  g.thickness_strain = -(g.major_strain + g.minor_strain);
+  g.major_direction = (std::cos(e.angle) * frame.col(0) + std::sin(e.angle) * frame.col(1)).normalized();
+  g.normal = frame.col(2);
+  g.position = origin + e.centre.x() * frame.col(0) + e.centre.y() * frame.col(1);
+  g.fit_rms = e.rms;
+  g.edge_points = e.used;
+  return true;
+}
+
 }  // namespace stampscan::registration::detail

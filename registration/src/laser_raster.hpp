@@ -4,6 +4,7 @@
 #pragma once
 
 #include "stampscan/registration/laser_geometry.hpp"
+#include "stampscan/registration/grid_element.hpp"
 #include "stampscan/registration/laser_rings.hpp"
 
 #include <Eigen/Core>
@@ -59,6 +60,19 @@ struct Interior {
 
 std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& search, RingDetectionStats& stats);
 
+// The search settings shared by every grid kind, from its detection parameters.
+template <typename Params>
+InteriorSearch commonSearch(const Params& params) {
+  InteriorSearch s;
+  s.line_width = params.line_width;
+  s.ink_ratio = params.ink_ratio;
+  s.min_strain = params.min_strain;
+  s.max_strain = params.max_strain;
+  s.min_edge_share = params.min_edge_share;
+  s.max_edge_gap_deg = params.max_edge_gap_deg;
+  return s;
+}
+
 // The edge plane is a chord: the surface at a centre bulges off it. The distance along the normal
 // to the interior's own points near `centre` (within `radius` of it, across the normal).
 double surfaceOffset(const Interior& interior, const Vec3& centre, double radius);
@@ -77,5 +91,11 @@ double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q);
 // OpenCV's direct fit, then points farther than 3 robust sigmas (at least 4 um) dropped and the fit
 // repeated: a stray edge point (a neighbour's line, a speck) does not bend the ellipse.
 bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& points, PlaneEllipse& out);
+
+// A grid element from the ellipse fitted to a printed circle in the plane `frame` (columns: plane
+// axes, normal) at `origin`: `scale` turns the fitted axes into the circle's centre line (r0 over
+// the inner radius for an inner edge, 1 for the line itself). False when a strain is implausible.
+bool elementFromEllipse(const PlaneEllipse& e, double scale, const Eigen::Matrix3d& frame, const Vec3& origin,
+                        const RingDetectionParams& params, GridElement& g);
 
 }  // namespace stampscan::registration::detail

@@ -53,15 +53,9 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
   const detail::Raster R = detail::buildRaster(sweep, track, calibration);
   if (!(R.col_mm > 0) || !(R.row_mm > 0)) return out;
   const double side = params.pitch - params.line_width;  // the interior's side before forming
-  detail::InteriorSearch search;
+  detail::InteriorSearch search = detail::commonSearch(params);
   search.nominal_area_mm2 = side * side;
   search.inner_reach_mm = side / std::sqrt(2.0);  // to a corner
-  search.line_width = params.line_width;
-  search.ink_ratio = params.ink_ratio;
-  search.min_strain = params.min_strain;
-  search.max_strain = params.max_strain;
-  search.min_edge_share = params.min_edge_share;
-  search.max_edge_gap_deg = params.max_edge_gap_deg;
   for (const detail::Interior& in : detail::findInteriors(R, search, st)) {
     const PolygonMoments m = momentsOf(in.plane);
     if (m.area <= 0) {

@@ -275,21 +275,11 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       ++st.rejected_fit;
       continue;
     }
-    GridElement g;
-    g.semi_major = e.a;  // the line's centre: the printed circle itself
-    g.semi_minor = e.b;
-    g.major_strain = std::log(g.semi_major / r0);
-    g.minor_strain = std::log(g.semi_minor / r0);
-    if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) {
+    GridElement g;  // the line's centre: the printed circle itself, so no scaling
+    if (!detail::elementFromEllipse(e, 1.0, frame, surface_centre, params, g)) {
       ++st.rejected_fit;
       continue;
     }
-    g.thickness_strain = -(g.major_strain + g.minor_strain);
-    g.major_direction = (std::cos(e.angle) * frame.col(0) + std::sin(e.angle) * frame.col(1)).normalized();
-    g.normal = normal;
-    g.position = surface_centre + e.centre.x() * frame.col(0) + e.centre.y() * frame.col(1);
-    g.fit_rms = e.rms;
-    g.edge_points = e.used;
     g.source = Source::Stereo;
     g.view = view;
     out.push_back(g);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/registration/laser_geometry.hpp"
 #include "stampscan/sim/cmm_motion.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
@@ -99,5 +100,24 @@ class DecodedSession final : public sim::TraceSink {
   std::map<std::string, std::pair<double, std::size_t>> sync;
   std::map<std::string, std::map<std::string, std::string>> metadata_records;
 };
+
+// A trace profile as the registration code takes it.
+inline registration::Profile profileOf(const msg::LaserProfile& m) {
+  registration::Profile p;
+  p.device_time_ns = m.device_time_ns;
+  p.angle_min = m.angle_min;
+  p.angle_increment = m.angle_increment;
+  p.range = m.range;
+  p.intensity = m.intensity;
+  p.overexposed = (m.status & msg::kProfileOverexposed) != 0;
+  return p;
+}
+
+// The CMM's reports as a head track.
+inline registration::HeadTrack trackOf(const DecodedSession& s) {
+  std::vector<registration::HeadSample> samples;
+  for (const auto& p : s.positions) samples.push_back({p.station_time_ns, Eigen::Vector3d(p.x, p.y, p.z), p.head_a, p.head_b});
+  return registration::HeadTrack(std::move(samples));
+}
 
 }  // namespace stampscan::test_support

@@ -12,23 +12,10 @@
 namespace {
 
 using namespace stampscan;
+using test_support::profileOf;
+using test_support::trackOf;
 
-registration::HeadTrack trackOf(const test_support::DecodedSession& s) {
-  std::vector<registration::HeadSample> samples;
-  for (const auto& p : s.positions) samples.push_back({p.station_time_ns, Eigen::Vector3d(p.x, p.y, p.z), p.head_a, p.head_b});
-  return registration::HeadTrack(std::move(samples));
-}
 
-registration::Profile profileOf(const trace::LaserProfile& m) {
-  registration::Profile p;
-  p.device_time_ns = m.device_time_ns;
-  p.angle_min = m.angle_min;
-  p.angle_increment = m.angle_increment;
-  p.range = m.range;
-  p.intensity = m.intensity;
-  p.overexposed = (m.status & trace::kProfileOverexposed) != 0;
-  return p;
-}
 
 TEST(LaserGeometry, HeadPoseMatchesTheSimulatorsKinematics) {
   for (const auto& [a, b] : {std::pair{0.0, 0.0}, std::pair{0.3, -0.2}, std::pair{-0.35, 1.2}}) {

@@ -13,17 +13,9 @@
 namespace {
 
 using namespace stampscan;
+using test_support::profileOf;
+using test_support::trackOf;
 
-registration::Profile profileOf(const trace::LaserProfile& m) {
-  registration::Profile p;
-  p.device_time_ns = m.device_time_ns;
-  p.angle_min = m.angle_min;
-  p.angle_increment = m.angle_increment;
-  p.range = m.range;
-  p.intensity = m.intensity;
-  p.overexposed = (m.status & trace::kProfileOverexposed) != 0;
-  return p;
-}
 
 struct Measured {
   double major_bias = 0, minor_bias = 0;
@@ -42,9 +34,7 @@ Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margi
   p.seed = seed;
   test_support::DecodedSession s;
   const sim::ScanSummary summary = sim::generateScan(p, s);
-  std::vector<registration::HeadSample> samples;
-  for (const auto& q : s.positions) samples.push_back({q.station_time_ns, Eigen::Vector3d(q.x, q.y, q.z), q.head_a, q.head_b});
-  const registration::HeadTrack track(std::move(samples));
+  const registration::HeadTrack track = trackOf(s);
   // The true calibration: this test is about the rings, the calibration has its own.
   registration::DigitizerCalibration cal;
   cal.head_from_digitizer = summary.truth.head_from_digitizer;
