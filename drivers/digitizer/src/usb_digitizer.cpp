@@ -253,13 +253,22 @@ struct UsbDigitizer::Impl {
         owner.reportFault("device-error", "bulk transfer failed; this transfer is given up");
         break;
     }
-    std::lock_guard lock(mutex);
-    if (resubmit && !stopping && !gone) {
-      const int rc = libusb_submit_transfer(t);
-      if (rc == 0) return;
-      if (rc == LIBUSB_ERROR_NO_DEVICE) gone = true;
+    bool vanished = false;
+    {
+      std::lock_guard lock(mutex);
+      if (resubmit && !stopping && !gone) {
+        const int rc = libusb_submit_transfer(t);
+        if (rc == 0) return;
+        vanished = rc == LIBUSB_ERROR_NO_DEVICE;
+      }
+      --in_flight;
     }
-    --in_flight;
+    // The device can vanish between a transfer's completion and its resubmission; then no transfer
+    // ends with NO_DEVICE, and the resubmission is the only one to see it: it must report it too.
+    if (vanished && !gone.exchange(true)) {
+      owner.reportFault("disconnected", "the digitizer went away while streaming");
+      cancelAll();
+    }
   }
 
   void cancelAll() {
