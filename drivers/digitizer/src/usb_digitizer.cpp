@@ -335,7 +335,7 @@ void UsbDigitizer::connectDevice() {
       throw;
     }
   }
-  if (count > 0) libusb_free_device_list(list, 1);
+  if (count >= 0) libusb_free_device_list(list, 1);  // an empty bus still allocates the list
   if (!found) {
     throw fault("not-found", "USB " + hex4(options_.vendor_id) + ":" + hex4(options_.product_id) +
                                  (options_.serial.empty() ? "" : " serial " + options_.serial) +
