@@ -1,0 +1,41 @@
+// The station's side of the cell's safety: when the PLC reports the door opened, the e-stop chain
+// broken, the light curtain interrupted or its interlock tripped, the CMM's motion is aborted at
+// once and the event is logged. (The PLC itself closes the laser shutter and drops motion enable;
+// this stops the move the station commanded, so the scan does not wait for a move that cannot end.)
+#pragma once
+
+#include "stampscan/drivers/cmm/ipp_client.hpp"
+#include "stampscan/drivers/plc/modbus_plc.hpp"
+
+#include <chrono>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace stampscan::acquisition {
+
+struct SafetyEvent {
+  std::chrono::system_clock::time_point when;
+  std::string what;  // e.g. "door opened: motion aborted"
+};
+
+class SafetyInterlock {
+ public:
+  // Registers itself as the PLC driver's event callback. Both devices must outlive it, and the PLC
+  // must be disconnected (its callbacks ended) before the interlock is destroyed.
+  SafetyInterlock(drivers::plc::ModbusPlc& plc, drivers::cmm::IppCmm& cmm);
+
+  std::vector<SafetyEvent> events() const;
+  bool tripped() const;  // since construction or the last reset()
+  void reset();
+
+ private:
+  void onPlcEvent(const drivers::plc::PlcEvent& event);
+
+  drivers::cmm::IppCmm& cmm_;
+  mutable std::mutex mutex_;
+  std::vector<SafetyEvent> events_;
+  bool tripped_ = false;
+};
+
+}  // namespace stampscan::acquisition
