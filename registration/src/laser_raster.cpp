@@ -65,6 +65,8 @@ Raster buildRaster(const std::vector<Profile>& sweep, const HeadTrack& track, co
 
 std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& params, RingDetectionStats& st) {
   std::vector<Interior> out;
+  // Too short a sweep, or one without two neighbouring returns to measure the spacing: nothing.
+  if (R.rows < 3 || !(R.col_mm > 0) || !(R.row_mm > 0)) return out;
   const double w = params.line_width;
   // 1. Ink against the local sheet level: a grey closing wider than the line removes the lines.
   const int kc = 2 * static_cast<int>(std::ceil(1.5 * w / R.col_mm)) + 1;

@@ -58,6 +58,7 @@ struct Interior {
   std::vector<Vec3> pixels;              // the interior's own points
 };
 
+// Empty when the raster is too small to measure (fewer than three profiles, no spacing).
 std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& search, RingDetectionStats& stats);
 
 // The search settings shared by every grid kind, from its detection parameters.

@@ -20,9 +20,7 @@ std::vector<GridElement> detectLaserRings(const std::vector<Profile>& sweep, con
   RingDetectionStats local;
   RingDetectionStats& st = stats ? *stats : local;
   std::vector<GridElement> out;
-  if (sweep.size() < 3) return out;
   const detail::Raster R = detail::buildRaster(sweep, track, calibration);
-  if (!(R.col_mm > 0) || !(R.row_mm > 0)) return out;
   const double r0 = params.printed_radius, w = params.line_width;
   const double inner = r0 - 0.5 * w;
   detail::InteriorSearch search = detail::commonSearch(params);

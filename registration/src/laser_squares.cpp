@@ -49,9 +49,7 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
   RingDetectionStats local;
   RingDetectionStats& st = stats ? *stats : local;
   std::vector<GridElement> out;
-  if (sweep.size() < 3) return out;
   const detail::Raster R = detail::buildRaster(sweep, track, calibration);
-  if (!(R.col_mm > 0) || !(R.row_mm > 0)) return out;
   const double side = params.pitch - params.line_width;  // the interior's side before forming
   detail::InteriorSearch search = detail::commonSearch(params);
   search.nominal_area_mm2 = side * side;
