@@ -1,26 +1,43 @@
 #include "stampscan/station/cell_config.hpp"
 
+#include "stampscan/drivers/digitizer/digitizer_protocol.hpp"
+
 #include <toml++/toml.h>
 
+#include <cstdio>
+#include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 namespace stampscan::station {
 
 CellConfig virtualCell() {
   CellConfig c;
   c.source = "built-in";
-  c.digitizer_required = false;
+  c.digitizer_virtual = true;
   return c;
 }
 
 namespace {
+
+// What a key of type T holds, as a cell file's author would write it.
+template <typename T>
+constexpr const char* expectedKind() {
+  if constexpr (std::is_same_v<T, bool>) return "true or false";
+  else if constexpr (std::is_same_v<T, std::string>) return "a string";
+  else return "an integer";
+}
 
 template <typename T>
 T get(const toml::table& t, const std::string& section, const std::string& key, T fallback, const std::string& file) {
   const toml::node_view<const toml::node> node = t[section][key];
   if (!node) return fallback;
   if (const auto v = node.value<T>()) return *v;
-  throw std::runtime_error(file + ": [" + section + "] " + key + " has the wrong type");
+  std::ostringstream type;
+  type << node.type();  // toml++'s name for it: string, integer, boolean, array, ...
+  const std::string found = (type.str().find_first_of("aeiou") == 0 ? "an " : "a ") + type.str();
+  throw std::runtime_error(file + ": [" + section + "] " + key + " has the wrong type: expected " +
+                           expectedKind<T>() + ", found " + found);
 }
 
 void checkPort(int port, const std::string& file, const std::string& section) {
@@ -60,6 +77,14 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   c.digitizer_vendor = static_cast<std::uint16_t>(vendor);
   c.digitizer_product = static_cast<std::uint16_t>(product);
   c.digitizer_serial = get<std::string>(t, "digitizer", "serial", "", file);
+  c.digitizer_virtual = get<bool>(t, "digitizer", "virtual", false, file);
+  if (c.digitizer_virtual &&
+      (c.digitizer_vendor != drivers::digitizer::kVendorId || c.digitizer_product != drivers::digitizer::kProductId)) {
+    char ids[64];
+    std::snprintf(ids, sizeof ids, "%04x:%04x is not the virtual digitizer's %04x:%04x", c.digitizer_vendor,
+                  c.digitizer_product, drivers::digitizer::kVendorId, drivers::digitizer::kProductId);
+    throw std::runtime_error(file + ": [digitizer] virtual = true, but vendor_id:product_id " + ids);
+  }
   c.digitizer_required = get<bool>(t, "digitizer", "required", true, file);
   return c;
 }

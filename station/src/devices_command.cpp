@@ -1,13 +1,16 @@
 // `station devices [--cell CELL.toml]`: finds every device of the cell, checks it, and prints a
 // table of identity, address, firmware, state and faults. Exit 0 when every required device
-// answered and reports no fault; 1 otherwise.
+// answered and reports no fault; 1 otherwise. A cell whose digitizer is virtual has it hosted in
+// this process (virtual_digitizer_host.hpp), which may re-execute the program under umockdev.
 #include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
 #include "stampscan/station/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
+#include "virtual_digitizer_host.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -55,6 +58,9 @@ CommandRunner addDevicesCommand(CLI::App& app) {
   cmd->add_option("--cell", *cell_file, "Cell configuration (TOML); default: the built-in virtual cell");
   return [cell_file]() {
     const CellConfig cell = cell_file->empty() ? virtualCell() : loadCellConfig(*cell_file);
+    // First of all: hosting may re-execute this program, and the device must be on the bus before
+    // any libusb context exists (the cameras' Aravis makes one too).
+    const std::unique_ptr<sim::VirtualDigitizer> virtual_digitizer = hostVirtualDigitizer(cell);
     std::printf("station devices: %s (%s)\n", cell.name.c_str(), cell.source.c_str());
     std::vector<Row> rows;
     {
@@ -92,14 +98,23 @@ CommandRunner addDevicesCommand(CLI::App& app) {
       std::snprintf(address, sizeof address, "usb %04x:%04x", o.vendor_id, o.product_id);
       rows.push_back(probe(digitizer, address, cell.digitizer_required));
     }
-    std::printf("  %-10s %-22s %-28s %-10s %-12s %s\n", "device", "address", "identity", "firmware", "state", "faults");
+    // The identity and firmware columns widen to their longest entry, so that the table stays aligned.
+    int identity_width = 28, firmware_width = 10;
+    for (const Row& r : rows) {
+      identity_width = std::max(identity_width, static_cast<int>(r.identity.size()));
+      firmware_width = std::max(firmware_width, static_cast<int>(r.firmware.size()));
+    }
+    std::printf("  %-10s %-22s %-*s %-*s %-12s %s\n", "device", "address", identity_width, "identity", firmware_width,
+                "firmware", "state", "faults");
     bool all_ok = true;
     for (const Row& r : rows) {
-      std::printf("  %-10s %-22s %-28s %-10s %-12s %s%s\n", r.device.c_str(), r.address.c_str(), r.identity.c_str(),
-                  r.firmware.c_str(), r.ok ? r.state.c_str() : (r.required ? "MISSING" : "absent"), r.faults.c_str(),
+      std::printf("  %-10s %-22s %-*s %-*s %-12s %s%s\n", r.device.c_str(), r.address.c_str(), identity_width,
+                  r.identity.c_str(), firmware_width, r.firmware.c_str(),
+                  r.ok ? r.state.c_str() : (r.required ? "MISSING" : "absent"), r.faults.c_str(),
                   r.required || r.ok ? "" : " (optional in this cell)");
       if (r.required && !r.ok) all_ok = false;
     }
+    if (virtual_digitizer) std::printf("  the digitizer is the virtual one, hosted in this process under umockdev\n");
     std::printf("  %s\n", all_ok ? "all required devices answered" : "a required device is missing or faulty");
     return all_ok ? 0 : 1;
   };

@@ -1,6 +1,7 @@
 // `station sim serve [--cell CELL.toml] [--for SECONDS]`: runs the virtual cell's devices on their
-// real protocols until interrupted, so that the station and independent tools (mbpoll, a plain TCP
-// client speaking I++ DME) can talk to them. Loopback only unless the cell file says otherwise.
+// real protocols until interrupted, so that the station and independent tools (mbpoll, arv-tool, a
+// plain TCP client speaking I++ DME) can talk to them. Loopback only unless the cell file says
+// otherwise. The virtual digitizer is not among them: see virtual_digitizer_host.hpp.
 #include "stampscan/sim/virtual_camera.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
 #include "stampscan/sim/virtual_plc.hpp"
@@ -61,10 +62,17 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
                 cell.cmm.host.c_str(), cmm.port(), cell.cmm.host.c_str(), cmm.port());
     std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a 1 -t 1 -r 1 -c 6 -1 -p %d %s)\n",
                 cell.plc.host.c_str(), plc.port(), plc.port(), cell.plc.host.c_str());
-    std::printf("  cameras     GigE Vision %s on %s, %s on %s\n",
+    std::printf("  cameras     GigE Vision %s on %s, %s on %s   (try: arv-tool-0.8)\n",
                 cell.left_camera.serial.c_str(), cell.left_camera.address.c_str(), cell.right_camera.serial.c_str(),
                 cell.right_camera.address.c_str());
-    std::printf("  digitizer   served inside processes under umockdev only (see sim/virtual_digitizer)\n");
+    // The virtual digitizer is a USB device under umockdev: it exists only inside the process that
+    // hosts it, so it cannot be served to others from here.
+    if (cell.digitizer_virtual)
+      std::printf("  digitizer   not served here: a USB device under umockdev, hosted in-process by `station devices`"
+                  " (see sim/virtual_digitizer)\n");
+    else
+      std::printf("  digitizer   not served: this cell's digitizer is a USB device (%04x:%04x), not virtual\n",
+                  cell.digitizer_vendor, cell.digitizer_product);
     std::printf("  running; Ctrl-C stops%s\n", opt->seconds > 0 ? " (or the --for time)" : "");
     std::fflush(stdout);
     timespec wait{};

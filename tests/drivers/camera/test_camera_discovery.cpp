@@ -47,7 +47,7 @@ TEST_F(CameraDiscovery, UnknownSerialIsAClearError) {
 
 TEST_F(CameraDiscovery, ArvToolListsBothCameras) {
   if (std::system("command -v arv-tool-0.8 >/dev/null 2>&1") != 0) {
-    GTEST_SKIP() << "arv-tool-0.8 is not installed (Debian bookworm's aravis-tools does not ship it)";
+    GTEST_SKIP() << "arv-tool-0.8 is not installed (apt-get install aravis-tools-cli)";
   }
   std::FILE* pipe = popen("arv-tool-0.8 2>&1", "r");
   ASSERT_NE(pipe, nullptr);

@@ -25,8 +25,10 @@ struct CellConfig {
   Camera left_camera{"STAMPSCAN-LEFT", "127.0.0.1"}, right_camera{"STAMPSCAN-RIGHT", "127.0.0.2"};
   std::uint16_t digitizer_vendor = 0x1d50, digitizer_product = 0x61a5;
   std::string digitizer_serial;
-  // The virtual digitizer lives only inside a process running under umockdev (see
-  // sim/virtual_digitizer), so the virtual cell does not require it; a real cell does.
+  // The virtual digitizer is a USB device under umockdev (sim/virtual_digitizer): it exists only
+  // inside the process that hosts it, so no server can offer it to others. A cell that marks its
+  // digitizer virtual has `station devices` host it in its own process (virtual_digitizer_host.hpp).
+  bool digitizer_virtual = false;
   bool digitizer_required = true;
 };
 

@@ -1,0 +1,129 @@
+#include "virtual_digitizer_host.hpp"
+
+#include <dlfcn.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace stampscan::station {
+
+namespace {
+
+// Set for the re-executed process, so that it reports the failure instead of re-executing again.
+constexpr const char* kReexecMarker = "STAMPSCAN_UMOCKDEV_REEXEC";
+
+// This program's arguments as it was started (NUL-separated in /proc/self/cmdline).
+std::vector<std::string> ownArguments() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::vector<std::string> args;
+  for (std::string::size_type start = 0; start < bytes.size();) {
+    const std::string::size_type end = std::min(bytes.find('\0', start), bytes.size());
+    args.push_back(bytes.substr(start, end - start));
+    start = end + 1;
+  }
+  if (args.empty()) throw std::runtime_error("virtual digitizer: /proc/self/cmdline is unreadable or empty");
+  return args;
+}
+
+bool isAsanRuntime(const std::string& file) {
+  return file.find("libasan.so") != std::string::npos || file.find("libclang_rt.asan") != std::string::npos;
+}
+
+// The ASan runtime this process has mapped (a sanitizer build linked against the shared runtime), or "".
+std::string mappedAsanRuntime() {
+  std::ifstream maps("/proc/self/maps");
+  std::string line;
+  while (std::getline(maps, line)) {
+    const std::string::size_type path = line.find('/');
+    if (path != std::string::npos && isAsanRuntime(line.substr(path))) return line.substr(path);
+  }
+  return "";
+}
+
+// LD_PRELOAD with umockdev's library added, first as umockdev-wrapper puts it, except after an ASan
+// runtime: ASan checks that it comes before every other library and aborts otherwise, so a
+// preloaded runtime stays first, and a linked one is preloaded first (the same file, loaded once).
+std::string preloadWithUmockdev(const char* current) {
+  std::vector<std::string> entries;  // the dynamic loader splits the list at colons and spaces
+  std::string entry;
+  for (const char* p = current != nullptr ? current : "";; ++p) {
+    if (*p != ':' && *p != ' ' && *p != '\0') {
+      entry += *p;
+      continue;
+    }
+    if (!entry.empty()) entries.push_back(entry);
+    entry.clear();
+    if (*p == '\0') break;
+  }
+  std::vector<std::string> ordered;
+  if (const auto asan = std::find_if(entries.begin(), entries.end(), isAsanRuntime); asan != entries.end()) {
+    ordered.push_back(*asan);
+    entries.erase(asan);
+  } else if (const std::string linked = mappedAsanRuntime(); !linked.empty()) {
+    ordered.push_back(linked);
+  }
+  ordered.push_back(kUmockdevPreload);
+  ordered.insert(ordered.end(), entries.begin(), entries.end());
+  std::string joined;
+  for (const std::string& e : ordered) joined += (joined.empty() ? "" : ":") + e;
+  return joined;
+}
+
+}  // namespace
+
+void requireUmockdevPreload() {
+  if (sim::VirtualDigitizer::preloadActive()) {
+    ::unsetenv(kReexecMarker);  // not inherited by anything this process starts
+    return;
+  }
+  const char* preload = std::getenv("LD_PRELOAD");
+  if (std::getenv(kReexecMarker) != nullptr) {
+    throw std::runtime_error(std::string("virtual digitizer: ") + kUmockdevPreload +
+                             " is not loaded although this program was re-executed with LD_PRELOAD=" +
+                             (preload != nullptr ? preload : "") + " (is umockdev installed? apt-get install umockdev)");
+  }
+  // Load it here first: when it is missing, this says so and how to install it, instead of the new
+  // process starting without it after a warning from the dynamic loader.
+  void* library = ::dlopen(kUmockdevPreload, RTLD_LAZY | RTLD_LOCAL);
+  if (library == nullptr) {
+    const char* why = ::dlerror();
+    throw std::runtime_error(std::string("virtual digitizer: umockdev's preload library cannot be loaded (") +
+                             (why != nullptr ? why : kUmockdevPreload) + "): apt-get install umockdev");
+  }
+  ::dlclose(library);
+  const std::string new_preload = preloadWithUmockdev(preload);
+  std::vector<std::string> args = ownArguments();
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  if (::setenv("LD_PRELOAD", new_preload.c_str(), 1) != 0 || ::setenv(kReexecMarker, "1", 1) != 0)
+    throw std::runtime_error(std::string("virtual digitizer: setenv: ") + std::strerror(errno));
+  std::fflush(nullptr);
+  ::execv("/proc/self/exe", argv.data());
+  throw std::runtime_error(std::string("virtual digitizer: re-executing /proc/self/exe with LD_PRELOAD=") + new_preload +
+                           ": " + std::strerror(errno));
+}
+
+std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell) {
+  if (!cell.digitizer_virtual) return nullptr;
+  requireUmockdevPreload();
+  sim::VirtualDigitizerOptions options;
+  if (!cell.digitizer_serial.empty()) options.identity.serial = cell.digitizer_serial;  // the one the cell looks for
+  try {
+    return std::make_unique<sim::VirtualDigitizer>(options);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("virtual digitizer: ") + e.what());
+  }
+}
+
+}  // namespace stampscan::station

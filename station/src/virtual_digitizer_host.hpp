@@ -1,0 +1,33 @@
+// Hosting the cell's virtual digitizer in the station's own process. The virtual digitizer is a USB
+// device under umockdev (sim/virtual_digitizer): it exists only inside a process that runs with
+// umockdev's preload library, so `station sim serve` cannot offer it to other processes the way it
+// serves the CMM, the PLC and the cameras. A command that talks to the cell's digitizer hosts it
+// instead, and the unmodified USB driver then finds it on the (mocked) bus like the real head.
+#pragma once
+
+#include "stampscan/sim/virtual_digitizer.hpp"
+#include "stampscan/station/cell_config.hpp"
+
+#include <memory>
+
+namespace stampscan::station {
+
+// The library umockdev-wrapper preloads; found by the dynamic loader's usual search.
+inline constexpr const char* kUmockdevPreload = "libumockdev-preload.so.0";
+
+// Returns when umockdev's preload library is active in this process. Otherwise re-executes this
+// program (/proc/self/exe, the same arguments) with the library added to LD_PRELOAD and does not
+// return; a marker in the environment keeps the new process from trying again. Under
+// AddressSanitizer the ASan runtime stays first in LD_PRELOAD, as it insists on coming first.
+// Call it before printing anything and before starting threads. Throws std::runtime_error, naming
+// the library and how to install it, when it cannot be loaded or did not load after the re-exec.
+void requireUmockdevPreload();
+
+// When the cell marks its digitizer virtual: requires the preload (above), then builds the virtual
+// digitizer (with the cell's serial when it names one) and returns it; it lives as long as the
+// returned object. Otherwise returns null. The testbed redirects /sys and /dev for the whole process
+// and libusb enumerates when a context is made, so call it before any libusb context exists: before
+// the digitizer driver connects and before Aravis looks for cameras (it has a libusb context too).
+std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell);
+
+}  // namespace stampscan::station
