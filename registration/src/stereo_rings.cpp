@@ -1,15 +1,18 @@
 #include "stampscan/registration/stereo_rings.hpp"
 
+#include "image_line_fit.hpp"
 #include "laser_raster.hpp"
 
 #include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <optional>
 
 namespace stampscan::registration {
 
@@ -47,6 +50,110 @@ Vec3 midpoint(const Vec3& o1, const Vec3& d1, const Vec3& o2, const Vec3& d2, do
   return 0.5 * (p1 + p2);
 }
 
+// The rays of a ring's line points from one camera (machine frame).
+struct RingRays {
+  Vec3 origin;
+  std::vector<Vec3> directions;
+};
+
+RingRays raysOf(const ImageRing& ring, const CameraModel& cam, const Eigen::Isometry3d& machine_from_camera) {
+  RingRays r{machine_from_camera.translation(), {}};
+  for (const auto& q : normalised(ring.edge, cam))
+    r.directions.push_back((machine_from_camera.linear() * Vec3(q.x(), q.y(), 1)).normalized());
+  return r;
+}
+
+struct RingPlane {
+  Vec3 origin;
+  Eigen::Matrix3d frame;  // columns: in-plane axes, normal
+};
+
+// Every `stride`-th ray cast onto the plane, in its 2D coordinates.
+std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingPlane& plane, std::size_t stride) {
+  const Vec3 n = plane.frame.col(2);
+  std::vector<Eigen::Vector2d> out;
+  for (std::size_t i = 0; i < rays.directions.size(); i += stride) {
+    const Vec3& d = rays.directions[i];
+    const Vec3 X = rays.origin + ((plane.origin - rays.origin).dot(n) / d.dot(n)) * d - plane.origin;
+    out.emplace_back(plane.frame.col(0).dot(X), plane.frame.col(1).dot(X));
+  }
+  return out;
+}
+
+// The cast ellipse as centre and shape matrix M (x = c + M (cos t, sin t)): what two views must
+// agree on.
+bool castEllipse(const RingRays& rays, const RingPlane& plane, Eigen::Matrix<double, 5, 1>& out) {
+  std::vector<cv::Point2f> pts;
+  for (const auto& q : castOnto(rays, plane, 6)) pts.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+  if (pts.size() < 6) return false;
+  // Single precision would round at 1e-7 of the coordinates, well below the 1e-4 mm that matter.
+  const cv::RotatedRect box = cv::fitEllipseDirect(pts);
+  const double a = 0.5 * box.size.width, b = 0.5 * box.size.height, angle = box.angle * std::numbers::pi / 180;
+  if (!(a > 0 && b > 0)) return false;
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(angle).toRotationMatrix();
+  const Eigen::Matrix2d M = R * Eigen::Vector2d(a, b).asDiagonal() * R.transpose();
+  out << box.center.x, box.center.y, M(0, 0), M(0, 1), M(1, 1);
+  return true;
+}
+
+// Gauss-Newton over the plane's tilt (two angles) and offset along the start normal, starting from
+// the plane through `centre` with `normal`; `radius` is the printed circle's. Empty when the views
+// do not agree on one ellipse.
+std::optional<RingPlane> ringPlane(const RingRays& left, const RingRays& right, const Vec3& centre, const Vec3& normal,
+                                   double radius) {
+  const Eigen::Matrix3d start = fitting::frameAround(normal);
+  const auto planeOf = [&](const Eigen::Vector3d& q) {
+    const Vec3 n = (normal + q(0) * start.col(0) + q(1) * start.col(1)).normalized();
+    const Vec3 e1 = (start.col(0) - start.col(0).dot(n) * n).normalized();
+    RingPlane p;
+    p.origin = centre + q(2) * normal;
+    p.frame.col(0) = e1;
+    p.frame.col(1) = n.cross(e1);
+    p.frame.col(2) = n;
+    return p;
+  };
+  // Residuals: the two ellipses' difference (mm), and a weak pull of the tilt to the start (0.002 mm
+  // per radian: a tilt the views can see costs far more).
+  constexpr double kTiltPrior = 0.002;
+  const auto residual = [&](const Eigen::Vector3d& q, Eigen::Matrix<double, 7, 1>& r) {
+    const RingPlane p = planeOf(q);
+    Eigen::Matrix<double, 5, 1> l, rr;
+    if (!castEllipse(left, p, l) || !castEllipse(right, p, rr)) return false;
+    // Relative to the cast ellipses' size: in millimetres, turning the plane to face the cameras
+    // would shrink both ellipses and their difference with them, a pull away from the true plane.
+    const double size = 0.5 * (std::sqrt(l(2) * l(4) - l(3) * l(3)) + std::sqrt(rr(2) * rr(4) - rr(3) * rr(3)));
+    if (!(size > 0)) return false;
+    r << (l - rr) * (radius / size), kTiltPrior * q(0), kTiltPrior * q(1);
+    return true;
+  };
+  Eigen::Vector3d q = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 7, 1> r;
+  if (!residual(q, r)) return std::nullopt;
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    Eigen::Matrix<double, 7, 3> J;
+    const double steps[3] = {1e-4, 1e-4, 1e-3};
+    for (int j = 0; j < 3; ++j) {
+      Eigen::Vector3d h = q;
+      h(j) += steps[j];
+      Eigen::Matrix<double, 7, 1> rh;
+      if (!residual(h, rh)) return std::nullopt;
+      J.col(j) = (rh - r) / steps[j];
+    }
+    Eigen::Vector3d delta = -(J.transpose() * J + 1e-12 * Eigen::Matrix3d::Identity()).ldlt().solve(J.transpose() * r);
+    if (!delta.allFinite()) return std::nullopt;
+    // A trust region: a long step along the barely seen tilt would overshoot the minimum.
+    const double tilt_step = delta.head<2>().norm();
+    if (tilt_step > 0.2) delta.head<2>() *= 0.2 / tilt_step;
+    delta(2) = std::clamp(delta(2), -0.5, 0.5);
+    q += delta;
+    if (!residual(q, r)) return std::nullopt;
+    if (std::abs(delta(2)) < 1e-5 && delta.head<2>().norm() < 1e-6) break;
+  }
+  // Agreement to a few micrometres: otherwise the match or one image's ring is wrong.
+  if (r.head<5>().cwiseAbs().maxCoeff() > 0.01 || q.head<2>().norm() > 1.2) return std::nullopt;
+  return planeOf(q);
+}
+
 }  // namespace
 
 std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_radius_px, const RingDetectionParams& params) {
@@ -61,7 +168,9 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(interior, labels, stats, centroids, 4, CV_32S);
   const double nominal = std::numbers::pi * inner_px * inner_px;
-  std::vector<ImageRing> out;
+  // 1. Each ring roughly: its interior, the line's inner half-level crossing on rays from it,
+  // moved out by half the line's apparent width, and an ellipse through those points.
+  std::vector<detail::ImageEllipse> first;
   for (int label = 1; label < n; ++label) {
     const int area = stats.at<int>(label, cv::CC_STAT_AREA);
     // The apparent size also changes with distance and tilt: a wide window.
@@ -95,8 +204,9 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     // the median over the rays.
     std::vector<double> inner_s, widths;
     std::vector<Eigen::Vector2d> directions;
-    for (int ray = 0; ray < 360; ++ray) {
-      const double th = 2 * std::numbers::pi * ray / 360, ux = std::cos(th), uy = std::sin(th);
+    constexpr int kRays = 120;  // a start for the fit, which uses every pixel along the line
+    for (int ray = 0; ray < kRays; ++ray) {
+      const double th = 2 * std::numbers::pi * ray / kRays, ux = std::cos(th), uy = std::sin(th);
       std::vector<double> values;
       bool in_ink = false, crossed = false;
       for (double s = 0; s <= 3 * inner_px && !crossed; s += 0.25) {
@@ -122,15 +232,54 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
       directions.emplace_back(ux, uy);
       if (s_out > s_in) widths.push_back(s_out - s_in);
     }
-    if (static_cast<double>(inner_s.size()) < params.min_edge_share * 360 || widths.size() < 60) continue;
+    if (static_cast<double>(inner_s.size()) < params.min_edge_share * kRays || widths.size() < kRays / 6) continue;
     const double half_width = 0.5 * median(widths);
-    ImageRing ring;
-    for (std::size_t i = 0; i < inner_s.size(); ++i)
-      ring.edge.push_back(Eigen::Vector2d(cx, cy) + (inner_s[i] + half_width) * directions[i]);
-    for (const auto& p : ring.edge) ring.centre += p;
-    ring.centre /= static_cast<double>(ring.edge.size());
-    out.push_back(std::move(ring));
+    std::vector<cv::Point2f> line_points;
+    for (std::size_t i = 0; i < inner_s.size(); ++i) {
+      const Eigen::Vector2d q = Eigen::Vector2d(cx, cy) + (inner_s[i] + half_width) * directions[i];
+      line_points.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+    }
+    const cv::RotatedRect box = cv::fitEllipse(line_points);
+    const double a = 0.5 * box.size.width, b = 0.5 * box.size.height;
+    if (!(a > 1 && b > 1) || !std::isfinite(box.center.x) || !std::isfinite(box.center.y)) continue;
+    const double angle = box.angle * std::numbers::pi / 180;
+    const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(angle).toRotationMatrix();
+    detail::ImageEllipse e;
+    e.centre = {box.center.x, box.center.y};
+    e.shape = rotation * Eigen::Vector2d(a, b).asDiagonal() * rotation.transpose();
+    // The gap between four touching rings is bright and, blurred, nearly convex too; but its edge
+    // is four arcs bent the wrong way, far from any ellipse.
+    std::vector<double> off;
+    for (const auto& q : line_points) off.push_back(std::abs(e.distance(Eigen::Vector2d(q.x, q.y))));
+    if (median(off) > std::max(0.3, 0.02 * e.meanRadius())) continue;
+    first.push_back(e);
   }
+
+  // 2. The line's centre by a fit of the blurred line model to the pixels along it, leaving out the
+  // pixels a touching neighbour's line reaches.
+  std::vector<std::optional<ImageRing>> refined(first.size());
+  tbb::parallel_for(std::size_t{0}, first.size(), [&](std::size_t i) {
+    detail::ImageEllipse e = first[i];
+    const double r = e.meanRadius();
+    const double reach = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(e.shape).eigenvalues().maxCoeff();
+    const double line_width = line_px * r / expected_radius_px;
+    detail::Exclusions exclude;
+    exclude.reach = 0.5 * line_width + 2.5;
+    for (std::size_t j = 0; j < first.size(); ++j)
+      if (j != i && (first[j].centre - e.centre).norm() < 2.2 * reach) exclude.rings.push_back(first[j]);
+    const detail::LineFitResult fit = detail::fitRingLine(I, line_width, exclude, e);
+    if (!fit.ok) return;
+    ImageRing ring;
+    ring.centre = e.centre;
+    ring.blur = fit.blur;
+    ring.contrast = fit.contrast;
+    ring.rms = fit.rms;
+    for (int ray = 0; ray < 360; ++ray) ring.edge.push_back(e.point(2 * std::numbers::pi * ray / 360));
+    refined[i] = std::move(ring);
+  });
+  std::vector<ImageRing> out;
+  for (auto& r : refined)
+    if (r) out.push_back(std::move(*r));
   return out;
 }
 
@@ -158,12 +307,12 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
 
   // The prior in the left image: pixel position and depth, bucketed.
   const double cell = std::max(4.0, radius_px);
-  std::map<std::pair<int, int>, std::vector<double>> buckets;
+  std::map<std::pair<int, int>, std::vector<Vec3>> buckets;  // (u, v, depth)
   for (const Vec3& X : prior) {
     const Vec3 c = left_from_machine * X;
     if (c.z() <= 0) continue;
     const Eigen::Vector2d px = projectPoint(c, rig.left);
-    buckets[{static_cast<int>(std::floor(px.x() / cell)), static_cast<int>(std::floor(px.y() / cell))}].push_back(c.z());
+    buckets[{static_cast<int>(std::floor(px.x() / cell)), static_cast<int>(std::floor(px.y() / cell))}].push_back(Vec3(px.x(), px.y(), c.z()));
   }
   std::vector<Eigen::Vector2d> left_centres, right_centres;
   for (const auto& r : left) left_centres.push_back(r.centre);
@@ -177,7 +326,7 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
   std::vector<Match> matches;
   for (std::size_t i = 0; i < left.size(); ++i) {
     const int bx = static_cast<int>(std::floor(left[i].centre.x() / cell)), by = static_cast<int>(std::floor(left[i].centre.y() / cell));
-    std::vector<double> z;
+    std::vector<Vec3> z;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
         const auto it = buckets.find({bx + dx, by + dy});
@@ -187,96 +336,86 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       ++st.without_prior;
       continue;
     }
-    const Vec3 guess_left = median(z) * Vec3(left_n[i].x(), left_n[i].y(), 1.0);
+    // The depth at the ring from a plane through the prior around it (on a steep wall the depth
+    // changes by millimetres across the neighbourhood), kept within the depths seen there.
+    std::vector<double> depths_near;
+    for (const Vec3& q : z) depths_near.push_back(q.z());
+    double depth = median(depths_near);
+    if (z.size() >= 6) {
+      Eigen::MatrixXd A(static_cast<Eigen::Index>(z.size()), 3);
+      Eigen::VectorXd b(static_cast<Eigen::Index>(z.size()));
+      for (std::size_t k = 0; k < z.size(); ++k) {
+        A.row(static_cast<Eigen::Index>(k)) << 1, (z[k].x() - left[i].centre.x()) / cell, (z[k].y() - left[i].centre.y()) / cell;
+        b(static_cast<Eigen::Index>(k)) = z[k].z();
+      }
+      const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);
+      const auto [lo, hi] = std::minmax_element(depths_near.begin(), depths_near.end());
+      if (std::isfinite(plane(0))) depth = std::clamp(plane(0), *lo, *hi);
+    }
+    const Vec3 guess_left = depth * Vec3(left_n[i].x(), left_n[i].y(), 1.0);
     const Eigen::Vector2d predicted = projectPoint(right_from_machine * (machine_from_left * guess_left), rig.right);
-    // The nearest right ring to where the prior puts it, within a third of the pitch in pixels.
-    std::size_t best = right.size();
-    double best_d = 0.6 * radius_px;
-    for (std::size_t j = 0; j < right.size(); ++j) {
-      const double d = (right[j].centre - predicted).norm();
-      if (d < best_d) best_d = d, best = j;
-    }
-    if (best == right.size()) {
-      ++st.unmatched;
-      continue;
-    }
+    // The right ring nearest to where the prior puts it, among those on the epipolar line (their
+    // rays meet the left ring's), within half the pitch: the next ring along the line is a whole
+    // pitch away, some 6 mm of depth at the nominal standoff.
     const Vec3 o1 = machine_from_left.translation(), o2 = machine_from_right.translation();
     const Vec3 d1 = (machine_from_left.linear() * Vec3(left_n[i].x(), left_n[i].y(), 1)).normalized();
-    const Vec3 d2 = (machine_from_right.linear() * Vec3(right_n[best].x(), right_n[best].y(), 1)).normalized();
-    double gap = 0;
-    const Vec3 X = midpoint(o1, d1, o2, d2, &gap);
-    if (gap > 0.2) {  // not the same point: off the epipolar line
+    std::size_t best = right.size();
+    double best_d = radius_px;
+    Vec3 X = Vec3::Zero();
+    for (std::size_t j = 0; j < right.size(); ++j) {
+      const double d = (right[j].centre - predicted).norm();
+      if (d >= best_d) continue;
+      const Vec3 d2 = (machine_from_right.linear() * Vec3(right_n[j].x(), right_n[j].y(), 1)).normalized();
+      double gap = 0;
+      const Vec3 candidate = midpoint(o1, d1, o2, d2, &gap);
+      if (gap > 0.2) continue;  // not the same point: off the epipolar line
+      best_d = d, best = j, X = candidate;
+    }
+    if (best == right.size()) {
       ++st.unmatched;
       continue;
     }
     matches.push_back({i, best, X});
   }
 
-  // The surface around each ring from its triangulated neighbours, then both images' line points
-  // cast onto it.
+  // Each ring's plane from both views: a planar circle seen by two cameras is the plane where the
+  // two images' lines, cast onto it, become the same ellipse. Its depth shows in the centres' offset,
+  // its tilt across the baseline in the two ellipses' different foreshortening; the tilt along the
+  // baseline hardly shows, so it stays near the start, the plane through the triangulated neighbours.
   std::vector<GridElement> out;
   const double r0 = params.printed_radius;
+  const Vec3 eyes = 0.5 * (machine_from_left.translation() + machine_from_right.translation());
   for (const Match& m : matches) {
     std::vector<Vec3> near;
     for (const Match& q : matches)
-      if ((q.centre - m.centre).norm() < 5.5 * r0) near.push_back(q.centre);
-    if (near.size() < 8) {
+      if ((q.centre - m.centre).norm() < 3.5 * r0) near.push_back(q.centre);
+    Vec3 normal = (eyes - m.centre).normalized();
+    if (near.size() >= 5) {
+      Vec3 mean = Vec3::Zero();
+      for (const Vec3& p : near) mean += p;
+      mean /= static_cast<double>(near.size());
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (const Vec3& p : near) cov += (p - mean) * (p - mean).transpose();
+      const Vec3 axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+      normal = axis.dot(eyes - m.centre) < 0 ? Vec3(-axis) : axis;
+    }
+    const RingRays rays_left = raysOf(left[m.l], rig.left, machine_from_left);
+    const RingRays rays_right = raysOf(right[m.r], rig.right, machine_from_right);
+    const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);
+    if (!plane) {
       ++st.rejected_fit;
       continue;
     }
-    Vec3 mean = Vec3::Zero();
-    for (const Vec3& p : near) mean += p;
-    mean /= static_cast<double>(near.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const Vec3& p : near) cov += (p - mean) * (p - mean).transpose();
-    Vec3 axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
-    if (axis.dot(machine_from_left.translation() - m.centre) < 0) axis = -axis;
-    // Height field h(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 over the PCA plane, centred
-    // on this ring.
-    const Eigen::Matrix3d pca = fitting::frameAround(axis);
-    Eigen::MatrixXd A(static_cast<Eigen::Index>(near.size()), 6);
-    Eigen::VectorXd z(static_cast<Eigen::Index>(near.size()));
-    for (std::size_t k = 0; k < near.size(); ++k) {
-      const Vec3 d = near[k] - m.centre;
-      const double u = pca.col(0).dot(d), v = pca.col(1).dot(d);
-      A.row(static_cast<Eigen::Index>(k)) << 1, u, v, u * u, u * v, v * v;
-      z(static_cast<Eigen::Index>(k)) = pca.col(2).dot(d);
-    }
-    const Eigen::Matrix<double, 6, 1> c = A.colPivHouseholderQr().solve(z);
-    const auto height = [&](const Vec3& X) {
-      const Vec3 d = X - m.centre;
-      const double u = pca.col(0).dot(d), v = pca.col(1).dot(d);
-      return pca.col(2).dot(d) - (c(0) + c(1) * u + c(2) * v + c(3) * u * u + c(4) * u * v + c(5) * v * v);
-    };
-    const Vec3 surface_centre = m.centre + c(0) * pca.col(2);
-    const Vec3 normal = (pca.col(2) - c(1) * pca.col(0) - c(2) * pca.col(1)).normalized();
-    const Eigen::Matrix3d frame = fitting::frameAround(normal);
-    std::vector<Eigen::Vector2d> plane;
-    const auto cast = [&](const ImageRing& ring, const CameraModel& cam, const Eigen::Isometry3d& pose) {
-      for (const auto& q : normalised(ring.edge, cam)) {
-        const Vec3 o = pose.translation();
-        const Vec3 d = (pose.linear() * Vec3(q.x(), q.y(), 1)).normalized();
-        double t = (surface_centre - o).dot(normal) / d.dot(normal);
-        for (int it = 0; it < 8; ++it) {  // Newton on the height along the ray (secant slope)
-          const double f = height(o + t * d), f2 = height(o + (t + 1e-3) * d);
-          if (std::abs(f2 - f) < 1e-15) break;
-          const double step = f * 1e-3 / (f2 - f);
-          t -= step;
-          if (std::abs(step) < 1e-7) break;
-        }
-        const Vec3 X = o + t * d - surface_centre;
-        plane.emplace_back(frame.col(0).dot(X), frame.col(1).dot(X));
-      }
-    };
-    cast(left[m.l], rig.left, machine_from_left);
-    cast(right[m.r], rig.right, machine_from_right);
+    std::vector<Eigen::Vector2d> points = castOnto(rays_left, *plane, 1);
+    const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *plane, 1);
+    points.insert(points.end(), points_right.begin(), points_right.end());
     detail::PlaneEllipse e;
-    if (!detail::fitEllipseRobust(plane, e) || e.rms > 2.5 * params.max_fit_rms) {
+    if (!detail::fitEllipseRobust(points, e) || e.rms > 2.5 * params.max_fit_rms) {
       ++st.rejected_fit;
       continue;
     }
     GridElement g;  // the line's centre: the printed circle itself, so no scaling
-    if (!detail::elementFromEllipse(e, 1.0, frame, surface_centre, params, g)) {
+    if (!detail::elementFromEllipse(e, 1.0, plane->frame, plane->origin, params, g)) {
       ++st.rejected_fit;
       continue;
     }

@@ -1,15 +1,17 @@
 // The stereo path against the ground truth: rings found in both images, matched with a depth prior,
-// triangulated and measured on the surface's tangent plane.
+// and measured on the plane where both views agree.
 #include "session_support.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/scene.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 namespace {
 
@@ -23,7 +25,34 @@ registration::CameraModel modelOf(const sim::CameraIntrinsics& c) {
   return m;
 }
 
-void runStereo(sim::PartKind kind, std::uint64_t seed) {
+struct StereoMeasured {
+  std::size_t found = 0, false_found = 0, truth_in_view = 0, truth_found = 0;
+  double position_rms = 0, strain_rms = 0;
+};
+
+// An element is in full view of a pair when a circle a little wider than its ring lies inside both
+// images (clear of the border) and neither camera's rays to it meet the part first.
+bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& normal,
+                const sim::CameraIntrinsics* cams[2], const Eigen::Isometry3d poses[2]) {
+  const Eigen::Matrix3d frame = fitting::frameAround(normal);
+  for (int c = 0; c < 2; ++c) {
+    const Eigen::Isometry3d camera_from_machine = poses[c].inverse();
+    for (int k = 0; k < 8; ++k) {
+      const double th = 2 * std::numbers::pi * k / 8;
+      const Eigen::Vector3d q = position + 1.7 * (std::cos(th) * frame.col(0) + std::sin(th) * frame.col(1));
+      const Eigen::Vector3d in_camera = camera_from_machine * q;
+      if (in_camera.z() <= 0) return false;
+      const Eigen::Vector2d px = cams[c]->project(in_camera);
+      if (px.x() < 20 || px.y() < 20 || px.x() > cams[c]->width - 21 || px.y() > cams[c]->height - 21) return false;
+      const Eigen::Vector3d eye = poses[c].translation();
+      const auto hit = scene.cast({eye, (q - eye).normalized()}, 0.0);
+      if (!hit || std::abs(hit->t - (q - eye).norm()) > 0.1) return false;
+    }
+  }
+  return true;
+}
+
+StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
   p.laser = p.calibration = false;
@@ -32,34 +61,44 @@ void runStereo(sim::PartKind kind, std::uint64_t seed) {
   test_support::DecodedSession s;
   const sim::ScanSummary summary = sim::generateScan(p, s);
   const sim::CellTruth& truth = summary.truth;
+  // The true calibration: this test is about the rings, the calibration has its own.
   registration::StereoRig rig;
   rig.left = modelOf(truth.left);
   rig.right = modelOf(truth.right);
   rig.head_from_left = truth.head_from_left;
   rig.right_from_left = truth.head_from_right.inverse() * truth.head_from_left;
   const std::unique_ptr<sim::FormedPart> part = sim::makePart(p);
+  const sim::PartScene scene(*part, p.grid);
   const fitting::Cloud t = sim::groundTruth(*part, p.grid);
   const std::int64_t offset = s.clockOffset("camera_left");
   std::vector<registration::GridElement> found;
   registration::StereoStats stats;
+  std::vector<bool> in_view(t.size(), false);
   std::uint32_t view = 0;
   for (const auto& [trigger, pair] : s.pairs) {
-    ASSERT_TRUE(pair.complete());
+    EXPECT_TRUE(pair.complete());
+    if (!pair.complete()) continue;
     const Eigen::Isometry3d head = s.headAt(pair.left.device_time_ns - offset).pose();
+    // The part's own surface as the depth prior (in the station, the laser's).
     const auto g = registration::measureStereoPair(test_support::DecodedSession::image(pair.left),
                                                    test_support::DecodedSession::image(pair.right), rig, head,
                                                    t.positions, {}, view++, &stats);
     found.insert(found.end(), g.begin(), g.end());
+    const sim::CameraIntrinsics* cams[2] = {&truth.left, &truth.right};
+    const Eigen::Isometry3d poses[2] = {head * truth.head_from_left, head * truth.head_from_right};
+    for (std::size_t i = 0; i < t.size(); ++i)
+      if (!in_view[i]) in_view[i] = inFullView(scene, t.positions[i], t.normals[i], cams, poses);
   }
+  StereoMeasured m;
+  m.found = found.size();
   const fitting::KdTree tree(t.positions);
   std::vector<fitting::Neighbor> nn;
   double sq_pos = 0, sq_strain = 0, bias_major = 0, bias_minor = 0;
   std::vector<double> abs_err;
-  std::size_t false_found = 0;
   for (const auto& g : found) {
     tree.knn(g.position, 1, nn);
     if (nn[0].distance_sq > 0.5 * 0.5) {
-      ++false_found;
+      ++m.false_found;
       continue;
     }
     sq_pos += nn[0].distance_sq;
@@ -68,26 +107,49 @@ void runStereo(sim::PartKind kind, std::uint64_t seed) {
     bias_minor += g.minor_strain - t.scalars.at("minor_strain")[nn[0].index];
     abs_err.push_back(std::abs(g.thickness_strain - t.strain[nn[0].index]));
   }
+  std::vector<Eigen::Vector3d> found_positions;
+  for (const auto& g : found) found_positions.push_back(g.position);
+  if (!found_positions.empty()) {
+    const fitting::KdTree found_tree(found_positions);
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      if (!in_view[i]) continue;
+      ++m.truth_in_view;
+      found_tree.knn(t.positions[i], 1, nn);
+      if (!nn.empty() && nn[0].distance_sq < 0.5 * 0.5) ++m.truth_found;
+    }
+  }
   std::sort(abs_err.begin(), abs_err.end());
+  const double n = std::max<double>(1, static_cast<double>(found.size() - m.false_found));
+  m.position_rms = std::sqrt(sq_pos / n);
+  m.strain_rms = std::sqrt(sq_strain / n);
   if (!abs_err.empty())
-    std::printf("  strain error median %.4f, 90%% %.4f, max %.4f; bias major %.4f minor %.4f\n", abs_err[abs_err.size() / 2],
-                abs_err[abs_err.size() * 9 / 10], abs_err.back(), bias_major / static_cast<double>(abs_err.size()),
-                bias_minor / static_cast<double>(abs_err.size()));
-  const double n = std::max<double>(1, static_cast<double>(found.size() - false_found));
-  std::printf("stereo %s: %u views, rings %zu left %zu right, %zu measured (%zu without prior, %zu unmatched, %zu poor "
-              "fits), %zu false; position RMS %.4f mm, strain RMS %.4f\n",
+    std::printf("  thickness strain error: median %.4f, 90%% %.4f, max %.4f; bias major %.4f, minor %.4f\n",
+                abs_err[abs_err.size() / 2], abs_err[abs_err.size() * 9 / 10], abs_err.back(), bias_major / n, bias_minor / n);
+  std::printf("stereo %s: %u pairs, rings %zu left %zu right, %zu measured (%zu without prior, %zu unmatched, %zu "
+              "rejected: the views disagree or a poor fit), %zu false; %zu of %zu elements in full view found; "
+              "position RMS %.4f mm, strain RMS %.4f\n",
               part->name().c_str(), view, stats.left_rings, stats.right_rings, found.size(), stats.without_prior,
-              stats.unmatched, stats.rejected_fit, false_found, std::sqrt(sq_pos / n), std::sqrt(sq_strain / n));
-  EXPECT_GT(found.size(), 2000u);
-  EXPECT_EQ(false_found, 0u);
-  // Where the stereo path stands today, not the goal (0.05 mm, 0.005): the printed lines are only
-  // 2-3 pixels wide in these images, and the line's position is found to about 0.1 px, which is
-  // about 1 % of a ring's radius. The laser path meets the goal; see the issue notes.
-  EXPECT_LE(std::sqrt(sq_pos / n), 0.08);
-  EXPECT_LE(std::sqrt(sq_strain / n), 0.035);
+              stats.unmatched, stats.rejected_fit, m.false_found, m.truth_found, m.truth_in_view, m.position_rms,
+              m.strain_rms);
+  return m;
 }
 
-TEST(StereoRings, DomeElementsMatchTheGroundTruth) { runStereo(sim::PartKind::Dome, 41); }
-TEST(StereoRings, PanElementsMatchTheGroundTruth) { runStereo(sim::PartKind::Pan, 42); }
+// The goals of the registration issue: position RMS <= 0.05 mm, thickness strain RMS <= 0.005, no
+// false elements, and 99 % of the elements in full view found; `found_share` is what the stereo
+// path reaches where it falls short of the last.
+void expectGoals(const StereoMeasured& m, double found_share = 0.99) {
+  EXPECT_GT(m.found, 2000u);
+  EXPECT_EQ(m.false_found, 0u);
+  EXPECT_LE(m.position_rms, 0.05);
+  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_GE(static_cast<double>(m.truth_found), found_share * static_cast<double>(m.truth_in_view));
+}
+
+TEST(StereoRings, DomeElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::PartKind::Dome, 41)); }
+
+// Not yet the goal's 99 %: about 8 % of the pan's elements in full view are missed, on the walls
+// below the die radius, where the two views' cast ellipses do not agree on one plane (the ring
+// bends over the radius, or the wall is seen at 50 degrees or more).
+TEST(StereoRings, PanElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::PartKind::Pan, 42), 0.9); }
 
 }  // namespace

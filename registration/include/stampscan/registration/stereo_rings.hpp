@@ -2,17 +2,21 @@
 // triangulated, and measured in 3D.
 //
 //  1. In each image, ring interiors as in the laser path (ink against a grey closing, convex bright
-//     regions of the expected size), and the printed line's centre to sub-pixel precision along
-//     rays from them (the darkest point of the dip: the optics' blur leaves it in place, where it
-//     moves the half-level edge of a line only two or three pixels wide).
+//     regions of the expected size) and a first ellipse from the line's half-level crossings on
+//     rays from them. Then the line's centre by fitting a model of the blurred line to the pixels
+//     along it (see image_line_fit.hpp): the half-level edge of a line only two or three pixels
+//     wide moves with the blur, the centre of its symmetric profile does not.
 //  2. Matching: the grid repeats every pitch, so the epipolar line alone is ambiguous (one pitch
-//     along it is a few millimetres of depth). A depth prior resolves it: the laser's surface when
-//     the trace has one, projected into the left image; the right ring must then lie where the
-//     prior puts it, within a fraction of the pitch, and on the epipolar line.
-//  3. The ring's centre triangulated (midpoint of the two rays); the surface around it from the
-//     triangulated neighbours (a quadric height field); both images' line points cast onto that
-//     surface, taken into its tangent plane, and one robust ellipse fitted to them; strains from
-//     its axes.
+//     along it is about 6 mm of depth). A depth prior resolves it: the laser's surface when the
+//     trace has one, projected into the left image, with a plane through it at each ring; the
+//     right ring is the one nearest where the prior puts it, within half a pitch, among those on
+//     the epipolar line.
+//  3. Each ring's plane from both views: the plane on which the two images' lines, cast onto it,
+//     become one ellipse (its depth shows in where the two cast ellipses sit, its tilt across the
+//     baseline in their different foreshortening; the tilt along the baseline barely shows and
+//     stays near the plane of the triangulated neighbours). Views that agree to no better than
+//     10 um (a ring bent over a tight radius is no plane) give no element. Then one robust ellipse
+//     through both views' cast points, and strains from its axes.
 #pragma once
 
 #include "stampscan/registration/camera_calibration.hpp"
@@ -26,11 +30,14 @@
 
 namespace stampscan::registration {
 
-// A ring's printed line as the image shows it: the line's centre along 360 rays from the ring's
-// interior (pixel coordinates, distortion not removed).
+// A ring's printed line as the image shows it: 360 points on the fitted centre line (pixel
+// coordinates, distortion not removed), and what the fit saw of the line.
 struct ImageRing {
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // of the line points
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // of the fitted ellipse
   std::vector<Eigen::Vector2d> edge;
+  double blur = 0;      // px: the line profile's Gaussian width (optics and pixel)
+  double contrast = 0;  // share of the sheet's light the ink takes
+  double rms = 0;       // of the fit, as a share of the sheet's level
 };
 
 // `expected_radius_px` is an unstrained ring's radius in pixels at the working distance.

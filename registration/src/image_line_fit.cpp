@@ -1,0 +1,331 @@
+#include "image_line_fit.hpp"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+
+namespace stampscan::registration::detail {
+
+Eigen::Vector2d ImageEllipse::point(double t) const { return centre + shape * Eigen::Vector2d(std::cos(t), std::sin(t)); }
+
+double ImageEllipse::distance(const Eigen::Vector2d& x) const {
+  // rho = |M^-1 (x - c)| is 1 on the curve; dividing rho - 1 by its gradient's length turns it into
+  // a distance with unit slope across the curve.
+  const Eigen::Matrix2d inverse = shape.inverse();
+  const Eigen::Vector2d u = inverse * (x - centre);
+  const double rho = u.norm();
+  if (rho < 1e-9) return -meanRadius();
+  const double slope = (inverse * u).norm() / rho;
+  return (rho - 1) / slope;
+}
+
+double ImageEllipse::meanRadius() const { return std::sqrt(std::max(0.0, shape.determinant())); }
+
+namespace {
+
+// The geometries the fit moves: a parameter vector, and the signed distance of a pixel from the line.
+struct RingGeometry {
+  static constexpr int N = 5;  // centre x, y; M11, M12, M22
+  ImageEllipse e;
+  Eigen::Matrix2d inverse = e.shape.inverse();
+  std::array<double, N> get() const { return {e.centre.x(), e.centre.y(), e.shape(0, 0), e.shape(0, 1), e.shape(1, 1)}; }
+  void set(const std::array<double, N>& p) {
+    e.centre = {p[0], p[1]};
+    e.shape << p[2], p[3], p[3], p[4];
+    inverse = e.shape.inverse();
+  }
+  // The signed distance d, and how wide the line is there against the ring's mean (an affine image of
+  // the printed annulus is widest across the major axis's ends), with their slopes in the
+  // parameters when asked. With A = M^-1, u = A (x - c), rho = |u|, v = A u, g = |v| / rho:
+  // d = (rho - 1) / g, width_scale = 1 / (g sqrt(det M)).
+  void locate(const Eigen::Vector2d& x, double& d, double& width_scale, double* dd = nullptr,
+              double* dscale = nullptr) const {
+    const Eigen::Vector2d u = inverse * (x - e.centre);
+    const double rho = std::max(1e-9, u.norm());
+    const Eigen::Vector2d v = inverse * u;
+    const double vn = std::max(1e-12, v.norm());
+    const double g = vn / rho, mean = e.meanRadius();
+    d = (rho - 1) / g;
+    width_scale = 1 / (g * mean);
+    if (!dd) return;
+    const Eigen::Matrix2d A2 = inverse * inverse;
+    const auto slopes = [&](const Eigen::Vector2d& du, const Eigen::Vector2d& dv, double dlog_mean, int k) {
+      const double drho = u.dot(du) / rho;
+      const double dg = (v.dot(dv) / vn - g * drho) / rho;
+      dd[k] = drho / g - (rho - 1) * dg / (g * g);
+      dscale[k] = -width_scale * (dg / g + dlog_mean);
+    };
+    for (int k = 0; k < 2; ++k) {  // the centre: du = -A e_k, dv = -A^2 e_k
+      slopes(-inverse.col(k), -A2.col(k), 0.0, k);
+    }
+    for (int k = 0; k < 3; ++k) {  // M11, M12 (both off-diagonal entries), M22: dA = -A E A
+      Eigen::Matrix2d E = Eigen::Matrix2d::Zero();
+      if (k == 0) E(0, 0) = 1;
+      else if (k == 1) E(0, 1) = E(1, 0) = 1;
+      else E(1, 1) = 1;
+      const Eigen::Vector2d du = -inverse * E * u;
+      const Eigen::Vector2d dv = -inverse * E * v - A2 * E * u;
+      slopes(du, dv, 0.5 * (inverse * E).trace(), 2 + k);
+    }
+  }
+  bool plausible() const { return e.shape.determinant() > 0 && e.shape.trace() > 0; }
+};
+
+struct StraightGeometry {
+  static constexpr int N = 2;  // angle of the normal, offset
+  ImageLine l;
+  std::array<double, N> get() const { return {std::atan2(l.normal.y(), l.normal.x()), l.offset}; }
+  void set(const std::array<double, N>& p) {
+    l.normal = {std::cos(p[0]), std::sin(p[0])};
+    l.offset = p[1];
+  }
+  void locate(const Eigen::Vector2d& x, double& d, double& width_scale, double* dd = nullptr,
+              double* dscale = nullptr) const {
+    d = l.distance(x);
+    width_scale = 1;
+    if (!dd) return;
+    dd[0] = -l.normal.y() * x.x() + l.normal.x() * x.y();
+    dd[1] = -1;
+    dscale[0] = dscale[1] = 0;
+  }
+  bool plausible() const { return true; }
+};
+
+struct Sample {
+  Eigen::Vector2d x;
+  double value;
+};
+
+double gauss(double z) { return std::exp(-0.5 * z * z) / std::sqrt(2 * std::numbers::pi); }
+double cdf(double z) { return 0.5 * std::erfc(-z / std::numbers::sqrt2); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+bool excluded(const Eigen::Vector2d& x, const Exclusions& ex) {
+  for (const auto& r : ex.rings)
+    if (std::abs(r.distance(x)) < ex.reach) return true;
+  for (const auto& l : ex.lines)
+    if (std::abs(l.distance(x)) < ex.reach) return true;
+  return false;
+}
+
+// Levenberg-Marquardt over the geometry and the photometry: the sheet's plane (l0, lx, ly), the
+// ink's contrast k, the blur s and the line's width w.
+template <typename Geometry>
+LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const Eigen::Vector2d& origin, double scale,
+                       Geometry& geometry) {
+  constexpr int G = Geometry::N, P = G + 6;
+  constexpr int L0 = G, LX = G + 1, LY = G + 2, K = G + 3, S = G + 4, W = G + 5;
+  using Vector = Eigen::Matrix<double, P, 1>;
+  LineFitResult result;
+  result.pixels = samples.size();
+  if (samples.size() < 12 * static_cast<std::size_t>(P)) return result;
+  // Start: the sheet from pixels clear of the line, the contrast from those on it.
+  const double s0 = 0.8;
+  std::vector<double> sheet, ink;
+  for (const Sample& q : samples) {
+    double d = 0, width_scale = 1;
+    geometry.locate(q.x, d, width_scale);
+    if (std::abs(d) > 0.5 * line_px * width_scale + 2.5 * s0) sheet.push_back(q.value);
+    else if (std::abs(d) < 0.25 * line_px * width_scale) ink.push_back(q.value);
+  }
+  if (sheet.size() < 8 || ink.size() < 4) return result;
+  const double level = median(sheet);
+  if (level <= 0) return result;
+  const double peak = cdf(0.5 * line_px / s0) - cdf(-0.5 * line_px / s0);
+  Vector p;
+  {
+    const auto g = geometry.get();
+    for (int i = 0; i < G; ++i) p(i) = g[static_cast<std::size_t>(i)];
+    p.template tail<6>() << level, 0, 0, std::clamp((1 - median(ink) / level) / peak, 0.05, 1.0), s0, line_px;
+  }
+  struct Located {
+    double d, width_scale;
+  };
+  const auto model = [&](const Vector& q, const Sample& sample, const Located& at) {
+    const Eigen::Vector2d r = (sample.x - origin) / scale;
+    const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
+    const double half = 0.5 * q(W) * at.width_scale;
+    return sheet_level * (1 - q(K) * (cdf((at.d + half) / q(S)) - cdf((at.d - half) / q(S))));
+  };
+  const auto evaluate = [&](const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Located>* where) {
+    std::array<double, G> g;
+    for (int i = 0; i < G; ++i) g[static_cast<std::size_t>(i)] = q(i);
+    geom.set(g);
+    residual.resize(samples.size());
+    if (where) where->resize(samples.size());
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      Located at{};
+      geom.locate(samples[i].x, at.d, at.width_scale);
+      residual[i] = samples[i].value - model(q, samples[i], at);
+      if (where) (*where)[i] = at;
+    }
+  };
+  std::vector<double> residual, trial, weight(samples.size(), 1.0);
+  std::vector<Located> located, trial_located;
+  Geometry geom = geometry;
+  evaluate(p, geom, residual, &located);
+  const auto robustWeights = [&](const std::vector<double>& r) {
+    std::vector<double> a(r.size());
+    for (std::size_t i = 0; i < r.size(); ++i) a[i] = std::abs(r[i]);
+    const double c = 4.685 * std::max(1e-6 * p(L0), 1.4826 * median(a));
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      const double u = r[i] / c;
+      weight[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
+    }
+  };
+  const auto cost = [&](const std::vector<double>& r) {
+    double c = 0;
+    for (std::size_t i = 0; i < r.size(); ++i) c += weight[i] * r[i] * r[i];
+    return c;
+  };
+  robustWeights(residual);
+  double lambda = 1e-3;
+  const std::array<double, G> g0 = geometry.get();
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    result.iterations = static_cast<std::size_t>(iteration + 1);
+    // Jacobian: the model's slopes in the distance and the local width, times their slopes in the
+    // geometry; and in the photometry.
+    Eigen::Matrix<double, P, P> H = Eigen::Matrix<double, P, P>::Zero();
+    Vector b = Vector::Zero();
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (weight[i] <= 0) continue;
+      const Eigen::Vector2d r = (samples[i].x - origin) / scale;
+      const Located& at = located[i];
+      const double half = 0.5 * p(W) * at.width_scale;
+      const double zp = (at.d + half) / p(S), zm = (at.d - half) / p(S);
+      const double cover = cdf(zp) - cdf(zm);
+      const double sheet_level = p(L0) + p(LX) * r.x() + p(LY) * r.y();
+      const double dm_dcover = -sheet_level * p(K);
+      const double dm_dd = dm_dcover * (gauss(zp) - gauss(zm)) / p(S);
+      const double dm_dhalf = dm_dcover * (gauss(zp) + gauss(zm)) / p(S);
+      Vector J;
+      double dd[G], dscale[G], d_unused = 0, scale_unused = 0;
+      geom.locate(samples[i].x, d_unused, scale_unused, dd, dscale);
+      for (int j = 0; j < G; ++j) J(j) = dm_dd * dd[j] + dm_dhalf * 0.5 * p(W) * dscale[j];
+      const double shade = 1 - p(K) * cover;
+      J(L0) = shade;
+      J(LX) = shade * r.x();
+      J(LY) = shade * r.y();
+      J(K) = -sheet_level * cover;
+      J(S) = -dm_dcover * (zp * gauss(zp) - zm * gauss(zm)) / p(S);
+      J(W) = dm_dhalf * 0.5 * at.width_scale;
+      H.template selfadjointView<Eigen::Lower>().rankUpdate(J, weight[i]);
+      b += weight[i] * residual[i] * J;
+    }
+    const double before = cost(residual);
+    bool improved = false;
+    Vector delta;
+    H = H.template selfadjointView<Eigen::Lower>();
+    for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
+      Eigen::Matrix<double, P, P> A = H;
+      for (int j = 0; j < P; ++j) A(j, j) += lambda * (H(j, j) + 1e-9);
+      delta = A.ldlt().solve(b);
+      const Vector q = p + delta;
+      if (!delta.allFinite() || q(S) < 0.15 || q(S) > 4 || q(K) <= 0 || q(W) < 0.2 || q(W) > 4 * line_px + 2) {
+        lambda *= 4;
+        continue;
+      }
+      Geometry candidate = geom;
+      evaluate(q, candidate, trial, &trial_located);
+      if (candidate.plausible() && cost(trial) <= before) {
+        p = q;
+        geom = candidate;
+        residual.swap(trial);
+        located.swap(trial_located);
+        improved = true;
+        lambda = std::max(1e-7, lambda / 3);
+      } else {
+        lambda *= 4;
+      }
+    }
+    if (!improved) break;
+    robustWeights(residual);
+    if (delta.template head<G>().cwiseAbs().maxCoeff() < 2e-4) break;  // px: far below the noise
+  }
+  const std::array<double, G> g1 = geom.get();
+  double moved = 0;
+  for (std::size_t j = 0; j < static_cast<std::size_t>(G); ++j) moved = std::max(moved, std::abs(g1[j] - g0[j]));
+  double sum = 0, wsum = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) sum += weight[i] * residual[i] * residual[i], wsum += weight[i];
+  result.blur = p(S);
+  result.contrast = p(K);
+  result.width = p(W);
+  result.rms = wsum > 0 ? std::sqrt(sum / wsum) / p(L0) : 1.0;
+  // The line must really be there: some contrast, most pixels agreeing with the model.
+  result.ok = std::isfinite(moved) && p(K) > 0.1 && wsum > 0.5 * static_cast<double>(samples.size());
+  if (result.ok) geometry = geom;
+  return result;
+}
+
+cv::Rect clampRect(const cv::Mat& image, double x0, double y0, double x1, double y1) {
+  const int c0 = std::max(0, static_cast<int>(std::floor(x0))), r0 = std::max(0, static_cast<int>(std::floor(y0)));
+  const int c1 = std::min(image.cols - 1, static_cast<int>(std::ceil(x1))), r1 = std::min(image.rows - 1, static_cast<int>(std::ceil(y1)));
+  return {c0, r0, std::max(0, c1 - c0 + 1), std::max(0, r1 - r0 + 1)};
+}
+
+// How far from the line the model needs pixels: the line, its blur, and some sheet on both sides.
+double bandHalfWidth(double line_px) { return 0.5 * line_px + 4.0; }
+
+}  // namespace
+
+LineFitResult fitRingLine(const cv::Mat& image, double line_px, const Exclusions& exclude, ImageEllipse& ring) {
+  const double band = bandHalfWidth(line_px);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(ring.shape);
+  const double reach = eig.eigenvalues().cwiseAbs().maxCoeff() + band + 1;
+  const cv::Rect box = clampRect(image, ring.centre.x() - reach, ring.centre.y() - reach, ring.centre.x() + reach,
+                                 ring.centre.y() + reach);
+  std::vector<Sample> samples;
+  for (int r = box.y; r < box.y + box.height; ++r)
+    for (int c = box.x; c < box.x + box.width; ++c) {
+      const Eigen::Vector2d x(c, r);
+      if (std::abs(ring.distance(x)) > band || excluded(x, exclude)) continue;
+      samples.push_back({x, image.at<float>(r, c)});
+    }
+  RingGeometry geometry{ring, ring.shape.inverse()};
+  const ImageEllipse start = ring;
+  LineFitResult fit = fitModel(samples, line_px, ring.centre, std::max(1.0, ring.meanRadius()), geometry);
+  if (!fit.ok) return fit;
+  const double moved = (geometry.e.centre - start.centre).norm();
+  const double grew = std::abs(geometry.e.meanRadius() - start.meanRadius());
+  if (moved > 1.5 || grew > 1.5) {
+    fit.ok = false;
+    return fit;
+  }
+  ring = geometry.e;
+  return fit;
+}
+
+LineFitResult fitStraightLine(const cv::Mat& image, double line_px, const Eigen::Vector2d& mid, double half_length,
+                              const Exclusions& exclude, ImageLine& line) {
+  const double band = bandHalfWidth(line_px);
+  const Eigen::Vector2d along(-line.normal.y(), line.normal.x());
+  const double reach = half_length + band + 1;
+  const cv::Rect box = clampRect(image, mid.x() - reach, mid.y() - reach, mid.x() + reach, mid.y() + reach);
+  std::vector<Sample> samples;
+  for (int r = box.y; r < box.y + box.height; ++r)
+    for (int c = box.x; c < box.x + box.width; ++c) {
+      const Eigen::Vector2d x(c, r);
+      if (std::abs(line.distance(x)) > band || std::abs(along.dot(x - mid)) > half_length || excluded(x, exclude)) continue;
+      samples.push_back({x, image.at<float>(r, c)});
+    }
+  StraightGeometry geometry{line};
+  const ImageLine start = line;
+  LineFitResult fit = fitModel(samples, line_px, mid, std::max(1.0, half_length), geometry);
+  if (!fit.ok) return fit;
+  if (std::abs(geometry.l.distance(mid) - start.distance(mid)) > 1.5 || geometry.l.normal.dot(start.normal) < 0.98) {
+    fit.ok = false;
+    return fit;
+  }
+  line = geometry.l;
+  return fit;
+}
+
+}  // namespace stampscan::registration::detail
