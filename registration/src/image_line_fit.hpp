@@ -7,7 +7,8 @@
 // cameras' nominal blur, worse as it grows. The blurred line's profile across it is symmetric about
 // its centre line whatever the blur, so a fit of that profile puts the line where it was printed.
 //
-// The model of the image near the line, at pixel x a signed distance d(x) from the centre line:
+// The model of the image near the line, at pixel x a signed distance d(x) from the centre line
+// (for a ring, the affine image of a circle, d is exact on the curve and to first order off it):
 //   I(x) = L(x) * (1 - k * P(d)),  P(d) = Phi((d + w/2) / s) - Phi((d - w/2) / s)
 // the sheet's level L (a plane over the patch: the ring light falls off), the ink's contrast k, the
 // line's width w and its blur s (optics plus the pixel's own box). A ring's line is the affine image
@@ -36,13 +37,6 @@ struct ImageEllipse {
   double meanRadius() const;  // sqrt(a b)
 };
 
-// A straight line in the image: the points x with normal . x = offset (normal of unit length).
-struct ImageLine {
-  Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
-  double offset = 0;
-  double distance(const Eigen::Vector2d& x) const { return normal.dot(x) - offset; }
-};
-
 struct LineFitResult {
   bool ok = false;
   double blur = 0;       // s, px
@@ -52,21 +46,16 @@ struct LineFitResult {
   std::size_t pixels = 0, iterations = 0;
 };
 
-// Pixels within `reach` of any of these curves are left out of a fit: a neighbour's line that
+// Pixels within `reach` of any of these rings are left out of a fit: a neighbour's line that
 // touches or runs alongside would pull the fitted line towards it.
 struct Exclusions {
   std::vector<ImageEllipse> rings;
-  std::vector<ImageLine> lines;
   double reach = 0;
 };
 
 // Refines `ring` (the line's centre, initially within about a pixel) in `image` (CV_32F). `line_px`
-// is the printed line's expected width in pixels (a start: the fit finds it). Not ok when the fit fails, the line moves more than a pixel
-// and a half, or the line is not there (no contrast).
+// is the printed line's expected width in pixels (a start: the fit finds it). Not ok when the fit
+// fails, the line moves more than a pixel and a half, or the line is not there (no contrast).
 LineFitResult fitRingLine(const cv::Mat& image, double line_px, const Exclusions& exclude, ImageEllipse& ring);
-
-// Refines the straight line through the band of pixels within `half_length` of `mid` along it.
-LineFitResult fitStraightLine(const cv::Mat& image, double line_px, const Eigen::Vector2d& mid, double half_length,
-                              const Exclusions& exclude, ImageLine& line);
 
 }  // namespace stampscan::registration::detail

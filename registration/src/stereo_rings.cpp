@@ -382,10 +382,11 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
   // two images' lines, cast onto it, become the same ellipse. Its depth shows in the centres' offset,
   // its tilt across the baseline in the two ellipses' different foreshortening; the tilt along the
   // baseline hardly shows, so it stays near the start, the plane through the triangulated neighbours.
-  std::vector<GridElement> out;
   const double r0 = params.printed_radius;
   const Vec3 eyes = 0.5 * (machine_from_left.translation() + machine_from_right.translation());
-  for (const Match& m : matches) {
+  std::vector<std::optional<GridElement>> measured(matches.size());
+  tbb::parallel_for(std::size_t{0}, matches.size(), [&](std::size_t k) {
+    const Match& m = matches[k];
     std::vector<Vec3> near;
     for (const Match& q : matches)
       if ((q.centre - m.centre).norm() < 3.5 * r0) near.push_back(q.centre);
@@ -402,26 +403,25 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
     const RingRays rays_left = raysOf(left[m.l], rig.left, machine_from_left);
     const RingRays rays_right = raysOf(right[m.r], rig.right, machine_from_right);
     const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);
-    if (!plane) {
-      ++st.rejected_fit;
-      continue;
-    }
+    if (!plane) return;
     std::vector<Eigen::Vector2d> points = castOnto(rays_left, *plane, 1);
     const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *plane, 1);
     points.insert(points.end(), points_right.begin(), points_right.end());
     detail::PlaneEllipse e;
-    if (!detail::fitEllipseRobust(points, e) || e.rms > 2.5 * params.max_fit_rms) {
-      ++st.rejected_fit;
-      continue;
-    }
+    if (!detail::fitEllipseRobust(points, e) || e.rms > 2.5 * params.max_fit_rms) return;
     GridElement g;  // the line's centre: the printed circle itself, so no scaling
-    if (!detail::elementFromEllipse(e, 1.0, plane->frame, plane->origin, params, g)) {
-      ++st.rejected_fit;
-      continue;
-    }
+    if (!detail::elementFromEllipse(e, 1.0, plane->frame, plane->origin, params, g)) return;
     g.source = Source::Stereo;
     g.view = view;
-    out.push_back(g);
+    measured[k] = g;
+  });
+  std::vector<GridElement> out;
+  for (auto& g : measured) {
+    if (!g) {
+      ++st.rejected_fit;
+      continue;
+    }
+    out.push_back(*g);
     ++st.matched;
   }
   return out;

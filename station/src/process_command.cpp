@@ -271,6 +271,18 @@ CommandRunner addProcessCommand(CLI::App& app) {
       }
       std::printf("  stereo      %zu views: %zu grid elements, ICP corrections up to %.3f mm (%.2f s)\n",
                   trace.part_left.size(), stereo_count, worst_correction, clock.lap());
+      if (stereo_count == 0 && !trace.part_left.empty()) {
+        // Say why when it is the images' scale: the line's centre needs the line to span pixels.
+        const std::int64_t t = trace.part_left.front().device_time_ns - camera_offset;
+        Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+        for (const auto& q : laser_positions) centroid += q;
+        centroid /= static_cast<double>(laser_positions.size());
+        const double depth = ((track.poseAt(t) * rig->head_from_left).inverse() * centroid).z();
+        const double line_px = rings.line_width * rig->left.matrix(0, 0) / depth;
+        if (depth > 0 && line_px < 1.5)
+          std::printf("              the printed line is %.1f px wide in these images; the stereo path needs about "
+                      "1.5 px or more (quick sessions render at a quarter of the resolution)\n", line_px);
+      }
     }
 
     // 5. Write.
