@@ -74,6 +74,28 @@ struct RingGeometry {
   bool plausible() const { return e.shape.determinant() > 0 && e.shape.trace() > 0; }
 };
 
+struct StraightGeometry {
+  static constexpr int N = 2;  // angle of the normal; offset from the anchor, a point near the line
+  ImageLine l;
+  Eigen::Vector2d anchor = Eigen::Vector2d::Zero();
+  std::array<double, N> get() const { return {std::atan2(l.normal.y(), l.normal.x()), l.offset - l.normal.dot(anchor)}; }
+  void set(const std::array<double, N>& p) {
+    l.normal = {std::cos(p[0]), std::sin(p[0])};
+    l.offset = p[1] + l.normal.dot(anchor);
+  }
+  void locate(const Eigen::Vector2d& x, double& d, double& width_scale, double* dd = nullptr,
+              double* dscale = nullptr) const {
+    d = l.distance(x);
+    width_scale = 1;
+    if (!dd) return;
+    const Eigen::Vector2d r = x - anchor;
+    dd[0] = -l.normal.y() * r.x() + l.normal.x() * r.y();
+    dd[1] = -1;
+    dscale[0] = dscale[1] = 0;
+  }
+  bool plausible() const { return true; }
+};
+
 struct Sample {
   Eigen::Vector2d x;
   double value;
@@ -91,6 +113,8 @@ double median(std::vector<double> v) {
 bool excluded(const Eigen::Vector2d& x, const Exclusions& ex) {
   for (const auto& r : ex.rings)
     if (std::abs(r.distance(x)) < ex.reach) return true;
+  for (const auto& l : ex.lines)
+    if (std::abs(l.distance(x)) < ex.reach) return true;
   return false;
 }
 
@@ -278,6 +302,31 @@ LineFitResult fitRingLine(const cv::Mat& image, double line_px, const Exclusions
     return fit;
   }
   ring = geometry.e;
+  return fit;
+}
+
+LineFitResult fitStraightLine(const cv::Mat& image, double line_px, const Eigen::Vector2d& mid, double half_length,
+                              const Exclusions& exclude, ImageLine& line) {
+  const double band = bandHalfWidth(line_px);
+  const Eigen::Vector2d along(-line.normal.y(), line.normal.x());
+  const double reach = half_length + band + 1;
+  const cv::Rect box = clampRect(image, mid.x() - reach, mid.y() - reach, mid.x() + reach, mid.y() + reach);
+  std::vector<Sample> samples;
+  for (int r = box.y; r < box.y + box.height; ++r)
+    for (int c = box.x; c < box.x + box.width; ++c) {
+      const Eigen::Vector2d x(c, r);
+      if (std::abs(line.distance(x)) > band || std::abs(along.dot(x - mid)) > half_length || excluded(x, exclude)) continue;
+      samples.push_back({x, image.at<float>(r, c)});
+    }
+  StraightGeometry geometry{line, mid};
+  const ImageLine start = line;
+  LineFitResult fit = fitModel(samples, line_px, mid, std::max(1.0, half_length), geometry);
+  if (!fit.ok) return fit;
+  if (std::abs(geometry.l.distance(mid) - start.distance(mid)) > 1.5 || geometry.l.normal.dot(start.normal) < 0.98) {
+    fit.ok = false;
+    return fit;
+  }
+  line = geometry.l;
   return fit;
 }
 

@@ -37,6 +37,13 @@ struct ImageEllipse {
   double meanRadius() const;  // sqrt(a b)
 };
 
+// A straight line in the image: the points x with normal . x = offset (normal of unit length).
+struct ImageLine {
+  Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
+  double offset = 0;
+  double distance(const Eigen::Vector2d& x) const { return normal.dot(x) - offset; }
+};
+
 struct LineFitResult {
   bool ok = false;
   double blur = 0;       // s, px
@@ -46,10 +53,11 @@ struct LineFitResult {
   std::size_t pixels = 0, iterations = 0;
 };
 
-// Pixels within `reach` of any of these rings are left out of a fit: a neighbour's line that
+// Pixels within `reach` of any of these curves are left out of a fit: a neighbour's line that
 // touches or runs alongside would pull the fitted line towards it.
 struct Exclusions {
   std::vector<ImageEllipse> rings;
+  std::vector<ImageLine> lines;
   double reach = 0;
 };
 
@@ -57,5 +65,10 @@ struct Exclusions {
 // is the printed line's expected width in pixels (a start: the fit finds it). Not ok when the fit
 // fails, the line moves more than a pixel and a half, or the line is not there (no contrast).
 LineFitResult fitRingLine(const cv::Mat& image, double line_px, const Exclusions& exclude, ImageEllipse& ring);
+
+// Refines the straight line through the band of pixels within `half_length` of `mid` along it (a
+// square grid's line between two nodes: keep the crossing lines at the nodes out of the band).
+LineFitResult fitStraightLine(const cv::Mat& image, double line_px, const Eigen::Vector2d& mid, double half_length,
+                              const Exclusions& exclude, ImageLine& line);
 
 }  // namespace stampscan::registration::detail

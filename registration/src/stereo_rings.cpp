@@ -2,15 +2,14 @@
 
 #include "image_line_fit.hpp"
 #include "laser_raster.hpp"
+#include "stereo_common.hpp"
 
 #include <Eigen/Dense>
-#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <numbers>
 #include <optional>
 
@@ -20,35 +19,6 @@ namespace {
 
 using detail::median;
 
-// Pixels to undistorted normalised image coordinates (x/z, y/z).
-std::vector<Eigen::Vector2d> normalised(const std::vector<Eigen::Vector2d>& px, const CameraModel& cam) {
-  if (px.empty()) return {};
-  std::vector<cv::Point2d> in, out;
-  for (const auto& p : px) in.emplace_back(p.x(), p.y());
-  cv::undistortPoints(in, out, cv::Mat(cam.matrix), cam.distortion,
-                      cv::noArray(), cv::noArray(), cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 1e-10));
-  std::vector<Eigen::Vector2d> r;
-  for (const auto& p : out) r.emplace_back(p.x, p.y);
-  return r;
-}
-
-Eigen::Vector2d projectPoint(const Vec3& camera_point, const CameraModel& cam) {
-  std::vector<cv::Point3d> in{{camera_point.x(), camera_point.y(), camera_point.z()}};
-  std::vector<cv::Point2d> out;
-  cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(cam.matrix), cam.distortion, out);
-  return {out[0].x, out[0].y};
-}
-
-// Closest point between two rays (origin, unit direction): the triangulated point, and the gap.
-Vec3 midpoint(const Vec3& o1, const Vec3& d1, const Vec3& o2, const Vec3& d2, double* gap) {
-  const Vec3 w = o1 - o2;
-  const double b = d1.dot(d2), d = d1.dot(w), e = d2.dot(w);
-  const double denom = 1 - b * b;
-  const double s = denom > 1e-12 ? (b * e - d) / denom : 0, t = denom > 1e-12 ? (e - b * d) / denom : e;
-  const Vec3 p1 = o1 + s * d1, p2 = o2 + t * d2;
-  if (gap) *gap = (p1 - p2).norm();
-  return 0.5 * (p1 + p2);
-}
 
 // The rays of a ring's line points from one camera (machine frame).
 struct RingRays {
@@ -58,7 +28,7 @@ struct RingRays {
 
 RingRays raysOf(const ImageRing& ring, const CameraModel& cam, const Eigen::Isometry3d& machine_from_camera) {
   RingRays r{machine_from_camera.translation(), {}};
-  for (const auto& q : normalised(ring.edge, cam))
+  for (const auto& q : detail::normalised(ring.edge, cam))
     r.directions.push_back((machine_from_camera.linear() * Vec3(q.x(), q.y(), 1)).normalized());
   return r;
 }
@@ -161,36 +131,13 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   image.convertTo(I, CV_32F);
   const double inner_px = expected_radius_px * (params.printed_radius - 0.5 * params.line_width) / params.printed_radius;
   const double line_px = expected_radius_px * params.line_width / params.printed_radius;
-  const int k = 2 * std::max(1, static_cast<int>(std::ceil(1.5 * line_px))) + 1;
-  cv::Mat sheet;
-  cv::morphologyEx(I, sheet, cv::MORPH_CLOSE, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
-  const cv::Mat interior = I >= params.ink_ratio * sheet;
-  cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(interior, labels, stats, centroids, 4, CV_32S);
   const double nominal = std::numbers::pi * inner_px * inner_px;
   // 1. Each ring roughly: its interior, the line's inner half-level crossing on rays from it,
   // moved out by half the line's apparent width, and an ellipse through those points.
   std::vector<detail::ImageEllipse> first;
-  for (int label = 1; label < n; ++label) {
-    const int area = stats.at<int>(label, cv::CC_STAT_AREA);
-    // The apparent size also changes with distance and tilt: a wide window.
-    if (area < 0.25 * nominal || area > 4.0 * nominal) continue;
-    const int x0 = stats.at<int>(label, cv::CC_STAT_LEFT), y0 = stats.at<int>(label, cv::CC_STAT_TOP);
-    const int bw = stats.at<int>(label, cv::CC_STAT_WIDTH), bh = stats.at<int>(label, cv::CC_STAT_HEIGHT);
-    if (x0 <= 1 || y0 <= 1 || x0 + bw >= I.cols - 1 || y0 + bh >= I.rows - 1 || bw < 5 || bh < 5) continue;
-    const cv::Mat mask = labels(cv::Rect(x0, y0, bw, bh)) == label;
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    if (contours.empty()) continue;
-    std::vector<cv::Point> hull;
-    cv::convexHull(contours.front(), hull);
-    if (area < 0.85 * cv::contourArea(hull)) continue;  // not convex: a gap between rings
-    std::vector<double> level;
-    for (int r = y0; r < y0 + bh; ++r)
-      for (int c = x0; c < x0 + bw; ++c)
-        if (labels.at<int>(r, c) == label) level.push_back(I.at<float>(r, c));
-    const double sheet_mid = median(level), dark = params.ink_ratio * sheet_mid;
-    const double cx = centroids.at<double>(label, 0), cy = centroids.at<double>(label, 1);
+  for (const detail::ImageInterior& in : detail::findImageInteriors(I, nominal, line_px, params.ink_ratio, 0.85)) {
+    const double sheet_mid = in.sheet_level, dark = params.ink_ratio * sheet_mid;
+    const double cx = in.centroid.x(), cy = in.centroid.y();
     const auto sample = [&](double x, double y) {
       const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
       if (c < 0 || r < 0 || c + 1 >= I.cols || r + 1 >= I.rows) return detail::kNaN;
@@ -288,107 +235,34 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
                                            const RingDetectionParams& params, std::uint32_t view, StereoStats* stats) {
   StereoStats local;
   StereoStats& st = stats ? *stats : local;
-  const Eigen::Isometry3d machine_from_left = machine_from_head * rig.head_from_left;
-  const Eigen::Isometry3d machine_from_right = machine_from_left * rig.right_from_left.inverse();
-  const Eigen::Isometry3d left_from_machine = machine_from_left.inverse(), right_from_machine = machine_from_right.inverse();
+  const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);
+  if (poses.prior_depth <= 0) return {};
   // The ring's size in pixels at the prior's typical depth.
-  std::vector<double> depths;
-  for (std::size_t i = 0; i < prior.size(); i += std::max<std::size_t>(1, prior.size() / 500)) {
-    const double z = (left_from_machine * prior[i]).z();
-    if (z > 0) depths.push_back(z);
-  }
-  if (depths.empty()) return {};
-  const double focal = rig.left.matrix(0, 0);
-  const double radius_px = params.printed_radius * focal / median(depths);
+  const double radius_px = params.printed_radius * rig.left.matrix(0, 0) / poses.prior_depth;
   const std::vector<ImageRing> left = detectImageRings(left_image, radius_px, params);
   const std::vector<ImageRing> right = detectImageRings(right_image, radius_px, params);
   st.left_rings += left.size();
   st.right_rings += right.size();
 
-  // The prior in the left image: pixel position and depth, bucketed.
-  const double cell = std::max(4.0, radius_px);
-  std::map<std::pair<int, int>, std::vector<Vec3>> buckets;  // (u, v, depth)
-  for (const Vec3& X : prior) {
-    const Vec3 c = left_from_machine * X;
-    if (c.z() <= 0) continue;
-    const Eigen::Vector2d px = projectPoint(c, rig.left);
-    buckets[{static_cast<int>(std::floor(px.x() / cell)), static_cast<int>(std::floor(px.y() / cell))}].push_back(Vec3(px.x(), px.y(), c.z()));
-  }
   std::vector<Eigen::Vector2d> left_centres, right_centres;
   for (const auto& r : left) left_centres.push_back(r.centre);
   for (const auto& r : right) right_centres.push_back(r.centre);
-  const auto left_n = normalised(left_centres, rig.left), right_n = normalised(right_centres, rig.right);
-
-  struct Match {
-    std::size_t l, r;
-    Vec3 centre;
-  };
-  std::vector<Match> matches;
-  for (std::size_t i = 0; i < left.size(); ++i) {
-    const int bx = static_cast<int>(std::floor(left[i].centre.x() / cell)), by = static_cast<int>(std::floor(left[i].centre.y() / cell));
-    std::vector<Vec3> z;
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dx = -1; dx <= 1; ++dx) {
-        const auto it = buckets.find({bx + dx, by + dy});
-        if (it != buckets.end()) z.insert(z.end(), it->second.begin(), it->second.end());
-      }
-    if (z.empty()) {
-      ++st.without_prior;
-      continue;
-    }
-    // The depth at the ring from a plane through the prior around it (on a steep wall the depth
-    // changes by millimetres across the neighbourhood), kept within the depths seen there.
-    std::vector<double> depths_near;
-    for (const Vec3& q : z) depths_near.push_back(q.z());
-    double depth = median(depths_near);
-    if (z.size() >= 6) {
-      Eigen::MatrixXd A(static_cast<Eigen::Index>(z.size()), 3);
-      Eigen::VectorXd b(static_cast<Eigen::Index>(z.size()));
-      for (std::size_t k = 0; k < z.size(); ++k) {
-        A.row(static_cast<Eigen::Index>(k)) << 1, (z[k].x() - left[i].centre.x()) / cell, (z[k].y() - left[i].centre.y()) / cell;
-        b(static_cast<Eigen::Index>(k)) = z[k].z();
-      }
-      const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);
-      const auto [lo, hi] = std::minmax_element(depths_near.begin(), depths_near.end());
-      if (std::isfinite(plane(0))) depth = std::clamp(plane(0), *lo, *hi);
-    }
-    const Vec3 guess_left = depth * Vec3(left_n[i].x(), left_n[i].y(), 1.0);
-    const Eigen::Vector2d predicted = projectPoint(right_from_machine * (machine_from_left * guess_left), rig.right);
-    // The right ring nearest to where the prior puts it, among those on the epipolar line (their
-    // rays meet the left ring's), within half the pitch: the next ring along the line is a whole
-    // pitch away, some 6 mm of depth at the nominal standoff.
-    const Vec3 o1 = machine_from_left.translation(), o2 = machine_from_right.translation();
-    const Vec3 d1 = (machine_from_left.linear() * Vec3(left_n[i].x(), left_n[i].y(), 1)).normalized();
-    std::size_t best = right.size();
-    double best_d = radius_px;
-    Vec3 X = Vec3::Zero();
-    for (std::size_t j = 0; j < right.size(); ++j) {
-      const double d = (right[j].centre - predicted).norm();
-      if (d >= best_d) continue;
-      const Vec3 d2 = (machine_from_right.linear() * Vec3(right_n[j].x(), right_n[j].y(), 1)).normalized();
-      double gap = 0;
-      const Vec3 candidate = midpoint(o1, d1, o2, d2, &gap);
-      if (gap > 0.2) continue;  // not the same point: off the epipolar line
-      best_d = d, best = j, X = candidate;
-    }
-    if (best == right.size()) {
-      ++st.unmatched;
-      continue;
-    }
-    matches.push_back({i, best, X});
-  }
+  // Within half a pitch: the next ring along the epipolar line is a whole pitch away, some 6 mm of
+  // depth at the nominal standoff.
+  const std::vector<detail::StereoMatch> matches =
+      detail::matchAcrossViews(left_centres, right_centres, rig, poses, prior, radius_px, st);
 
   // Each ring's plane from both views: a planar circle seen by two cameras is the plane where the
   // two images' lines, cast onto it, become the same ellipse. Its depth shows in the centres' offset,
   // its tilt across the baseline in the two ellipses' different foreshortening; the tilt along the
   // baseline hardly shows, so it stays near the start, the plane through the triangulated neighbours.
   const double r0 = params.printed_radius;
-  const Vec3 eyes = 0.5 * (machine_from_left.translation() + machine_from_right.translation());
+  const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
   std::vector<std::optional<GridElement>> measured(matches.size());
   tbb::parallel_for(std::size_t{0}, matches.size(), [&](std::size_t k) {
-    const Match& m = matches[k];
+    const detail::StereoMatch& m = matches[k];
     std::vector<Vec3> near;
-    for (const Match& q : matches)
+    for (const detail::StereoMatch& q : matches)
       if ((q.centre - m.centre).norm() < 3.5 * r0) near.push_back(q.centre);
     Vec3 normal = (eyes - m.centre).normalized();
     if (near.size() >= 5) {
@@ -400,8 +274,8 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       const Vec3 axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
       normal = axis.dot(eyes - m.centre) < 0 ? Vec3(-axis) : axis;
     }
-    const RingRays rays_left = raysOf(left[m.l], rig.left, machine_from_left);
-    const RingRays rays_right = raysOf(right[m.r], rig.right, machine_from_right);
+    const RingRays rays_left = raysOf(left[m.left], rig.left, poses.machine_from_left);
+    const RingRays rays_right = raysOf(right[m.right], rig.right, poses.machine_from_right);
     const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);
     if (!plane) return;
     std::vector<Eigen::Vector2d> points = castOnto(rays_left, *plane, 1);
