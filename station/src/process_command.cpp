@@ -8,6 +8,7 @@
 #include "stampscan/registration/icp.hpp"
 #include "stampscan/registration/laser_rings.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
+#include "stampscan/registration/stereo_squares.hpp"
 #include "stampscan/station/calibration_files.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/fit_runner.hpp"
@@ -249,9 +250,12 @@ CommandRunner addProcessCommand(CLI::App& app) {
       for (std::size_t v = 0; v < trace.part_left.size(); ++v) {
         const std::int64_t t = trace.part_left[v].device_time_ns - camera_offset;
         if (!track.covers(t)) continue;
-        auto view = registration::measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, *rig,
-                                                    track.poseAt(t), laser_positions, rings,
-                                                    static_cast<std::uint32_t>(1000 + v));
+        const auto view_id = static_cast<std::uint32_t>(1000 + v);
+        auto view = grid == "circle"
+                        ? registration::measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, *rig,
+                                                          track.poseAt(t), laser_positions, rings, view_id)
+                        : registration::measureStereoSquares(trace.part_left[v].image, trace.part_right[v].image, *rig,
+                                                             track.poseAt(t), laser_positions, squares, view_id);
         if (view.size() < 10) continue;
         std::vector<registration::Vec3> source;
         for (const auto& g : view) source.push_back(g.position);
@@ -278,7 +282,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
         for (const auto& q : laser_positions) centroid += q;
         centroid /= static_cast<double>(laser_positions.size());
         const double depth = ((track.poseAt(t) * rig->head_from_left).inverse() * centroid).z();
-        const double line_px = rings.line_width * rig->left.matrix(0, 0) / depth;
+        const double line_px = (grid == "circle" ? rings.line_width : squares.line_width) * rig->left.matrix(0, 0) / depth;
         if (depth > 0 && line_px < 1.5)
           std::printf("              the printed line is %.1f px wide in these images; the stereo path needs about "
                       "1.5 px or more (quick sessions render at a quarter of the resolution)\n", line_px);

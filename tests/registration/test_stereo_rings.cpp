@@ -3,6 +3,7 @@
 #include "session_support.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
+#include "stampscan/registration/stereo_squares.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scene.hpp"
 
@@ -33,13 +34,13 @@ struct StereoMeasured {
 // An element is in full view of a pair when a circle a little wider than its ring lies inside both
 // images (clear of the border) and neither camera's rays to it meet the part first.
 bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& normal,
-                const sim::CameraIntrinsics* cams[2], const Eigen::Isometry3d poses[2]) {
+                const sim::CameraIntrinsics* cams[2], const Eigen::Isometry3d poses[2], double reach) {
   const Eigen::Matrix3d frame = fitting::frameAround(normal);
   for (int c = 0; c < 2; ++c) {
     const Eigen::Isometry3d camera_from_machine = poses[c].inverse();
     for (int k = 0; k < 8; ++k) {
       const double th = 2 * std::numbers::pi * k / 8;
-      const Eigen::Vector3d q = position + 1.7 * (std::cos(th) * frame.col(0) + std::sin(th) * frame.col(1));
+      const Eigen::Vector3d q = position + reach * (std::cos(th) * frame.col(0) + std::sin(th) * frame.col(1));
       const Eigen::Vector3d in_camera = camera_from_machine * q;
       if (in_camera.z() <= 0) return false;
       const Eigen::Vector2d px = cams[c]->project(in_camera);
@@ -52,9 +53,10 @@ bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, co
   return true;
 }
 
-StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed) {
+StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind grid = sim::GridKind::Circle) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
+  p.grid.kind = grid;
   p.laser = p.calibration = false;
   p.image_scale = 1.0;
   p.seed = seed;
@@ -80,14 +82,17 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed) {
     if (!pair.complete()) continue;
     const Eigen::Isometry3d head = s.headAt(pair.left.device_time_ns - offset).pose();
     // The part's own surface as the depth prior (in the station, the laser's).
-    const auto g = registration::measureStereoPair(test_support::DecodedSession::image(pair.left),
-                                                   test_support::DecodedSession::image(pair.right), rig, head,
-                                                   t.positions, {}, view++, &stats);
+    const cv::Mat left = test_support::DecodedSession::image(pair.left), right = test_support::DecodedSession::image(pair.right);
+    const auto g = grid == sim::GridKind::Circle
+                       ? registration::measureStereoPair(left, right, rig, head, t.positions, {}, view, &stats)
+                       : registration::measureStereoSquares(left, right, rig, head, t.positions, {}, view, &stats);
+    ++view;
     found.insert(found.end(), g.begin(), g.end());
     const sim::CameraIntrinsics* cams[2] = {&truth.left, &truth.right};
     const Eigen::Isometry3d poses[2] = {head * truth.head_from_left, head * truth.head_from_right};
     for (std::size_t i = 0; i < t.size(); ++i)
-      if (!in_view[i]) in_view[i] = inFullView(scene, t.positions[i], t.normals[i], cams, poses);
+      if (!in_view[i])
+        in_view[i] = inFullView(scene, t.positions[i], t.normals[i], cams, poses, grid == sim::GridKind::Circle ? 1.7 : 2.0);
   }
   StereoMeasured m;
   m.found = found.size();
@@ -125,10 +130,10 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed) {
   if (!abs_err.empty())
     std::printf("  thickness strain error: median %.4f, 90%% %.4f, max %.4f; bias major %.4f, minor %.4f\n",
                 abs_err[abs_err.size() / 2], abs_err[abs_err.size() * 9 / 10], abs_err.back(), bias_major / n, bias_minor / n);
-  std::printf("stereo %s: %u pairs, rings %zu left %zu right, %zu measured (%zu without prior, %zu unmatched, %zu "
+  std::printf("stereo %s %ss: %u pairs, %zu left %zu right, %zu measured (%zu without prior, %zu unmatched, %zu "
               "rejected: the views disagree or a poor fit), %zu false; %zu of %zu elements in full view found; "
               "position RMS %.4f mm, strain RMS %.4f\n",
-              part->name().c_str(), view, stats.left_rings, stats.right_rings, found.size(), stats.without_prior,
+              part->name().c_str(), sim::toString(grid).c_str(), view, stats.left_rings, stats.right_rings, found.size(), stats.without_prior,
               stats.unmatched, stats.rejected_fit, m.false_found, m.truth_found, m.truth_in_view, m.position_rms,
               m.strain_rms);
   return m;
@@ -151,5 +156,12 @@ TEST(StereoRings, DomeElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::
 // below the die radius, where the two views' cast ellipses do not agree on one plane (the ring
 // bends over the radius, or the wall is seen at 50 degrees or more).
 TEST(StereoRings, PanElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::PartKind::Pan, 42), 0.9); }
+
+TEST(StereoSquares, DomeCellsMatchTheGroundTruth) {
+  expectGoals(runStereo(sim::PartKind::Dome, 43, sim::GridKind::Square));
+}
+TEST(StereoSquares, PanCellsMatchTheGroundTruth) {
+  expectGoals(runStereo(sim::PartKind::Pan, 44, sim::GridKind::Square));
+}
 
 }  // namespace

@@ -54,6 +54,11 @@ TEST(StereoMatching, FreeRunPairsNearestInTime) {
 
 class StereoCameras : public VirtualCamerasTest {};
 
+// The fake cameras are threads of this process: when the test machine is busy (CI runs suites in
+// parallel on two cores) one camera's frame can come 20-30 ms after the other's. The tolerance
+// logic itself is tested above on made-up frames; here the point is that triggered frames pair.
+constexpr std::chrono::nanoseconds kSkewTolerance = std::chrono::milliseconds(100);
+
 TEST_F(StereoCameras, SoftwareTriggeredPairs) {
   GigECamera left("left", options(kLeftSerial, kLeftAddress));
   GigECamera right("right", options(kRightSerial, kRightAddress));
@@ -72,7 +77,7 @@ TEST_F(StereoCameras, SoftwareTriggeredPairs) {
     std::lock_guard lock(mutex);
     pairs.push_back(p);
     cv.notify_all();
-  }, {std::chrono::milliseconds(20), 8});
+  }, {kSkewTolerance, 8});
   pair.start();
   // Warm-up: an idle Aravis fake camera polls for work every 100 ms until it has sent its first
   // frame, so the first trigger's two frames may be up to 100 ms apart (a real camera answers in
@@ -97,7 +102,7 @@ TEST_F(StereoCameras, SoftwareTriggeredPairs) {
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     EXPECT_EQ(pairs[i].trigger_id, i + 2);
     EXPECT_EQ(pairs[i].left.info.trigger_id, pairs[i].right.info.trigger_id);
-    EXPECT_LE(std::llabs(pairs[i].skew_ns), 20'000'000);
+    EXPECT_LE(std::llabs(pairs[i].skew_ns), kSkewTolerance.count());
     EXPECT_TRUE(imageIsIntact(1, pairs[i].left.info.bytes));
     EXPECT_TRUE(imageIsIntact(2, pairs[i].right.info.bytes));
   }

@@ -1,0 +1,246 @@
+#include "stampscan/registration/stereo_squares.hpp"
+
+#include "image_line_fit.hpp"
+#include "stereo_common.hpp"
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+namespace stampscan::registration {
+
+namespace {
+
+// Shoelace area of a closed polygon; positive when its points run counter-clockwise (x right, y up).
+template <typename Points>
+double signedArea(const Points& p) {
+  double a = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const auto& u = p[i];
+    const auto& v = p[(i + 1) % p.size()];
+    a += u.x() * v.y() - v.x() * u.y();
+  }
+  return 0.5 * a;
+}
+
+// The interior's outline as a quadrilateral: the coarsest polygon approximation with four corners.
+std::optional<std::array<Eigen::Vector2d, 4>> quadrilateralOf(const std::vector<cv::Point>& hull) {
+  const double perimeter = cv::arcLength(hull, true);
+  for (double share = 0.01; share <= 0.1; share += 0.01) {
+    std::vector<cv::Point> approx;
+    cv::approxPolyDP(hull, approx, share * perimeter, true);
+    if (approx.size() < 4) return std::nullopt;
+    if (approx.size() == 4) {
+      std::array<Eigen::Vector2d, 4> q;
+      for (std::size_t i = 0; i < 4; ++i) q[i] = Eigen::Vector2d(approx[i].x, approx[i].y);
+      return q;
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<Eigen::Vector2d> intersect(const detail::ImageLine& a, const detail::ImageLine& b) {
+  Eigen::Matrix2d A;
+  A << a.normal.transpose(), b.normal.transpose();
+  if (std::abs(A.determinant()) < 0.2) return std::nullopt;  // nearly parallel: not adjacent sides
+  return A.inverse() * Eigen::Vector2d(a.offset, b.offset);
+}
+
+}  // namespace
+
+std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pitch_px, const SquareDetectionParams& params) {
+  cv::Mat I;
+  image.convertTo(I, CV_32F);
+  const double line_px = expected_pitch_px * params.line_width / params.pitch;
+  const double side_px = expected_pitch_px - line_px;  // the interior's side before forming
+  const std::vector<detail::ImageInterior> interiors =
+      detail::findImageInteriors(I, side_px * side_px, line_px, params.ink_ratio, 0.85);
+  std::vector<std::optional<ImageCell>> cells(interiors.size());
+  tbb::parallel_for(std::size_t{0}, interiors.size(), [&](std::size_t k) {
+    const detail::ImageInterior& in = interiors[k];
+    const auto corners = quadrilateralOf(in.hull);
+    if (!corners) return;
+    // Each side's line: start from the interior's edge moved out by half the line, fit the model
+    // to the middle 60 % of the side (the crossing lines at the nodes stay out).
+    std::array<detail::ImageLine, 4> lines;
+    double blur = 0;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const Eigen::Vector2d a = (*corners)[i], b = (*corners)[(i + 1) % 4];
+      const double length = (b - a).norm();
+      if (length < 0.3 * side_px) return;
+      const Eigen::Vector2d along = (b - a) / length;
+      Eigen::Vector2d normal(-along.y(), along.x());
+      const Eigen::Vector2d mid = 0.5 * (a + b);
+      if (normal.dot(mid - in.centroid) < 0) normal = -normal;
+      const double width = line_px * length / side_px;  // the line stretches with the cell
+      const Eigen::Vector2d on_line = mid + (0.5 * width + 0.5) * normal;
+      detail::ImageLine line{normal, normal.dot(on_line)};
+      const detail::LineFitResult fit = detail::fitStraightLine(I, width, on_line, 0.3 * length, {}, line);
+      if (!fit.ok) return;
+      lines[i] = line;
+      blur += 0.25 * fit.blur;
+    }
+    ImageCell cell;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const auto node = intersect(lines[(i + 3) % 4], lines[i]);  // the corner between side i-1 and side i
+      if (!node || (*node - (*corners)[i]).norm() > 0.3 * side_px) return;
+      cell.nodes[i] = *node;
+      cell.centre += 0.25 * *node;
+    }
+    cell.blur = blur;
+    cells[k] = cell;
+  });
+  std::vector<ImageCell> out;
+  for (auto& c : cells)
+    if (c) out.push_back(*c);
+  return out;
+}
+
+std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const cv::Mat& right_image, const StereoRig& rig,
+                                              const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior,
+                                              const SquareDetectionParams& params, std::uint32_t view, StereoStats* stats) {
+  StereoStats local;
+  StereoStats& st = stats ? *stats : local;
+  const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);
+  if (poses.prior_depth <= 0) return {};
+  const double pitch_px = params.pitch * rig.left.matrix(0, 0) / poses.prior_depth;
+  const std::vector<ImageCell> left = detectImageCells(left_image, pitch_px, params);
+  const std::vector<ImageCell> right = detectImageCells(right_image, pitch_px, params);
+  st.left_rings += left.size();
+  st.right_rings += right.size();
+  std::vector<Eigen::Vector2d> left_centres, right_centres;
+  for (const auto& c : left) left_centres.push_back(c.centre);
+  for (const auto& c : right) right_centres.push_back(c.centre);
+  // Within half a pitch, as for rings.
+  const std::vector<detail::StereoMatch> matches =
+      detail::matchAcrossViews(left_centres, right_centres, rig, poses, prior, 0.5 * pitch_px, st);
+
+  const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
+  const double half = 0.5 * params.pitch;
+  // The printed square's corners, counter-clockwise.
+  const std::array<Eigen::Vector2d, 4> square{Eigen::Vector2d(-half, -half), Eigen::Vector2d(half, -half),
+                                              Eigen::Vector2d(half, half), Eigen::Vector2d(-half, half)};
+  std::vector<GridElement> out;
+  std::vector<Vec3> all_nodes;      // every cell's triangulated nodes, for the surface at each centre
+  for (const detail::StereoMatch& m : matches) {
+    const ImageCell& L = left[m.left];
+    const ImageCell& R = right[m.right];
+    const std::vector<Eigen::Vector2d> ln = detail::normalised(std::vector<Eigen::Vector2d>(L.nodes.begin(), L.nodes.end()), rig.left);
+    const std::vector<Eigen::Vector2d> rn = detail::normalised(std::vector<Eigen::Vector2d>(R.nodes.begin(), R.nodes.end()), rig.right);
+    const Vec3 o1 = poses.machine_from_left.translation(), o2 = poses.machine_from_right.translation();
+    // The same node in both images: both go round the cell the same way, so one of the four cyclic
+    // shifts, the one whose rays meet best.
+    std::array<Vec3, 4> nodes{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+    double best_gap = 0.2;  // mm, for the worst node
+    bool found = false;
+    for (std::size_t shift = 0; shift < 4; ++shift) {
+      std::array<Vec3, 4> X;
+      double worst = 0;
+      for (std::size_t i = 0; i < 4; ++i) {
+        const Vec3 d1 = (poses.machine_from_left.linear() * Vec3(ln[i].x(), ln[i].y(), 1)).normalized();
+        const std::size_t j = (i + shift) % 4;
+        const Vec3 d2 = (poses.machine_from_right.linear() * Vec3(rn[j].x(), rn[j].y(), 1)).normalized();
+        double gap = 0;
+        X[i] = detail::midpoint(o1, d1, o2, d2, &gap);
+        worst = std::max(worst, gap);
+      }
+      if (worst < best_gap) best_gap = worst, nodes = X, found = true;
+    }
+    if (!found) {
+      ++st.rejected_fit;
+      continue;
+    }
+    // The cell's plane through its corners (normal from the diagonals, facing the cameras).
+    Vec3 centre = Vec3::Zero();
+    for (const Vec3& X : nodes) centre += 0.25 * X;
+    Vec3 normal = (nodes[2] - nodes[0]).cross(nodes[3] - nodes[1]).normalized();
+    if (normal.dot(eyes - centre) < 0) normal = -normal;
+    const Eigen::Matrix3d frame = fitting::frameAround(normal);
+    // Four corners of a cell on a smooth sheet lie nearly in a plane; a cell twisted over a
+    // doubly curved corner, or a wrong match, does not.
+    double twist = 0;
+    for (const Vec3& X : nodes) twist = std::max(twist, std::abs(normal.dot(X - centre)));
+    if (twist > 0.1) {
+      ++st.rejected_fit;
+      continue;
+    }
+    std::array<Eigen::Vector2d, 4> q;
+    for (std::size_t i = 0; i < 4; ++i) q[i] = {frame.col(0).dot(nodes[i] - centre), frame.col(1).dot(nodes[i] - centre)};
+    if (signedArea(q) < 0) std::swap(q[1], q[3]);  // the same cycle, run the other way
+    // q = t + F s in the least squares sense; the corners s are centred and sum s s^T = p^2 I.
+    Eigen::Vector2d t = Eigen::Vector2d::Zero();
+    for (const auto& x : q) t += 0.25 * x;
+    Eigen::Matrix2d F = Eigen::Matrix2d::Zero();
+    for (std::size_t i = 0; i < 4; ++i) F += (q[i] - t) * square[i].transpose();
+    F /= params.pitch * params.pitch;
+    double misfit = 0;
+    for (std::size_t i = 0; i < 4; ++i) misfit += 0.25 * (q[i] - t - F * square[i]).squaredNorm();
+    misfit = std::sqrt(misfit);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(F * F.transpose());
+    if (!(eig.eigenvalues()(0) > 0) || misfit > 0.03) {
+      ++st.rejected_fit;
+      continue;
+    }
+    GridElement g;
+    g.major_strain = 0.5 * std::log(eig.eigenvalues()(1));
+    g.minor_strain = 0.5 * std::log(eig.eigenvalues()(0));
+    if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) {
+      ++st.rejected_fit;
+      continue;
+    }
+    g.thickness_strain = -(g.major_strain + g.minor_strain);
+    const Eigen::Vector2d d = eig.eigenvectors().col(1);
+    g.major_direction = (d.x() * frame.col(0) + d.y() * frame.col(1)).normalized();
+    g.semi_major = half * std::exp(g.major_strain);
+    g.semi_minor = half * std::exp(g.minor_strain);
+    g.normal = normal;
+    g.position = centre + t.x() * frame.col(0) + t.y() * frame.col(1);
+    g.fit_rms = misfit;
+    g.edge_points = 8;  // two images' four nodes
+    g.source = Source::Stereo;
+    g.view = view;
+    out.push_back(g);
+    all_nodes.insert(all_nodes.end(), nodes.begin(), nodes.end());
+    ++st.matched;
+  }
+  // The four nodes span a chord plane: where the sheet bends, the cell's centre on the surface lies
+  // off it (0.03 mm on a 60 mm dome, 0.4 mm over a 4 mm punch radius). A quadric height field
+  // through the nodes of the cell and its neighbours gives the surface there.
+  std::vector<bool> consistent(out.size(), true);
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    GridElement& g = out[k];
+    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
+    std::vector<Vec3> near;
+    for (const Vec3& X : all_nodes)
+      if ((X - g.position).norm() < 2.3 * params.pitch) near.push_back(X);
+    if (near.size() < 12) continue;
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(near.size()), 6);
+    Eigen::VectorXd h(static_cast<Eigen::Index>(near.size()));
+    for (std::size_t i = 0; i < near.size(); ++i) {
+      const Vec3 d = near[i] - g.position;
+      const double u = frame.col(0).dot(d), v = frame.col(1).dot(d);
+      A.row(static_cast<Eigen::Index>(i)) << 1, u, v, u * u, u * v, v * v;
+      h(static_cast<Eigen::Index>(i)) = frame.col(2).dot(d);
+    }
+    const Eigen::Matrix<double, 6, 1> c = A.colPivHouseholderQr().solve(h);
+    // Over a 4 mm punch radius the offset is about 0.25 mm; more means the cell does not sit with
+    // its neighbours (a wrong match, or a cell over a doubly curved corner): no element.
+    if (!std::isfinite(c(0)) || std::abs(c(0)) > 0.3) {
+      consistent[k] = false;
+      continue;
+    }
+    g.position += c(0) * g.normal;
+  }
+  std::vector<GridElement> kept;
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    if (consistent[k]) kept.push_back(out[k]);
+    else --st.matched, ++st.rejected_fit;
+  }
+  return kept;
+}
+
+}  // namespace stampscan::registration
