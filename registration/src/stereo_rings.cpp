@@ -119,9 +119,15 @@ std::optional<RingPlane> ringPlane(const RingRays& left, const RingRays& right, 
     if (!residual(q, r)) return std::nullopt;
     if (std::abs(delta(2)) < 1e-5 && delta.head<2>().norm() < 1e-6) break;
   }
-  // Agreement to a few micrometres: otherwise the match or one image's ring is wrong.
-  if (r.head<5>().cwiseAbs().maxCoeff() > 0.01 || q.head<2>().norm() > 1.2) return std::nullopt;
-  return planeOf(q);
+  // Agreement to 1 % of the ring, more where a camera sees the plane obliquely (the image's error is
+  // stretched by 1 / cos on it); otherwise the match is wrong or the ring is no plane.
+  const RingPlane plane = planeOf(q);
+  const Vec3 n = plane.frame.col(2);
+  const double cos_left = std::abs(n.dot((plane.origin - left.origin).normalized()));
+  const double cos_right = std::abs(n.dot((plane.origin - right.origin).normalized()));
+  const double allowed = 0.01 / std::max(0.5, std::min(cos_left, cos_right));
+  if (r.head<5>().cwiseAbs().maxCoeff() > allowed || q.head<2>().norm() > 1.2) return std::nullopt;
+  return plane;
 }
 
 }  // namespace
@@ -136,7 +142,8 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   // moved out by half the line's apparent width, and an ellipse through those points.
   std::vector<detail::ImageEllipse> first;
   for (const detail::ImageInterior& in : detail::findImageInteriors(I, nominal, line_px, params.ink_ratio, 0.85)) {
-    const double sheet_mid = in.sheet_level, dark = params.ink_ratio * sheet_mid;
+    // Half way to the ink: a line foreshortened on a steep wall is not as dark as a line seen square.
+    const double sheet_mid = in.sheet_level, dark = 0.5 * (1 + params.ink_ratio) * sheet_mid;
     const double cx = in.centroid.x(), cy = in.centroid.y();
     const auto sample = [&](double x, double y) {
       const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
@@ -278,9 +285,17 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
     const RingRays rays_right = raysOf(right[m.right], rig.right, poses.machine_from_right);
     const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);
     if (!plane) return;
-    std::vector<Eigen::Vector2d> points = castOnto(rays_left, *plane, 1);
-    const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *plane, 1);
-    points.insert(points.end(), points_right.begin(), points_right.end());
+    // Both views' points, unless one camera sees the ring much more obliquely than the other: its
+    // image error, stretched by 1 / cos on the plane, would only add noise to the better view's.
+    const Vec3 n = plane->frame.col(2);
+    const double cos_left = std::abs(n.dot((plane->origin - rays_left.origin).normalized()));
+    const double cos_right = std::abs(n.dot((plane->origin - rays_right.origin).normalized()));
+    std::vector<Eigen::Vector2d> points;
+    if (cos_left >= 0.8 * cos_right) points = castOnto(rays_left, *plane, 1);
+    if (cos_right >= 0.8 * cos_left) {
+      const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *plane, 1);
+      points.insert(points.end(), points_right.begin(), points_right.end());
+    }
     detail::PlaneEllipse e;
     if (!detail::fitEllipseRobust(points, e) || e.rms > 2.5 * params.max_fit_rms) return;
     GridElement g;  // the line's centre: the printed circle itself, so no scaling

@@ -14,9 +14,10 @@
 //  3. Each ring's plane from both views: the plane on which the two images' lines, cast onto it,
 //     become one ellipse (its depth shows in where the two cast ellipses sit, its tilt across the
 //     baseline in their different foreshortening; the tilt along the baseline barely shows and
-//     stays near the plane of the triangulated neighbours). Views that agree to no better than
-//     10 um (a ring bent over a tight radius is no plane) give no element. Then one robust ellipse
-//     through both views' cast points, and strains from its axes.
+//     stays near the plane of the triangulated neighbours). Views that disagree by more than 1 %
+//     of the ring (more where a camera sees the plane obliquely) give no element: a ring bent over
+//     a tight radius is no plane. Then one robust ellipse through the cast points (of the better
+//     view only, when the other sees the ring much more obliquely), and strains from its axes.
 #pragma once
 
 #include "stampscan/registration/camera_calibration.hpp"
