@@ -270,4 +270,20 @@ bool elementFromEllipse(const PlaneEllipse& e, double scale, const Eigen::Matrix
   return true;
 }
 
+bool elementFromStretch(const Eigen::Matrix2d& B, const Eigen::Matrix3d& frame, const SquareDetectionParams& params,
+                        GridElement& g) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(B);
+  if (!(eig.eigenvalues()(0) > 0)) return false;
+  g.major_strain = 0.5 * std::log(eig.eigenvalues()(1));
+  g.minor_strain = 0.5 * std::log(eig.eigenvalues()(0));
+  if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) return false;
+  g.thickness_strain = -(g.major_strain + g.minor_strain);
+  const Eigen::Vector2d d = eig.eigenvectors().col(1);
+  g.major_direction = (d.x() * frame.col(0) + d.y() * frame.col(1)).normalized();
+  g.semi_major = 0.5 * params.pitch * std::exp(g.major_strain);
+  g.semi_minor = 0.5 * params.pitch * std::exp(g.minor_strain);
+  g.normal = frame.col(2);
+  return true;
+}
+
 }  // namespace stampscan::registration::detail

@@ -99,4 +99,10 @@ bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& points, PlaneEllipse& 
 bool elementFromEllipse(const PlaneEllipse& e, double scale, const Eigen::Matrix3d& frame, const Vec3& origin,
                         const RingDetectionParams& params, GridElement& g);
 
+// A square cell's strains from B = F F^T (F: the cell's deformation gradient) in the plane `frame`
+// (columns: plane axes, normal): principal strains, major direction and the deformed square's half
+// sides. False when B is not positive or a strain is implausible.
+bool elementFromStretch(const Eigen::Matrix2d& B, const Eigen::Matrix3d& frame, const SquareDetectionParams& params,
+                        GridElement& g);
+
 }  // namespace stampscan::registration::detail

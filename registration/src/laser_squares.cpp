@@ -62,24 +62,12 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
     }
     // A parallelogram's area is sqrt(det(12 Cov)); anything rounder or more ragged is not a cell.
     const double shape_error = m.area / std::sqrt(std::max(144 * m.covariance.determinant(), 1e-30)) - 1;
-    const Eigen::Matrix2d B = 12 * m.covariance / (side * side);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(B);
-    if (std::abs(shape_error) > params.max_shape_error || !(eig.eigenvalues()(0) > 0)) {
-      ++st.rejected_fit;
-      continue;
-    }
     GridElement g;
-    g.major_strain = 0.5 * std::log(eig.eigenvalues()(1));
-    g.minor_strain = 0.5 * std::log(eig.eigenvalues()(0));
-    if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) {
+    if (std::abs(shape_error) > params.max_shape_error ||
+        !detail::elementFromStretch(12 * m.covariance / (side * side), in.frame, params, g)) {
       ++st.rejected_fit;
       continue;
     }
-    g.thickness_strain = -(g.major_strain + g.minor_strain);
-    const Eigen::Vector2d d = eig.eigenvectors().col(1);
-    g.major_direction = (d.x() * in.frame.col(0) + d.y() * in.frame.col(1)).normalized();
-    g.semi_major = 0.5 * params.pitch * std::exp(g.major_strain);
-    g.semi_minor = 0.5 * params.pitch * std::exp(g.minor_strain);
     g.normal = in.normal;
     const Vec3 centre = in.mean + m.centroid.x() * in.frame.col(0) + m.centroid.y() * in.frame.col(1);
     g.position = centre + detail::surfaceOffset(in, centre, 0.3 * side) * in.normal;

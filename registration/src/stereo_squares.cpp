@@ -1,6 +1,7 @@
 #include "stampscan/registration/stereo_squares.hpp"
 
 #include "image_line_fit.hpp"
+#include "laser_raster.hpp"
 #include "stereo_common.hpp"
 
 #include <Eigen/Dense>
@@ -180,24 +181,11 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
     double misfit = 0;
     for (std::size_t i = 0; i < 4; ++i) misfit += 0.25 * (q[i] - t - F * square[i]).squaredNorm();
     misfit = std::sqrt(misfit);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(F * F.transpose());
-    if (!(eig.eigenvalues()(0) > 0) || misfit > 0.03) {
-      ++st.rejected_fit;
-      continue;
-    }
     GridElement g;
-    g.major_strain = 0.5 * std::log(eig.eigenvalues()(1));
-    g.minor_strain = 0.5 * std::log(eig.eigenvalues()(0));
-    if (g.major_strain > params.max_strain || g.minor_strain < params.min_strain) {
+    if (misfit > 0.03 || !detail::elementFromStretch(F * F.transpose(), frame, params, g)) {
       ++st.rejected_fit;
       continue;
     }
-    g.thickness_strain = -(g.major_strain + g.minor_strain);
-    const Eigen::Vector2d d = eig.eigenvectors().col(1);
-    g.major_direction = (d.x() * frame.col(0) + d.y() * frame.col(1)).normalized();
-    g.semi_major = half * std::exp(g.major_strain);
-    g.semi_minor = half * std::exp(g.minor_strain);
-    g.normal = normal;
     g.position = centre + t.x() * frame.col(0) + t.y() * frame.col(1);
     g.fit_rms = misfit;
     g.edge_points = 8;  // two images' four nodes
