@@ -281,6 +281,24 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       const Vec3 axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
       normal = axis.dot(eyes - m.centre) < 0 ? Vec3(-axis) : axis;
     }
+    // A ring bent over a tight radius is no plane, whatever the views say: the sheet's curvature
+    // from a quadric through the neighbours' centres, and the ring's sagitta on it.
+    if (near.size() >= 8) {
+      const Eigen::Matrix3d pca = fitting::frameAround(normal);
+      Eigen::MatrixXd A(static_cast<Eigen::Index>(near.size()), 6);
+      Eigen::VectorXd z(static_cast<Eigen::Index>(near.size()));
+      for (std::size_t i = 0; i < near.size(); ++i) {
+        const Vec3 d = near[i] - m.centre;
+        const double u = pca.col(0).dot(d), v = pca.col(1).dot(d);
+        A.row(static_cast<Eigen::Index>(i)) << 1, u, v, u * u, u * v, v * v;
+        z(static_cast<Eigen::Index>(i)) = pca.col(2).dot(d);
+      }
+      const Eigen::Matrix<double, 6, 1> c = A.colPivHouseholderQr().solve(z);
+      Eigen::Matrix2d hessian;
+      hessian << 2 * c(3), c(4), c(4), 2 * c(5);
+      const double curvature = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(hessian).eigenvalues().cwiseAbs().maxCoeff();
+      if (!(curvature * r0 * r0 / 2 < 0.06)) return;  // mm: 0.013 on a 60 mm dome, 0.2 over a 4 mm radius
+    }
     const RingRays rays_left = raysOf(left[m.left], rig.left, poses.machine_from_left);
     const RingRays rays_right = raysOf(right[m.right], rig.right, poses.machine_from_right);
     const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);

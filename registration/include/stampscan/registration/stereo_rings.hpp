@@ -15,8 +15,9 @@
 //     become one ellipse (its depth shows in where the two cast ellipses sit, its tilt across the
 //     baseline in their different foreshortening; the tilt along the baseline barely shows and
 //     stays near the plane of the triangulated neighbours). Views that disagree by more than 1 %
-//     of the ring (more where a camera sees the plane obliquely) give no element: a ring bent over
-//     a tight radius is no plane. Then one robust ellipse through the cast points (of the better
+//     of the ring (more where a camera sees the plane obliquely) give no element, and so does a
+//     ring whose sagitta on the sheet (its curvature from the neighbours' centres) exceeds 0.06 mm:
+//     a ring bent over a tight radius is no plane. Then one robust ellipse through the cast points (of the better
 //     view only, when the other sees the ring much more obliquely), and strains from its axes.
 #pragma once
 
