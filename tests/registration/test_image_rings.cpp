@@ -10,7 +10,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <random>
+#include <string>
 
 namespace {
 
@@ -92,6 +94,10 @@ struct Case {
   double stretch_x, stretch_y, angle, blur;
 };
 
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << "stretch " << c.stretch_x << " x " << c.stretch_y << " at " << c.angle << " rad, blur " << c.blur << " px";
+}
+
 class ImageRings : public ::testing::TestWithParam<Case> {};
 
 // A threshold's edge would grow the rings by about 1 % at 0.7 px blur and more as the blur grows;
@@ -113,6 +119,12 @@ TEST_P(ImageRings, CentresAndAxesAreWhereTheyWereDrawn) {
 INSTANTIATE_TEST_SUITE_P(StretchAndBlur, ImageRings,
                          ::testing::Values(Case{1.0, 1.0, 0.0, 0.7}, Case{1.0, 1.0, 0.0, 0.5}, Case{1.0, 1.0, 0.0, 0.85},
                                            Case{1.2, 1.0, 0.0, 0.7}, Case{1.4, 1.0, 0.5, 0.7}, Case{1.3, 0.8, 1.0, 0.8},
-                                           Case{1.6, 0.7, 0.3, 0.7}));
+                                           Case{1.6, 0.7, 0.3, 0.7}),
+                         [](const ::testing::TestParamInfo<Case>& param_info) {
+                           // e.g. Stretch160x70Angle30Blur70: hundredths
+                           const auto h = [](double v) { return std::to_string(static_cast<int>(std::lround(100 * v))); };
+                           const Case& c = param_info.param;
+                           return "Stretch" + h(c.stretch_x) + "x" + h(c.stretch_y) + "Angle" + h(c.angle) + "Blur" + h(c.blur);
+                         });
 
 }  // namespace
