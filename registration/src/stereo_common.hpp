@@ -59,4 +59,27 @@ std::vector<StereoMatch> matchAcrossViews(const std::vector<Eigen::Vector2d>& le
                                           const PairPoses& poses, const std::vector<Vec3>& prior, double window_px,
                                           StereoStats& stats);
 
+// Both images' elements (anything with an image `centre`: rings, square cells) found by `detect`,
+// counted in `stats`, and matched with matchAcrossViews.
+template <typename Element>
+struct DetectedPair {
+  std::vector<Element> left, right;
+  std::vector<StereoMatch> matches;
+};
+
+template <typename Detect>
+auto detectAndMatch(const cv::Mat& left_image, const cv::Mat& right_image, const Detect& detect, const StereoRig& rig,
+                    const PairPoses& poses, const std::vector<Vec3>& prior, double window_px, StereoStats& stats) {
+  DetectedPair<typename decltype(detect(left_image))::value_type> d;
+  d.left = detect(left_image);
+  d.right = detect(right_image);
+  stats.left_rings += d.left.size();
+  stats.right_rings += d.right.size();
+  std::vector<Eigen::Vector2d> left_centres, right_centres;
+  for (const auto& e : d.left) left_centres.push_back(e.centre);
+  for (const auto& e : d.right) right_centres.push_back(e.centre);
+  d.matches = matchAcrossViews(left_centres, right_centres, rig, poses, prior, window_px, stats);
+  return d;
+}
+
 }  // namespace stampscan::registration::detail

@@ -246,18 +246,11 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
   if (poses.prior_depth <= 0) return {};
   // The ring's size in pixels at the prior's typical depth.
   const double radius_px = params.printed_radius * rig.left.matrix(0, 0) / poses.prior_depth;
-  const std::vector<ImageRing> left = detectImageRings(left_image, radius_px, params);
-  const std::vector<ImageRing> right = detectImageRings(right_image, radius_px, params);
-  st.left_rings += left.size();
-  st.right_rings += right.size();
-
-  std::vector<Eigen::Vector2d> left_centres, right_centres;
-  for (const auto& r : left) left_centres.push_back(r.centre);
-  for (const auto& r : right) right_centres.push_back(r.centre);
-  // Within half a pitch: the next ring along the epipolar line is a whole pitch away, some 6 mm of
-  // depth at the nominal standoff.
-  const std::vector<detail::StereoMatch> matches =
-      detail::matchAcrossViews(left_centres, right_centres, rig, poses, prior, radius_px, st);
+  // Matched within half a pitch: the next ring along the epipolar line is a whole pitch away, some
+  // 6 mm of depth at the nominal standoff.
+  const auto [left, right, matches] = detail::detectAndMatch(
+      left_image, right_image, [&](const cv::Mat& image) { return detectImageRings(image, radius_px, params); }, rig,
+      poses, prior, radius_px, st);
 
   // Each ring's plane from both views: a planar circle seen by two cameras is the plane where the
   // two images' lines, cast onto it, become the same ellipse. Its depth shows in the centres' offset,

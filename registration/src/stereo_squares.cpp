@@ -109,16 +109,10 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
   const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);
   if (poses.prior_depth <= 0) return {};
   const double pitch_px = params.pitch * rig.left.matrix(0, 0) / poses.prior_depth;
-  const std::vector<ImageCell> left = detectImageCells(left_image, pitch_px, params);
-  const std::vector<ImageCell> right = detectImageCells(right_image, pitch_px, params);
-  st.left_rings += left.size();
-  st.right_rings += right.size();
-  std::vector<Eigen::Vector2d> left_centres, right_centres;
-  for (const auto& c : left) left_centres.push_back(c.centre);
-  for (const auto& c : right) right_centres.push_back(c.centre);
-  // Within half a pitch, as for rings.
-  const std::vector<detail::StereoMatch> matches =
-      detail::matchAcrossViews(left_centres, right_centres, rig, poses, prior, 0.5 * pitch_px, st);
+  // Matched within half a pitch, as for rings.
+  const auto [left, right, matches] = detail::detectAndMatch(
+      left_image, right_image, [&](const cv::Mat& image) { return detectImageCells(image, pitch_px, params); }, rig,
+      poses, prior, 0.5 * pitch_px, st);
 
   const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
   const double half = 0.5 * params.pitch;
