@@ -9,6 +9,9 @@ namespace stampscan::fitting {
 QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double scale)
     : origin_(origin), inv_scale_(1.0 / scale), frame_(frameAround(plane.normal(origin))) {}
 
+QuadricPatch::Sums::Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale)
+    : origin_(origin), inv_scale_(1.0 / scale), frame_(frame) {}
+
 void QuadricPatch::Sums::add(const Vec3& p, double w) {
   const Vec3 d = (p - origin_) * inv_scale_;
   const double u = frame_.col(0).dot(d), v = frame_.col(1).dot(d), h = frame_.col(2).dot(d);
@@ -107,6 +110,12 @@ void QuadricPatch::flip() {
   // w -> -w with the same (u, v): the frame normal turns round and every height changes sign.
   frame_.col(2) = -frame_.col(2);
   c_ = -c_;
+}
+
+double QuadricPatch::maxCurvatureAtOrigin() const {
+  Eigen::Matrix2d hessian;
+  hessian << 2 * c_(3), c_(4), c_(4), 2 * c_(5);
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(hessian).eigenvalues().cwiseAbs().maxCoeff() / scale_;
 }
 
 }  // namespace stampscan::fitting

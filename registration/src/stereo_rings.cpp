@@ -3,6 +3,7 @@
 #include "image_line_fit.hpp"
 #include "laser_raster.hpp"
 #include "stereo_common.hpp"
+#include "stampscan/fitting/quadric_patch.hpp"
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -277,20 +278,11 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
     // A ring bent over a tight radius is no plane, whatever the views say: the sheet's curvature
     // from a quadric through the neighbours' centres, and the ring's sagitta on it.
     if (near.size() >= 8) {
-      const Eigen::Matrix3d pca = fitting::frameAround(normal);
-      Eigen::MatrixXd A(static_cast<Eigen::Index>(near.size()), 6);
-      Eigen::VectorXd z(static_cast<Eigen::Index>(near.size()));
-      for (std::size_t i = 0; i < near.size(); ++i) {
-        const Vec3 d = near[i] - m.centre;
-        const double u = pca.col(0).dot(d), v = pca.col(1).dot(d);
-        A.row(static_cast<Eigen::Index>(i)) << 1, u, v, u * u, u * v, v * v;
-        z(static_cast<Eigen::Index>(i)) = pca.col(2).dot(d);
-      }
-      const Eigen::Matrix<double, 6, 1> c = A.colPivHouseholderQr().solve(z);
-      Eigen::Matrix2d hessian;
-      hessian << 2 * c(3), c(4), c(4), 2 * c(5);
-      const double curvature = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(hessian).eigenvalues().cwiseAbs().maxCoeff();
-      if (!(curvature * r0 * r0 / 2 < 0.06)) return;  // mm: 0.013 on a 60 mm dome, 0.2 over a 4 mm radius
+      fitting::QuadricPatch::Sums sums(fitting::frameAround(normal), m.centre, r0);
+      for (const Vec3& p : near) sums.add(p, 1.0);
+      const auto patch = fitting::QuadricPatch::fit(sums);
+      // mm: 0.013 on a 60 mm dome, 0.2 over a 4 mm radius
+      if (!patch || !(patch->maxCurvatureAtOrigin() * r0 * r0 / 2 < 0.06)) return;
     }
     const RingRays rays_left = raysOf(left[m.left], rig.left, poses.machine_from_left);
     const RingRays rays_right = raysOf(right[m.right], rig.right, poses.machine_from_right);

@@ -3,6 +3,7 @@
 #include "image_line_fit.hpp"
 #include "laser_raster.hpp"
 #include "stereo_common.hpp"
+#include "stampscan/fitting/quadric_patch.hpp"
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -10,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 namespace stampscan::registration {
@@ -195,27 +197,19 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
   std::vector<bool> consistent(out.size(), true);
   for (std::size_t k = 0; k < out.size(); ++k) {
     GridElement& g = out[k];
-    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
-    std::vector<Vec3> near;
+    fitting::QuadricPatch::Sums sums(fitting::frameAround(g.normal), g.position, params.pitch);
     for (const Vec3& X : all_nodes)
-      if ((X - g.position).norm() < 2.3 * params.pitch) near.push_back(X);
-    if (near.size() < 12) continue;
-    Eigen::MatrixXd A(static_cast<Eigen::Index>(near.size()), 6);
-    Eigen::VectorXd h(static_cast<Eigen::Index>(near.size()));
-    for (std::size_t i = 0; i < near.size(); ++i) {
-      const Vec3 d = near[i] - g.position;
-      const double u = frame.col(0).dot(d), v = frame.col(1).dot(d);
-      A.row(static_cast<Eigen::Index>(i)) << 1, u, v, u * u, u * v, v * v;
-      h(static_cast<Eigen::Index>(i)) = frame.col(2).dot(d);
-    }
-    const Eigen::Matrix<double, 6, 1> c = A.colPivHouseholderQr().solve(h);
+      if ((X - g.position).norm() < 2.3 * params.pitch) sums.add(X, 1.0);
+    if (sums.count() < 12) continue;
+    const auto patch = fitting::QuadricPatch::fit(sums);
+    const double offset = patch ? patch->heightAtOrigin() : std::numeric_limits<double>::quiet_NaN();
     // Over a 4 mm punch radius the offset is about 0.25 mm; more means the cell does not sit with
     // its neighbours (a wrong match, or a cell over a doubly curved corner): no element.
-    if (!std::isfinite(c(0)) || std::abs(c(0)) > 0.3) {
+    if (!std::isfinite(offset) || std::abs(offset) > 0.3) {
       consistent[k] = false;
       continue;
     }
-    g.position += c(0) * g.normal;
+    g.position += offset * g.normal;
   }
   std::vector<GridElement> kept;
   for (std::size_t k = 0; k < out.size(); ++k) {

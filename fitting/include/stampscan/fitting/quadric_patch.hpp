@@ -20,6 +20,8 @@ class QuadricPatch {
   class Sums {
    public:
     Sums(const LocalSurface& plane, const Vec3& origin, double scale);
+    // The same in a frame of one's own (columns t1, t2, n).
+    Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale);
     void add(const Vec3& p, double w);
     std::size_t count() const { return count_; }
 
@@ -45,6 +47,11 @@ class QuadricPatch {
   Vec3 normal(const Vec3& x) const;
   // Signed distance from x to the patch along its normal (first order).
   double signedDistance(const Vec3& x) const;
+  // Height of the patch above its origin, along the frame normal.
+  double heightAtOrigin() const { return c_(0) * scale_; }
+  // The larger principal curvature's magnitude at the origin (second derivatives of the height
+  // field; exact where the patch is level there).
+  double maxCurvatureAtOrigin() const;
   // Reverses the orientation (the surface stays the same).
   void flip();
   const Vec3& origin() const { return origin_; }
