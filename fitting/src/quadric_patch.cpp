@@ -112,10 +112,14 @@ void QuadricPatch::flip() {
   c_ = -c_;
 }
 
-double QuadricPatch::maxCurvatureAtOrigin() const {
+Eigen::Matrix2d QuadricPatch::hessianAtOrigin() const {
   Eigen::Matrix2d hessian;
   hessian << 2 * c_(3), c_(4), c_(4), 2 * c_(5);
-  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(hessian).eigenvalues().cwiseAbs().maxCoeff() / scale_;
+  return hessian / scale_;
+}
+
+double QuadricPatch::maxCurvatureAtOrigin() const {
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(hessianAtOrigin()).eigenvalues().cwiseAbs().maxCoeff();
 }
 
 }  // namespace stampscan::fitting

@@ -9,7 +9,13 @@
 
 namespace stampscan::registration::detail {
 
-Eigen::Vector2d ImageEllipse::point(double t) const { return centre + shape * Eigen::Vector2d(std::cos(t), std::sin(t)); }
+Eigen::Vector2d ImageEllipse::point(double t) const {
+  const Eigen::Vector2d u(std::cos(t), std::sin(t));
+  const double h = third.x() * std::cos(3 * t) + third.y() * std::sin(3 * t);
+  if (h == 0) return centre + shape * u;
+  // The outward normal at parameter t is along M^-1 u (M is symmetric).
+  return centre + shape * u + h * (shape.inverse() * u).normalized();
+}
 
 double ImageEllipse::distance(const Eigen::Vector2d& x) const {
   // rho = |M^-1 (x - c)| is 1 on the curve; dividing rho - 1 by its gradient's length turns it into
@@ -19,38 +25,64 @@ double ImageEllipse::distance(const Eigen::Vector2d& x) const {
   const double rho = u.norm();
   if (rho < 1e-9) return -meanRadius();
   const double slope = (inverse * u).norm() / rho;
-  return (rho - 1) / slope;
+  const double ct = u.x() / rho, st = u.y() / rho;  // of t, u's angle
+  return (rho - 1) / slope - third.x() * ct * (4 * ct * ct - 3) - third.y() * st * (3 - 4 * st * st);
 }
 
 double ImageEllipse::meanRadius() const { return std::sqrt(std::max(0.0, shape.determinant())); }
 
 namespace {
 
+// Where a pixel lies against the line: its signed distance d from the centre line (positive
+// outside), the line's width there against its mean, and the line's curvature there (1/px).
+//
+// The curvature matters because the blur bends the profile: a thin ring of radius R blurred by a
+// Gaussian of width s is darkest not on the ring but s^2 / (2 R) inside it (its profile across is
+// the Gaussian times 1 / sqrt(rho), the 2D spread of a curved line). At the cameras' blur that is
+// 0.1 % of the ring, all one way, so the model's profile is centred there: P(d + s^2 curvature / 2).
+struct Where {
+  double d = 0, width_scale = 1, curvature = 0;
+};
+
 // The geometry the fit moves: a parameter vector, and where a pixel lies against the line.
 struct RingGeometry {
-  static constexpr int N = 5;  // centre x, y; M11, M12, M22
+  static constexpr int N = 7;  // centre x, y; M11, M12, M22; the third harmonic's a, b
   ImageEllipse e;
   Eigen::Matrix2d inverse = e.shape.inverse();
-  std::array<double, N> get() const { return {e.centre.x(), e.centre.y(), e.shape(0, 0), e.shape(0, 1), e.shape(1, 1)}; }
+  std::array<double, N> get() const {
+    return {e.centre.x(), e.centre.y(), e.shape(0, 0), e.shape(0, 1), e.shape(1, 1), e.third.x(), e.third.y()};
+  }
   void set(const std::array<double, N>& p) {
     e.centre = {p[0], p[1]};
     e.shape << p[2], p[3], p[3], p[4];
+    e.third = {p[5], p[6]};
     inverse = e.shape.inverse();
   }
   // The signed distance d, and how wide the line is there against the ring's mean (an affine image of
   // the printed annulus is widest across the major axis's ends), with their slopes in the
   // parameters when asked. With A = M^-1, u = A (x - c), rho = |u|, v = A u, g = |v| / rho:
-  // d = (rho - 1) / g, width_scale = 1 / (g sqrt(det M)).
-  void locate(const Eigen::Vector2d& x, double& d, double& width_scale, double* dd = nullptr,
-              double* dscale = nullptr) const {
+  // d = (rho - 1) / g - h(t), t = atan2(u), width_scale = 1 / (g sqrt(det M)). The harmonic's
+  // dependence on t is left out of the ellipse's slopes: h is a fraction of a pixel, and t moves
+  // with the centre by 1 / radius, so the slopes it adds are a few per cent of theirs.
+  void locate(const Eigen::Vector2d& x, Where& at, double* dd = nullptr, double* dscale = nullptr) const {
     const Eigen::Vector2d u = inverse * (x - e.centre);
     const double rho = std::max(1e-9, u.norm());
     const Eigen::Vector2d v = inverse * u;
     const double vn = std::max(1e-12, v.norm());
     const double g = vn / rho, mean = e.meanRadius();
-    d = (rho - 1) / g;
-    width_scale = 1 / (g * mean);
+    // t is u's angle; cos 3t and sin 3t from its cosine and sine, without trigonometry.
+    const double ct = u.x() / rho, st = u.y() / rho;
+    const double c3 = ct * (4 * ct * ct - 3), s3 = st * (3 - 4 * st * st);
+    at.d = (rho - 1) / g - e.third.x() * c3 - e.third.y() * s3;
+    at.width_scale = 1 / (g * mean);
+    // The ellipse's curvature at t: det M / |M u'(t)|^3.
+    const double speed = (e.shape * Eigen::Vector2d(-st, ct)).norm();
+    at.curvature = e.shape.determinant() / std::max(1e-9, speed * speed * speed);
+    const double width_scale = at.width_scale;
     if (!dd) return;
+    dd[5] = -c3;
+    dd[6] = -s3;
+    dscale[5] = dscale[6] = 0;
     const Eigen::Matrix2d A2 = inverse * inverse;
     const auto slopes = [&](const Eigen::Vector2d& du, const Eigen::Vector2d& dv, double dlog_mean, int k) {
       const double drho = u.dot(du) / rho;
@@ -71,7 +103,9 @@ struct RingGeometry {
       slopes(du, dv, 0.5 * (inverse * E).trace(), 2 + k);
     }
   }
-  bool plausible() const { return e.shape.determinant() > 0 && e.shape.trace() > 0; }
+  bool plausible() const {
+    return e.shape.determinant() > 0 && e.shape.trace() > 0 && e.third.norm() < 0.1 * e.meanRadius();
+  }
 };
 
 struct StraightGeometry {
@@ -83,10 +117,10 @@ struct StraightGeometry {
     l.normal = {std::cos(p[0]), std::sin(p[0])};
     l.offset = p[1] + l.normal.dot(anchor);
   }
-  void locate(const Eigen::Vector2d& x, double& d, double& width_scale, double* dd = nullptr,
-              double* dscale = nullptr) const {
-    d = l.distance(x);
-    width_scale = 1;
+  void locate(const Eigen::Vector2d& x, Where& at, double* dd = nullptr, double* dscale = nullptr) const {
+    at.d = l.distance(x);
+    at.width_scale = 1;
+    at.curvature = 0;
     if (!dd) return;
     const Eigen::Vector2d r = x - anchor;
     dd[0] = -l.normal.y() * r.x() + l.normal.x() * r.y();
@@ -133,10 +167,10 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
   const double s0 = 0.8;
   std::vector<double> sheet, ink;
   for (const Sample& q : samples) {
-    double d = 0, width_scale = 1;
-    geometry.locate(q.x, d, width_scale);
-    if (std::abs(d) > 0.5 * line_px * width_scale + 2.5 * s0) sheet.push_back(q.value);
-    else if (std::abs(d) < 0.25 * line_px * width_scale) ink.push_back(q.value);
+    Where at;
+    geometry.locate(q.x, at);
+    if (std::abs(at.d) > 0.5 * line_px * at.width_scale + 2.5 * s0) sheet.push_back(q.value);
+    else if (std::abs(at.d) < 0.25 * line_px * at.width_scale) ink.push_back(q.value);
   }
   if (sheet.size() < 8 || ink.size() < 4) return result;
   const double level = median(sheet);
@@ -148,14 +182,13 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
     for (int i = 0; i < G; ++i) p(i) = g[static_cast<std::size_t>(i)];
     p.template tail<6>() << level, 0, 0, std::clamp((1 - median(ink) / level) / peak, 0.05, 1.0), s0, line_px;
   }
-  struct Located {
-    double d, width_scale;
-  };
+  using Located = Where;
   const auto model = [&](const Vector& q, const Sample& sample, const Located& at) {
     const Eigen::Vector2d r = (sample.x - origin) / scale;
     const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
     const double half = 0.5 * q(W) * at.width_scale;
-    return sheet_level * (1 - q(K) * (cdf((at.d + half) / q(S)) - cdf((at.d - half) / q(S))));
+    const double d = at.d + 0.5 * q(S) * q(S) * at.curvature;  // see Where::curvature
+    return sheet_level * (1 - q(K) * (cdf((d + half) / q(S)) - cdf((d - half) / q(S))));
   };
   const auto evaluate = [&](const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Located>* where) {
     std::array<double, G> g;
@@ -165,7 +198,7 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
     if (where) where->resize(samples.size());
     for (std::size_t i = 0; i < samples.size(); ++i) {
       Located at{};
-      geom.locate(samples[i].x, at.d, at.width_scale);
+      geom.locate(samples[i].x, at);
       residual[i] = samples[i].value - model(q, samples[i], at);
       if (where) (*where)[i] = at;
     }
@@ -202,22 +235,24 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
       const Eigen::Vector2d r = (samples[i].x - origin) / scale;
       const Located& at = located[i];
       const double half = 0.5 * p(W) * at.width_scale;
-      const double zp = (at.d + half) / p(S), zm = (at.d - half) / p(S);
+      const double d = at.d + 0.5 * p(S) * p(S) * at.curvature;
+      const double zp = (d + half) / p(S), zm = (d - half) / p(S);
       const double cover = cdf(zp) - cdf(zm);
       const double sheet_level = p(L0) + p(LX) * r.x() + p(LY) * r.y();
       const double dm_dcover = -sheet_level * p(K);
       const double dm_dd = dm_dcover * (gauss(zp) - gauss(zm)) / p(S);
       const double dm_dhalf = dm_dcover * (gauss(zp) + gauss(zm)) / p(S);
       Vector J;
-      double dd[G], dscale[G], d_unused = 0, scale_unused = 0;
-      geom.locate(samples[i].x, d_unused, scale_unused, dd, dscale);
+      double dd[G], dscale[G];
+      Where unused;
+      geom.locate(samples[i].x, unused, dd, dscale);
       for (int j = 0; j < G; ++j) J(j) = dm_dd * dd[j] + dm_dhalf * 0.5 * p(W) * dscale[j];
       const double shade = 1 - p(K) * cover;
       J(L0) = shade;
       J(LX) = shade * r.x();
       J(LY) = shade * r.y();
       J(K) = -sheet_level * cover;
-      J(S) = -dm_dcover * (zp * gauss(zp) - zm * gauss(zm)) / p(S);
+      J(S) = -dm_dcover * (zp * gauss(zp) - zm * gauss(zm)) / p(S) + dm_dd * p(S) * at.curvature;
       J(W) = dm_dhalf * 0.5 * at.width_scale;
       H.template selfadjointView<Eigen::Lower>().rankUpdate(J, weight[i]);
       b += weight[i] * residual[i] * J;

@@ -9,9 +9,10 @@
 //
 // The model of the image near the line, at pixel x a signed distance d(x) from the centre line
 // (for a ring, the affine image of a circle, d is exact on the curve and to first order off it):
-//   I(x) = L(x) * (1 - k * P(d)),  P(d) = Phi((d + w/2) / s) - Phi((d - w/2) / s)
+//   I(x) = L(x) * (1 - k * P(d + s^2 c / 2)),  P(d) = Phi((d + w/2) / s) - Phi((d - w/2) / s)
 // the sheet's level L (a plane over the patch: the ring light falls off), the ink's contrast k, the
-// line's width w and its blur s (optics plus the pixel's own box). A ring's line is the affine image
+// line's width w and its blur s (optics plus the pixel's own box); c is the line's curvature, for
+// the blur draws a curved line's profile inwards by s^2 c / 2 (0.1 % of a ring's radius). A ring's line is the affine image
 // of the printed annulus, so its width varies around it: w is the width at the ring's mean radius,
 // scaled at each pixel. Levenberg-Marquardt over the geometry and the six photometric values, with
 // Tukey weights so a speck or an undetected neighbour's line does not pull. The model must fit: the
@@ -26,15 +27,23 @@
 
 namespace stampscan::registration::detail {
 
-// An ellipse in the image: the unit circle mapped by a symmetric positive definite M and moved to
-// the centre (every ellipse is one; unlike axes and an angle, nothing degenerates for a circle).
+// A ring's line in the image: the unit circle mapped by a symmetric positive definite M and moved to
+// the centre (every ellipse is one; unlike axes and an angle, nothing degenerates for a circle),
+// then moved along its normal by a third harmonic h(t) = a cos 3t + b sin 3t.
+//
+// Why the harmonic: a printed circle is an ellipse on the sheet only where the sheet is flat and
+// strained evenly. Bent over a radius it leaves its plane, and a camera that sees it obliquely sees
+// that as a third-harmonic wobble (the height varies as cos 2t, seen sideways: cos t cos 2t); a
+// strain gradient across it does the same. On the pan's walls that is 0.1-0.2 px, and an ellipse
+// fitted through it is off by about 0.7 % in either axis, differently in each camera.
 struct ImageEllipse {
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   Eigen::Matrix2d shape = Eigen::Matrix2d::Identity();  // M: x = centre + M (cos t, sin t)
+  Eigen::Vector2d third = Eigen::Vector2d::Zero();      // (a, b) of h(t), px
   Eigen::Vector2d point(double t) const;
   // Signed distance of x from the curve, to first order (exact for a circle): positive outside.
   double distance(const Eigen::Vector2d& x) const;
-  double meanRadius() const;  // sqrt(a b)
+  double meanRadius() const;  // sqrt(det M), of the ellipse
 };
 
 // A straight line in the image: the points x with normal . x = offset (normal of unit length).

@@ -34,28 +34,44 @@ RingRays raysOf(const ImageRing& ring, const CameraModel& cam, const Eigen::Isom
   return r;
 }
 
-struct RingPlane {
+// The sheet under a ring: a quadric w = u^T K u / 2 over the tangent plane at `origin`, with K the
+// sheet's curvature from the neighbours; K = 0 is the plane.
+struct RingSurface {
   Vec3 origin;
-  Eigen::Matrix3d frame;  // columns: in-plane axes, normal
+  Eigen::Matrix3d frame;  // columns: tangent axes, normal
+  Eigen::Matrix2d curvature = Eigen::Matrix2d::Zero();
 };
 
-// Every `stride`-th ray cast onto the plane, in its 2D coordinates.
-std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingPlane& plane, std::size_t stride) {
-  const Vec3 n = plane.frame.col(2);
+// Every `stride`-th ray cast onto the surface, in the surface's own coordinates: the tangent-plane
+// coordinates of the hit, stretched by the arc over the chord (a normal section w = k s^2 / 2 is
+// s (1 + k^2 s^2 / 6) long), so that a printed circle stays the ellipse of its stretches however
+// the sheet is bent.
+std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingSurface& surface, std::size_t stride) {
+  const Eigen::Matrix2d& K = surface.curvature;
+  const Vec3 p = surface.frame.transpose() * (rays.origin - surface.origin);
   std::vector<Eigen::Vector2d> out;
   for (std::size_t i = 0; i < rays.directions.size(); i += stride) {
-    const Vec3& d = rays.directions[i];
-    const Vec3 X = rays.origin + ((plane.origin - rays.origin).dot(n) / d.dot(n)) * d - plane.origin;
-    out.emplace_back(plane.frame.col(0).dot(X), plane.frame.col(1).dot(X));
+    const Vec3 e = surface.frame.transpose() * rays.directions[i];
+    double t = -p.z() / e.z();  // the tangent plane's hit, then Newton on the quadric
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d u = p.head<2>() + t * e.head<2>();
+      const double f = p.z() + t * e.z() - 0.5 * u.dot(K * u), slope = e.z() - u.dot(K * e.head<2>());
+      if (std::abs(slope) < 1e-9) break;  // a ray grazing the sheet: keep the last hit
+      t -= f / slope;
+    }
+    const Eigen::Vector2d u = p.head<2>() + t * e.head<2>();
+    const double s2 = u.squaredNorm();
+    const double k = s2 > 0 ? u.dot(K * u) / s2 : 0.0;  // normal curvature along u
+    out.push_back(u * (1 + k * k * s2 / 6));
   }
   return out;
 }
 
 // The cast ellipse as centre and shape matrix M (x = c + M (cos t, sin t)): what two views must
 // agree on.
-bool castEllipse(const RingRays& rays, const RingPlane& plane, Eigen::Matrix<double, 5, 1>& out) {
+bool castEllipse(const RingRays& rays, const RingSurface& surface, Eigen::Matrix<double, 5, 1>& out) {
   std::vector<cv::Point2f> pts;
-  for (const auto& q : castOnto(rays, plane, 6)) pts.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+  for (const auto& q : castOnto(rays, surface, 6)) pts.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
   if (pts.size() < 6) return false;
   // Single precision would round at 1e-7 of the coordinates, well below the 1e-4 mm that matter.
   const cv::RotatedRect box = cv::fitEllipseDirect(pts);
@@ -67,27 +83,31 @@ bool castEllipse(const RingRays& rays, const RingPlane& plane, Eigen::Matrix<dou
   return true;
 }
 
-// Gauss-Newton over the plane's tilt (two angles) and offset along the start normal, starting from
-// the plane through `centre` with `normal`; `radius` is the printed circle's. Empty when the views
-// do not agree on one ellipse.
-std::optional<RingPlane> ringPlane(const RingRays& left, const RingRays& right, const Vec3& centre, const Vec3& normal,
-                                   double radius) {
+// Gauss-Newton over the surface's tilt (two angles) and offset along the start normal, starting from
+// the tangent plane through `centre` with `normal`; `curvature` is the sheet's there, in the axes of
+// fitting::frameAround(normal), and `radius` the printed circle's. Empty when the views do not agree
+// on one ellipse.
+std::optional<RingSurface> ringSurface(const RingRays& left, const RingRays& right, const Vec3& centre,
+                                       const Vec3& normal, const Eigen::Matrix2d& curvature, double radius) {
   const Eigen::Matrix3d start = fitting::frameAround(normal);
-  const auto planeOf = [&](const Eigen::Vector3d& q) {
+  // The tilt is a few degrees at most, so the curvature keeps its axes (an error of the tilt's order
+  // in a term that is itself small).
+  const auto surfaceOf = [&](const Eigen::Vector3d& q) {
     const Vec3 n = (normal + q(0) * start.col(0) + q(1) * start.col(1)).normalized();
     const Vec3 e1 = (start.col(0) - start.col(0).dot(n) * n).normalized();
-    RingPlane p;
+    RingSurface p;
     p.origin = centre + q(2) * normal;
     p.frame.col(0) = e1;
     p.frame.col(1) = n.cross(e1);
     p.frame.col(2) = n;
+    p.curvature = curvature;
     return p;
   };
   // Residuals: the two ellipses' difference (mm), and a weak pull of the tilt to the start (0.002 mm
   // per radian: a tilt the views can see costs far more).
   constexpr double kTiltPrior = 0.002;
   const auto residual = [&](const Eigen::Vector3d& q, Eigen::Matrix<double, 7, 1>& r) {
-    const RingPlane p = planeOf(q);
+    const RingSurface p = surfaceOf(q);
     Eigen::Matrix<double, 5, 1> l, rr;
     if (!castEllipse(left, p, l) || !castEllipse(right, p, rr)) return false;
     // Relative to the cast ellipses' size: in millimetres, turning the plane to face the cameras
@@ -121,14 +141,14 @@ std::optional<RingPlane> ringPlane(const RingRays& left, const RingRays& right, 
     if (std::abs(delta(2)) < 1e-5 && delta.head<2>().norm() < 1e-6) break;
   }
   // Agreement to 1 % of the ring, more where a camera sees the plane obliquely (the image's error is
-  // stretched by 1 / cos on it); otherwise the match is wrong or the ring is no plane.
-  const RingPlane plane = planeOf(q);
-  const Vec3 n = plane.frame.col(2);
-  const double cos_left = std::abs(n.dot((plane.origin - left.origin).normalized()));
-  const double cos_right = std::abs(n.dot((plane.origin - right.origin).normalized()));
+  // stretched by 1 / cos on it); otherwise the match is wrong or the sheet is not as assumed.
+  const RingSurface surface = surfaceOf(q);
+  const Vec3 n = surface.frame.col(2);
+  const double cos_left = std::abs(n.dot((surface.origin - left.origin).normalized()));
+  const double cos_right = std::abs(n.dot((surface.origin - right.origin).normalized()));
   const double allowed = 0.01 / std::max(0.5, std::min(cos_left, cos_right));
   if (r.head<5>().cwiseAbs().maxCoeff() > allowed || q.head<2>().norm() > 1.2) return std::nullopt;
-  return plane;
+  return surface;
 }
 
 }  // namespace
@@ -253,10 +273,11 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       left_image, right_image, [&](const cv::Mat& image) { return detectImageRings(image, radius_px, params); }, rig,
       poses, prior, radius_px, st);
 
-  // Each ring's plane from both views: a planar circle seen by two cameras is the plane where the
-  // two images' lines, cast onto it, become the same ellipse. Its depth shows in the centres' offset,
-  // its tilt across the baseline in the two ellipses' different foreshortening; the tilt along the
-  // baseline hardly shows, so it stays near the start, the plane through the triangulated neighbours.
+  // Each ring's sheet from both views: a printed circle seen by two cameras lies on the surface
+  // where the two images' lines, cast onto it, become the same ellipse. Its depth shows in the
+  // centres' offset, its tilt across the baseline in the two ellipses' different foreshortening; the
+  // tilt along the baseline hardly shows, so it stays near the start, the plane through the
+  // triangulated neighbours. The surface's curvature comes from the neighbours too.
   const double r0 = params.printed_radius;
   const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
   std::vector<std::optional<GridElement>> measured(matches.size());
@@ -275,34 +296,40 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
       const Vec3 axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
       normal = axis.dot(eyes - m.centre) < 0 ? Vec3(-axis) : axis;
     }
-    // A ring bent over a tight radius is no plane, whatever the views say: the sheet's curvature
-    // from a quadric through the neighbours' centres, and the ring's sagitta on it.
+    // The sheet's curvature from a quadric through the neighbours' centres: the ring is cast onto it.
+    Eigen::Matrix2d curvature = Eigen::Matrix2d::Zero();
     if (near.size() >= 8) {
       fitting::QuadricPatch::Sums sums(fitting::frameAround(normal), m.centre, r0);
       for (const Vec3& p : near) sums.add(p, 1.0);
       const auto patch = fitting::QuadricPatch::fit(sums);
-      // mm: 0.013 on a 60 mm dome, 0.2 over a 4 mm radius
+      // A ring bent over a tight radius is left out all the same: its sagitta on the sheet (mm: 0.013
+      // on a 60 mm dome, 0.2 over a 4 mm radius) is then comparable with the views' disagreement, and
+      // the quadric through centres a pitch apart no longer describes the sheet under it.
       if (!patch || !(patch->maxCurvatureAtOrigin() * r0 * r0 / 2 < 0.06)) return;
+      curvature = patch->hessianAtOrigin();
     }
     const RingRays rays_left = raysOf(left[m.left], rig.left, poses.machine_from_left);
     const RingRays rays_right = raysOf(right[m.right], rig.right, poses.machine_from_right);
-    const std::optional<RingPlane> plane = ringPlane(rays_left, rays_right, m.centre, normal, r0);
-    if (!plane) return;
+    const std::optional<RingSurface> surface = ringSurface(rays_left, rays_right, m.centre, normal, curvature, r0);
+    if (!surface) return;
     // Both views' points, unless one camera sees the ring much more obliquely than the other: its
-    // image error, stretched by 1 / cos on the plane, would only add noise to the better view's.
-    const Vec3 n = plane->frame.col(2);
-    const double cos_left = std::abs(n.dot((plane->origin - rays_left.origin).normalized()));
-    const double cos_right = std::abs(n.dot((plane->origin - rays_right.origin).normalized()));
+    // image error, stretched by 1 / cos on the sheet, would only add noise to the better view's.
+    const Vec3 n = surface->frame.col(2);
+    const double cos_left = std::abs(n.dot((surface->origin - rays_left.origin).normalized()));
+    const double cos_right = std::abs(n.dot((surface->origin - rays_right.origin).normalized()));
     std::vector<Eigen::Vector2d> points;
-    if (cos_left >= 0.8 * cos_right) points = castOnto(rays_left, *plane, 1);
+    if (cos_left >= 0.8 * cos_right) points = castOnto(rays_left, *surface, 1);
     if (cos_right >= 0.8 * cos_left) {
-      const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *plane, 1);
+      const std::vector<Eigen::Vector2d> points_right = castOnto(rays_right, *surface, 1);
       points.insert(points.end(), points_right.begin(), points_right.end());
     }
+    // The points must lie on one ellipse to half the laser's limit (10 um by default, 0.8 % of the
+    // ring): a ring seen well by both cameras scatters by 1-2 um, one seen too obliquely or across a
+    // fold by ten times that, and measures its strain ten times worse.
     detail::PlaneEllipse e;
-    if (!detail::fitEllipseRobust(points, e) || e.rms > 2.5 * params.max_fit_rms) return;
+    if (!detail::fitEllipseRobust(points, e) || e.rms > 0.5 * params.max_fit_rms) return;
     GridElement g;  // the line's centre: the printed circle itself, so no scaling
-    if (!detail::elementFromEllipse(e, 1.0, plane->frame, plane->origin, params, g)) return;
+    if (!detail::elementFromEllipse(e, 1.0, surface->frame, surface->origin, params, g)) return;
     g.source = Source::Stereo;
     g.view = view;
     measured[k] = g;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 namespace {
 
@@ -36,6 +37,26 @@ TEST(QuadricPatchReadings, CurvatureOfASphereIsOneOverItsRadius) {
 TEST(QuadricPatchReadings, HeightAtTheOriginIsTheSurfaceBelowIt) {
   const QuadricPatch p = sphereCap(60.0, 0.05);  // origin 0.05 mm above the pole
   EXPECT_NEAR(p.heightAtOrigin(), -0.05, 1e-3);
+}
+
+TEST(QuadricPatchReadings, HessianOfACylinderBendsOnlyAcrossItsAxis) {
+  // A cylinder of radius 10 mm whose axis runs at 30 degrees to the frame's first axis: the
+  // Hessian is -(1/R) a a^T, with a the unit vector across the axis.
+  const double R = 10, angle = std::numbers::pi / 6;
+  const Eigen::Vector2d along(std::cos(angle), std::sin(angle)), across(-std::sin(angle), std::cos(angle));
+  QuadricPatch::Sums sums(Eigen::Matrix3d::Identity(), Vec3::Zero(), 2.54);
+  for (int i = -2; i <= 2; ++i)
+    for (int j = -2; j <= 2; ++j) {
+      const Eigen::Vector2d xy(1.27 * i, 1.27 * j);
+      const double s = xy.dot(across);
+      sums.add(Vec3(xy.x(), xy.y(), std::sqrt(R * R - s * s) - R), 1.0);
+    }
+  const auto p = QuadricPatch::fit(sums);
+  ASSERT_TRUE(p.has_value());
+  const Eigen::Matrix2d expected = -(1 / R) * across * across.transpose();
+  EXPECT_LT((p->hessianAtOrigin() - expected).cwiseAbs().maxCoeff(), 0.002) << p->hessianAtOrigin();
+  // The quartic term leaks a little into the quadric where the grid is not aligned with the axis.
+  EXPECT_NEAR(along.dot(p->hessianAtOrigin() * along), 0.0, 0.01 / R);
 }
 
 TEST(QuadricPatchReadings, APlaneHasNoCurvature) {

@@ -33,11 +33,14 @@ struct StereoMeasured {
 };
 
 // An element is in full view of a pair when a circle a little wider than its ring lies inside both
-// images (clear of the border) and neither camera's rays to it meet the part first.
+// images (clear of the border), neither camera's rays to it meet the part first, and both cameras
+// see it within 60 degrees of its normal. Beyond that a ring's minor axis is under half its size
+// and its line under a pixel wide in the image: such a wall is left to another view, or the laser.
 bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& normal,
                 const sim::CameraIntrinsics* cams[2], const Eigen::Isometry3d poses[2], double reach) {
   const Eigen::Matrix3d frame = fitting::frameAround(normal);
   for (int c = 0; c < 2; ++c) {
+    if (normal.dot((poses[c].translation() - position).normalized()) < 0.5) return false;
     const Eigen::Isometry3d camera_from_machine = poses[c].inverse();
     for (int k = 0; k < 8; ++k) {
       const double th = 2 * std::numbers::pi * k / 8;
@@ -54,13 +57,25 @@ bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, co
   return true;
 }
 
-StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind grid = sim::GridKind::Circle) {
+// Where the pair looks: the quick session's two views over the middle of the part, or one view of
+// a full session's outer corner, which stands out and tilts 20 degrees inwards over the pan's
+// corner, its walls and its doubly curved radii.
+enum class Views { Middle, Corner };
+
+StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind grid = sim::GridKind::Circle,
+                         Views views = Views::Middle) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
   p.grid.kind = grid;
   p.laser = p.calibration = false;
   p.image_scale = 1.0;
   p.seed = seed;
+  if (views == Views::Corner) {
+    // A one-view plan over this region stands where the full session's 3 x 3 plan puts its corner
+    // view, (-48, -36) on the pan, and tilts as far.
+    p.scan_region = {sim::Vec2(-64, -48), sim::Vec2(-32, -24)};
+    p.stereo_rows = p.stereo_columns = 1;
+  }
   test_support::DecodedSession s;
   const sim::ScanSummary summary = sim::generateScan(p, s);
   const sim::CellTruth& truth = summary.truth;
@@ -142,8 +157,8 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind g
 
 // The goals of the registration issue: position RMS <= 0.05 mm, thickness strain RMS <= 0.005, no
 // false elements, and 99 % of the elements in full view found.
-void expectGoals(const StereoMeasured& m) {
-  EXPECT_GT(m.found, 2000u);
+void expectGoals(const StereoMeasured& m, std::size_t at_least = 2000) {
+  EXPECT_GT(m.found, at_least);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
   EXPECT_LE(m.strain_rms, 0.005);
@@ -154,6 +169,12 @@ TEST(StereoRings, DomeElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::
 
 // The pan's walls are seen at up to 60 degrees and its radii bend rings out of their plane.
 TEST(StereoRings, PanElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::PartKind::Pan, 42)); }
+
+// Rings there are bent and strained unevenly, so no longer ellipses in the images: the line model's
+// third harmonic follows them, and each is cast onto the curved sheet.
+TEST(StereoRings, PanCornerViewElementsMatchTheGroundTruth) {
+  expectGoals(runStereo(sim::PartKind::Pan, 45, sim::GridKind::Circle, Views::Corner), 700);
+}
 
 TEST(StereoSquares, DomeCellsMatchTheGroundTruth) {
   expectGoals(runStereo(sim::PartKind::Dome, 43, sim::GridKind::Square));

@@ -52,6 +52,9 @@ class QuadricPatch {
   // The larger principal curvature's magnitude at the origin (second derivatives of the height
   // field; exact where the patch is level there).
   double maxCurvatureAtOrigin() const;
+  // The height field's second derivatives at the origin (1/mm), in the frame's tangent axes: the
+  // second fundamental form where the patch is level there.
+  Eigen::Matrix2d hessianAtOrigin() const;
   // Reverses the orientation (the surface stays the same).
   void flip();
   const Vec3& origin() const { return origin_; }
