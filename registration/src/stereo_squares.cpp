@@ -30,6 +30,22 @@ double signedArea(const Points& p) {
   return 0.5 * a;
 }
 
+// The deformation gradient F of a cell whose corners `q` (about their centroid) were printed at
+// `square` (centred, sum s s^T = pitch^2 I): q = F s in the least-squares sense. `misfit`, when
+// asked, is the corners' RMS distance from that affine image.
+Eigen::Matrix2d deformationGradient(const std::array<Eigen::Vector2d, 4>& q, const std::array<Eigen::Vector2d, 4>& square,
+                                    double pitch, double* misfit) {
+  Eigen::Matrix2d F = Eigen::Matrix2d::Zero();
+  for (std::size_t i = 0; i < 4; ++i) F += q[i] * square[i].transpose();
+  F /= pitch * pitch;
+  if (misfit) {
+    double sum = 0;
+    for (std::size_t i = 0; i < 4; ++i) sum += 0.25 * (q[i] - F * square[i]).squaredNorm();
+    *misfit = std::sqrt(sum);
+  }
+  return F;
+}
+
 // The interior's outline as a quadrilateral: the coarsest polygon approximation with four corners.
 std::optional<std::array<Eigen::Vector2d, 4>> quadrilateralOf(const std::vector<cv::Point>& hull) {
   const double perimeter = cv::arcLength(hull, true);
@@ -122,6 +138,7 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
   const std::array<Eigen::Vector2d, 4> square{Eigen::Vector2d(-half, -half), Eigen::Vector2d(half, -half),
                                               Eigen::Vector2d(half, half), Eigen::Vector2d(-half, half)};
   std::vector<GridElement> out;
+  std::vector<std::array<Eigen::Vector2d, 4>> corners;  // each element's nodes about its centre, in its plane
   std::vector<Vec3> all_nodes;      // every cell's triangulated nodes, for the surface at each centre
   for (const detail::StereoMatch& m : matches) {
     const ImageCell& L = left[m.left];
@@ -168,21 +185,18 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
     std::array<Eigen::Vector2d, 4> q;
     for (std::size_t i = 0; i < 4; ++i) q[i] = {frame.col(0).dot(nodes[i] - centre), frame.col(1).dot(nodes[i] - centre)};
     if (signedArea(q) < 0) std::swap(q[1], q[3]);  // the same cycle, run the other way
-    // q = t + F s in the least squares sense; the corners s are centred and sum s s^T = p^2 I.
     Eigen::Vector2d t = Eigen::Vector2d::Zero();
     for (const auto& x : q) t += 0.25 * x;
-    Eigen::Matrix2d F = Eigen::Matrix2d::Zero();
-    for (std::size_t i = 0; i < 4; ++i) F += (q[i] - t) * square[i].transpose();
-    F /= params.pitch * params.pitch;
+    for (auto& x : q) x -= t;
     double misfit = 0;
-    for (std::size_t i = 0; i < 4; ++i) misfit += 0.25 * (q[i] - t - F * square[i]).squaredNorm();
-    misfit = std::sqrt(misfit);
+    const Eigen::Matrix2d F = deformationGradient(q, square, params.pitch, &misfit);
     GridElement g;
     if (misfit > 0.03 || !detail::elementFromStretch(F * F.transpose(), frame, params, g)) {
       ++st.rejected_fit;
       continue;
     }
     g.position = centre + t.x() * frame.col(0) + t.y() * frame.col(1);
+    corners.push_back(q);
     g.fit_rms = misfit;
     g.edge_points = 8;  // two images' four nodes
     g.source = Source::Stereo;
@@ -192,8 +206,9 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
     ++st.matched;
   }
   // The four nodes span a chord plane: where the sheet bends, the cell's centre on the surface lies
-  // off it (0.03 mm on a 60 mm dome, 0.4 mm over a 4 mm punch radius). A quadric height field
-  // through the nodes of the cell and its neighbours gives the surface there.
+  // off it (0.03 mm on a 60 mm dome, 0.4 mm over a 4 mm punch radius), and its sides are arcs
+  // longer than the chords between the nodes (1 % over a 5 mm radius). A quadric height field
+  // through the nodes of the cell and its neighbours gives the surface there and its curvature.
   std::vector<bool> consistent(out.size(), true);
   for (std::size_t k = 0; k < out.size(); ++k) {
     GridElement& g = out[k];
@@ -210,6 +225,22 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
       continue;
     }
     g.position += offset * g.normal;
+    // Each node's distance from the centre as the arc of the normal section through it: a chord
+    // rho of a section of curvature k is the arc rho (1 + k^2 rho^2 / 6) projected.
+    const Eigen::Matrix2d K = patch->hessianAtOrigin();
+    std::array<Eigen::Vector2d, 4> arcs = corners[k];
+    for (auto& x : arcs) {
+      const double r2 = x.squaredNorm(), kn = r2 > 0 ? x.dot(K * x) / r2 : 0.0;
+      x *= 1 + kn * kn * r2 / 6;
+    }
+    const Eigen::Matrix2d F = deformationGradient(arcs, square, params.pitch, nullptr);
+    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
+    GridElement bent = g;
+    if (!detail::elementFromStretch(F * F.transpose(), frame, params, bent)) {
+      consistent[k] = false;
+      continue;
+    }
+    g = bent;
   }
   std::vector<GridElement> kept;
   for (std::size_t k = 0; k < out.size(); ++k) {

@@ -182,5 +182,9 @@ TEST(StereoSquares, DomeCellsMatchTheGroundTruth) {
 TEST(StereoSquares, PanCellsMatchTheGroundTruth) {
   expectGoals(runStereo(sim::PartKind::Pan, 44, sim::GridKind::Square));
 }
+// A cell's sides over the radii are arcs, longer than the chords between its nodes.
+TEST(StereoSquares, PanCornerViewCellsMatchTheGroundTruth) {
+  expectGoals(runStereo(sim::PartKind::Pan, 46, sim::GridKind::Square, Views::Corner), 700);
+}
 
 }  // namespace
