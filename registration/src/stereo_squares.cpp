@@ -46,6 +46,34 @@ Eigen::Matrix2d deformationGradient(const std::array<Eigen::Vector2d, 4>& q, con
   return F;
 }
 
+// The cell's centre from the nodes around it. The centroid of its four nodes is off the centre
+// wherever the map from the blank to the part is not affine across the cell: towards the inside of
+// a bend, and along a strain gradient (up to 0.05 mm on the pan's walls). The nodes within reach,
+// put on the printed lattice through the cell's own F (their material offsets, in pitches, are
+// odd halves), give that map to second order, X(s) = c + A s + s^T H s terms; its value at the
+// printed centre is c. Empty when the nodes around do not pin the quadratic down.
+std::optional<Vec3> centreOnLattice(const std::vector<Vec3>& nodes, const Vec3& centroid, const Eigen::Matrix3d& frame,
+                                    const Eigen::Matrix2d& F, double pitch) {
+  const Eigen::Matrix2d to_material = F.inverse() / pitch;
+  Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 3> rhs = Eigen::Matrix<double, 6, 3>::Zero();
+  for (const Vec3& X : nodes) {
+    if ((X - centroid).norm() > 2.3 * pitch) continue;
+    const Vec3 local = frame.transpose() * (X - centroid);
+    const Eigen::Vector2d s = to_material * local.head<2>();
+    const Eigen::Vector2d lattice(std::round(s.x() - 0.5) + 0.5, std::round(s.y() - 0.5) + 0.5);
+    if ((s - lattice).norm() > 0.25 || lattice.cwiseAbs().maxCoeff() > 1.6) continue;
+    Eigen::Matrix<double, 6, 1> phi;
+    phi << 1, lattice.x(), lattice.y(), lattice.x() * lattice.x(), lattice.x() * lattice.y(), lattice.y() * lattice.y();
+    normal += phi * phi.transpose();
+    rhs += phi * local.transpose();
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, 6, 6>> qr(normal);
+  if (qr.rank() < 6) return std::nullopt;
+  const Eigen::Matrix<double, 6, 3> coefficients = qr.solve(rhs);
+  return centroid + frame * coefficients.row(0).transpose();
+}
+
 // The interior's outline as a quadrilateral: the coarsest polygon approximation with four corners.
 std::optional<std::array<Eigen::Vector2d, 4>> quadrilateralOf(const std::vector<cv::Point>& hull) {
   const double perimeter = cv::arcLength(hull, true);
@@ -224,7 +252,10 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
       consistent[k] = false;
       continue;
     }
-    g.position += offset * g.normal;
+    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
+    const std::optional<Vec3> centre =
+        centreOnLattice(all_nodes, g.position, frame, deformationGradient(corners[k], square, params.pitch, nullptr), params.pitch);
+    g.position = centre ? *centre : Vec3(g.position + offset * g.normal);
     // Each node's distance from the centre as the arc of the normal section through it: a chord
     // rho of a section of curvature k is the arc rho (1 + k^2 rho^2 / 6) projected.
     const Eigen::Matrix2d K = patch->hessianAtOrigin();
@@ -234,7 +265,6 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
       x *= 1 + kn * kn * r2 / 6;
     }
     const Eigen::Matrix2d F = deformationGradient(arcs, square, params.pitch, nullptr);
-    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
     GridElement bent = g;
     if (!detail::elementFromStretch(F * F.transpose(), frame, params, bent)) {
       consistent[k] = false;
