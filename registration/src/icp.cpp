@@ -34,6 +34,7 @@ struct Pair {
   Vec3 p;       // transformed source point
   Vec3 n;       // target normal
   double r = 0; // signed point-to-plane residual n . (p - q)
+  Vec3 along = Vec3::Zero();  // the offset p - q along the target's surface
 };
 
 double median(std::vector<double> v) {
@@ -94,7 +95,7 @@ IcpResult PointToPlaneIcp::align(const std::vector<Vec3>& source, const Eigen::I
           valid[i] = 0;
           continue;
         }
-        pairs[i] = {p, n, r};
+        pairs[i] = {p, n, r, offset - r * n};
       }
     });
     std::vector<double> abs_residuals;
@@ -124,6 +125,18 @@ IcpResult PointToPlaneIcp::align(const std::vector<Vec3>& source, const Eigen::I
       J.tail<3>() = q.n;
       A.noalias() += w * J * J.transpose();
       b.noalias() -= w * q.r * J;
+      if (params.tangential_weight > 0) {
+        // The offset along the surface as two more residuals, e . (p - q) for the tangent axes e.
+        const Eigen::Matrix3d frame = fitting::frameAround(q.n);
+        for (int k = 0; k < 2; ++k) {
+          const Vec3 e = frame.col(k);
+          J.head<3>() = q.p.cross(e);
+          J.tail<3>() = e;
+          const double wt = w * params.tangential_weight;
+          A.noalias() += wt * J * J.transpose();
+          b.noalias() -= wt * e.dot(q.along) * J;
+        }
+      }
       sum_sq += w * q.r * q.r;
       weight_sum += w;
       ++count;

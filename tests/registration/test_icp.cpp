@@ -62,6 +62,35 @@ TEST(PointToPlaneIcp, RecoversAKnownMotionOfAPartialOverlap) {
   EXPECT_GT(r.fitness, 0.4);
 }
 
+// Grid elements measured twice (laser and stereo) on a flat floor: across the sheet both views agree
+// whatever their offset along it, so point-to-plane cannot see a sideways shift; the elements pair
+// one-to-one, and with their offset along the sheet counted too the shift is recovered.
+TEST(PointToPlaneIcp, TangentialWeightRecoversASlideOfPairedElements) {
+  std::vector<Vec3> target, source;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 0.01);
+  const Vec3 slide(0.08, -0.05, 0.02);  // mm: a view's known pose, off by a little
+  for (int i = -15; i <= 15; ++i)
+    for (int j = -15; j <= 15; ++j) {
+      const Vec3 p(2.54 * i, 2.54 * j, 0);
+      target.push_back(p + Vec3(g(rng), g(rng), g(rng)));
+      source.push_back(p - slide + Vec3(g(rng), g(rng), g(rng)));
+    }
+  const registration::PointToPlaneIcp icp(target, std::vector<Vec3>(target.size(), Vec3::UnitZ()));
+  registration::IcpParams params;
+  params.max_correspondence_distance = 1.0;
+  const registration::IcpResult plane = icp.align(source, Eigen::Isometry3d::Identity(), params);
+  params.tangential_weight = 1.0;
+  const registration::IcpResult both = icp.align(source, Eigen::Isometry3d::Identity(), params);
+  std::printf("slide left after point-to-plane %.4f mm, with the offset along the sheet %.4f mm\n",
+              (plane.transform.translation() - slide).norm(), (both.transform.translation() - slide).norm());
+  EXPECT_GT((plane.transform.translation() - slide).head<2>().norm(), 0.05);  // along the floor: unseen
+  EXPECT_NEAR(plane.transform.translation().z(), slide.z(), 0.003);
+  EXPECT_TRUE(both.converged);
+  EXPECT_LT((both.transform.translation() - slide).norm(), 0.003);
+  EXPECT_LT(rotationAngle(both.transform), 1e-4);
+}
+
 TEST(PointToPlaneIcp, RejectsTooSmallTargets) {
   const std::vector<Vec3> tiny(3, Vec3::Zero());
   EXPECT_THROW(registration::PointToPlaneIcp icp(tiny), std::invalid_argument);

@@ -35,6 +35,11 @@ struct IcpParams {
   // source point (the source runs past the target's edge there).
   bool reject_boundary = true;
   double boundary_spacings = 3.0;
+  // Weight of the pairs' offset along the target's surface, against the offset across it: 0 is
+  // point-to-plane (dense surface samples, where the nearest target point is not the source point's
+  // own), 1 is point-to-point. Sparse features that both clouds measured, such as grid elements,
+  // pair one-to-one, and their offset along the surface is information as good as across it.
+  double tangential_weight = 0;
 };
 
 struct IcpResult {
