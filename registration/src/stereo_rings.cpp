@@ -42,10 +42,9 @@ struct RingSurface {
   Eigen::Matrix2d curvature = Eigen::Matrix2d::Zero();
 };
 
-// Every `stride`-th ray cast onto the surface, in the surface's own coordinates: the tangent-plane
-// coordinates of the hit, stretched by the arc over the chord (a normal section w = k s^2 / 2 is
-// s (1 + k^2 s^2 / 6) long), so that a printed circle stays the ellipse of its stretches however
-// the sheet is bent.
+// Every `stride`-th ray cast onto the surface, in the surface's own coordinates (the hit's
+// tangent-plane offset taken as an arc), so that a printed circle stays the ellipse of its stretches
+// however the sheet is bent.
 std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingSurface& surface, std::size_t stride) {
   const Eigen::Matrix2d& K = surface.curvature;
   const Vec3 p = surface.frame.transpose() * (rays.origin - surface.origin);
@@ -59,10 +58,7 @@ std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingSurface& s
       if (std::abs(slope) < 1e-9) break;  // a ray grazing the sheet: keep the last hit
       t -= f / slope;
     }
-    const Eigen::Vector2d u = p.head<2>() + t * e.head<2>();
-    const double s2 = u.squaredNorm();
-    const double k = s2 > 0 ? u.dot(K * u) / s2 : 0.0;  // normal curvature along u
-    out.push_back(u * (1 + k * k * s2 / 6));
+    out.push_back(detail::chordToArc(p.head<2>() + t * e.head<2>(), K));
   }
   return out;
 }

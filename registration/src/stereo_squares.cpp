@@ -256,14 +256,10 @@ std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const c
     const std::optional<Vec3> centre =
         centreOnLattice(all_nodes, g.position, frame, deformationGradient(corners[k], square, params.pitch, nullptr), params.pitch);
     g.position = centre ? *centre : Vec3(g.position + offset * g.normal);
-    // Each node's distance from the centre as the arc of the normal section through it: a chord
-    // rho of a section of curvature k is the arc rho (1 + k^2 rho^2 / 6) projected.
+    // Each node's distance from the centre as the arc of the normal section through it.
     const Eigen::Matrix2d K = patch->hessianAtOrigin();
     std::array<Eigen::Vector2d, 4> arcs = corners[k];
-    for (auto& x : arcs) {
-      const double r2 = x.squaredNorm(), kn = r2 > 0 ? x.dot(K * x) / r2 : 0.0;
-      x *= 1 + kn * kn * r2 / 6;
-    }
+    for (auto& x : arcs) x = detail::chordToArc(x, K);
     const Eigen::Matrix2d F = deformationGradient(arcs, square, params.pitch, nullptr);
     GridElement bent = g;
     if (!detail::elementFromStretch(F * F.transpose(), frame, params, bent)) {
