@@ -1,6 +1,7 @@
 #include "stampscan/sim/scan_scenario.hpp"
 
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/session_description.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -31,25 +32,23 @@ namespace {
 
 std::int64_t toNs(double seconds) { return static_cast<std::int64_t>(std::llround(seconds * 1e9)); }
 
-std::string number(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
+std::string number(double v) { return trace::formatNumber(v); }
+trace::RigidPose rigidPose(const Eigen::Isometry3d& T) {
+  trace::RigidPose p;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) p.rotation[static_cast<std::size_t>(3 * r + c)] = T.linear()(r, c);
+    p.translation[static_cast<std::size_t>(r)] = T.translation()(r);
+  }
+  return p;
 }
-std::string poseText(const Eigen::Isometry3d& T) {
-  // Row-major 3x4 [R | t].
-  std::string s;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) {
-      if (!s.empty()) s.push_back(' ');
-      s.append(number(T.matrix()(r, c)));
-    }
-  return s;
+std::string poseText(const Eigen::Isometry3d& T) { return trace::formatPose(rigidPose(T)); }
+trace::CameraIntrinsicsRecord intrinsicsRecord(const CameraIntrinsics& c) {
+  return {c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2, c.k3};
 }
 std::string intrinsicsText(const CameraIntrinsics& c) {
-  return std::to_string(c.width) + " " + std::to_string(c.height) + " " + number(c.fx) + " " + number(c.fy) + " " +
-         number(c.cx) + " " + number(c.cy) + " " + number(c.k1) + " " + number(c.k2) + " " + number(c.p1) + " " +
-         number(c.p2) + " " + number(c.k3);
+  trace::SessionDescription s;
+  s.camera_nominal = intrinsicsRecord(c);
+  return trace::encodeSession(s).at("camera_nominal_intrinsics");
 }
 
 Eigen::Matrix3d smallRotation(std::mt19937_64& rng, double sigma) {
@@ -332,28 +331,23 @@ class SessionGenerator {
   void writeMetadata() {
     const DigitizerSpec& d = p_.digitizer;
     const CameraIntrinsics nominal = p_.camera.scaled(p_.image_scale);
-    std::map<std::string, std::string> cell = {
-        {"part", part_->name()},
-        {"grid", toString(p_.grid.kind)},
-        {"grid_pitch_mm", number(p_.grid.pitch)},
-        {"grid_circle_diameter_mm", number(p_.grid.circle_diameter)},
-        {"grid_line_width_mm", number(p_.grid.line_width)},
-        {"digitizer_points_per_profile", std::to_string(d.points_per_profile)},
-        {"digitizer_profile_rate_hz", number(d.profile_rate)},
-        {"digitizer_standoff_mm", number(d.standoff)},
-        {"digitizer_measuring_range_mm", number(d.measuring_range)},
-        {"head_from_digitizer_nominal", poseText(truth_.head_from_digitizer_nominal)},
-        {"camera_nominal_intrinsics", intrinsicsText(nominal)},
-        {"camera_bits", std::to_string(p_.camera_sensor.bits)},
-        {"stereo_half_baseline_mm", number(kRigHalfBaseline)},
-        {"plate", "circles " + std::to_string(p_.plate.columns) + "x" + std::to_string(p_.plate.rows) + " pitch " +
-                      number(p_.plate.pitch) + " diameter " + number(p_.plate.dot_diameter)},
-        {"camera_plate_spec", std::to_string(p_.plate.columns) + " " + std::to_string(p_.plate.rows) + " " +
-                                  number(p_.plate.pitch) + " " + number(p_.plate.dot_diameter)},
-        {"reference_sphere_radius_mm", number(p_.sphere.radius)},
-        {"station_clock", "CMM controller clock, ns since the Unix epoch"},
-    };
-    sink_.metadata("cell", cell);
+    trace::SessionDescription cell;
+    cell.part = part_->name();
+    cell.grid = toString(p_.grid.kind);
+    cell.grid_pitch_mm = p_.grid.pitch;
+    cell.grid_circle_diameter_mm = p_.grid.circle_diameter;
+    cell.grid_line_width_mm = p_.grid.line_width;
+    cell.digitizer_points_per_profile = d.points_per_profile;
+    cell.digitizer_profile_rate_hz = d.profile_rate;
+    cell.digitizer_standoff_mm = d.standoff;
+    cell.digitizer_measuring_range_mm = d.measuring_range;
+    cell.head_from_digitizer_nominal = rigidPose(truth_.head_from_digitizer_nominal);
+    cell.camera_nominal = intrinsicsRecord(nominal);
+    cell.camera_bits = p_.camera_sensor.bits;
+    cell.stereo_half_baseline_mm = kRigHalfBaseline;
+    cell.plate = trace::PlateRecord{p_.plate.columns, p_.plate.rows, p_.plate.pitch, p_.plate.dot_diameter};
+    cell.reference_sphere_radius_mm = p_.sphere.radius;
+    sink_.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(cell));
     std::map<std::string, std::string> truth = {
         {"seed", std::to_string(p_.seed)},
         {"camera_left_intrinsics", intrinsicsText(truth_.left)},

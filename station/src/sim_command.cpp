@@ -1,8 +1,8 @@
 // `station sim generate`: simulate a session of the cell (calibration scenes, laser sweeps, stereo
 // views of a formed part) and record it as an MCAP trace, as the real devices would have delivered
 // it; optionally write the ground truth of every grid element.
-#include "stampscan/acquisition/mcap_writer.hpp"
-#include "stampscan/acquisition/trace_recorder.hpp"
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/trace_recorder.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/commands.hpp"
@@ -33,21 +33,6 @@ struct GenerateOptions {
   double scale = 1;     // lateral size factor of the part
   double depth = 0;     // mm; 0: the part's default
   double strain = -1;   // strain level; negative: the part's default
-};
-
-// The MCAP side of the generator: every message through the recorder, which registers the topics.
-class McapSink final : public sim::TraceSink {
- public:
-  explicit McapSink(trace::TraceRecorder& recorder) : recorder_(recorder) {}
-  void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) override {
-    recorder_.write(topic, log_time_ns, bytes);
-  }
-  void metadata(const std::string& name, const std::map<std::string, std::string>& values) override {
-    recorder_.metadata(name, values);
-  }
-
- private:
-  trace::TraceRecorder& recorder_;
 };
 
 void checkOutputFolder(const std::string& file, const char* what) {
@@ -140,9 +125,8 @@ CommandRunner addSimCommand(CLI::App& app) {
                                                   : trace::Compression::None;
       trace::McapWriter writer(partial, w);
       trace::TraceRecorder recorder(writer);
-      McapSink sink(recorder);
       ProgressBar bar;
-      summary = sim::generateScan(params, sink, [&](double f, std::string_view stage) { bar.update(std::string(stage), f); });
+      summary = sim::generateScan(params, recorder, [&](double f, std::string_view stage) { bar.update(std::string(stage), f); });
       bar.finish();
       writer.close();
       size = fs::file_size(partial);

@@ -3,7 +3,7 @@
 // scanned rather than only its summary, so damage anywhere is found and a cut trace still reports
 // what it holds. Exit 0 for a healthy trace; 1 with the report for a damaged or cut one, and 1 with a
 // one-line error for a file that is missing or not MCAP.
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <algorithm>

@@ -2,8 +2,8 @@
 // reading every message back with its health report.
 #pragma once
 
-#include "stampscan/acquisition/mcap_reader.hpp"
-#include "stampscan/acquisition/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
 
 #include <gtest/gtest.h>
 

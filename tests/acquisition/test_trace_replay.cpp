@@ -1,7 +1,7 @@
 // TraceReplayer with an injected clock: the schedule at speed 1, 4 and 0 (as fast as possible),
 // lateness when the consumer is slow, stopping, and filters.
 #include "mcap_test_support.hpp"
-#include "stampscan/sim/trace_replay.hpp"
+#include "stampscan/acquisition/trace/trace_replay.hpp"
 
 #include <thread>
 
@@ -12,7 +12,7 @@ namespace {
 struct FakeClock {
   std::int64_t now = 5'000'000'000;  // any start
   std::vector<std::int64_t> sleeps;
-  sim::ReplayClock clock() {
+  ReplayClock clock() {
     return {[this] { return now; }, [this](std::int64_t t) {
               sleeps.push_back(t);
               now = std::max(now, t);
@@ -29,11 +29,11 @@ fs::path writeTimedTrace(const fs::path& file, std::vector<std::uint64_t>& times
   return file;
 }
 
-std::vector<std::int64_t> playedAt(const fs::path& file, double speed, FakeClock& fake, sim::ReplayStats& stats,
+std::vector<std::int64_t> playedAt(const fs::path& file, double speed, FakeClock& fake, ReplayStats& stats,
                                    std::int64_t work_ns = 0) {
-  sim::ReplayOptions options;
+  ReplayOptions options;
   options.speed = speed;
-  sim::TraceReplayer replayer(file, options, fake.clock());
+  TraceReplayer replayer(file, options, fake.clock());
   std::vector<std::int64_t> at;
   stats = replayer.run([&](const TraceMessage&) {
     at.push_back(fake.now);
@@ -48,7 +48,7 @@ TEST_F(TraceTest, ReplayKeepsTheOriginalTimingAtSpeedOne) {
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   FakeClock fake;
   const std::int64_t start = fake.now;
-  sim::ReplayStats stats;
+  ReplayStats stats;
   const std::vector<std::int64_t> at = playedAt(file, 1.0, fake, stats);
   ASSERT_EQ(at.size(), times.size());
   for (std::size_t i = 0; i < at.size(); ++i)
@@ -67,7 +67,7 @@ TEST_F(TraceTest, ReplayAtSpeedFourIsFourTimesFaster) {
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   FakeClock fake;
   const std::int64_t start = fake.now;
-  sim::ReplayStats stats;
+  ReplayStats stats;
   const std::vector<std::int64_t> at = playedAt(file, 4.0, fake, stats);
   ASSERT_EQ(at.size(), times.size());
   for (std::size_t i = 0; i < at.size(); ++i)
@@ -79,7 +79,7 @@ TEST_F(TraceTest, ReplayAtSpeedZeroNeverWaits) {
   std::vector<std::uint64_t> times;
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   FakeClock fake;
-  sim::ReplayStats stats;
+  ReplayStats stats;
   const std::vector<std::int64_t> at = playedAt(file, 0.0, fake, stats);
   EXPECT_EQ(at.size(), times.size());
   EXPECT_TRUE(fake.sleeps.empty());
@@ -92,7 +92,7 @@ TEST_F(TraceTest, ReplayReportsLatenessOfASlowConsumer) {
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   FakeClock fake;
   const std::int64_t start = fake.now;
-  sim::ReplayStats stats;
+  ReplayStats stats;
   // 200 ms of work per message: the messages at 0.1 and 0.25 s go out late, then it catches up.
   const std::vector<std::int64_t> at = playedAt(file, 1.0, fake, stats, 200'000'000);
   ASSERT_EQ(at.size(), times.size());
@@ -109,9 +109,9 @@ TEST_F(TraceTest, ReplayStopsFromTheConsumerOrAnotherThread) {
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   {
     FakeClock fake;
-    sim::TraceReplayer replayer(file, {}, fake.clock());
+    TraceReplayer replayer(file, {}, fake.clock());
     int n = 0;
-    const sim::ReplayStats stats = replayer.run([&](const TraceMessage&) {
+    const ReplayStats stats = replayer.run([&](const TraceMessage&) {
       if (++n == 3) replayer.stop();
       return true;
     });
@@ -120,13 +120,13 @@ TEST_F(TraceTest, ReplayStopsFromTheConsumerOrAnotherThread) {
   }
   {
     // Real clock, speed 1: the replay waits 1.5 s unless stop() wakes it.
-    sim::TraceReplayer replayer(file);
+    TraceReplayer replayer(file);
     std::thread stopper([&] {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       replayer.stop();
     });
     const auto t0 = std::chrono::steady_clock::now();
-    const sim::ReplayStats stats = replayer.run([](const TraceMessage&) { return true; });
+    const ReplayStats stats = replayer.run([](const TraceMessage&) { return true; });
     stopper.join();
     EXPECT_TRUE(stats.stopped);
     EXPECT_LT(stats.messages, times.size());
@@ -138,16 +138,16 @@ TEST_F(TraceTest, ReplayFiltersAndRejectsBadSpeeds) {
   std::vector<std::uint64_t> times;
   const fs::path file = writeTimedTrace(dir() / "t.mcap", times);
   FakeClock fake;
-  sim::ReplayOptions options;
+  ReplayOptions options;
   options.read.topics = {"/b"};
-  sim::TraceReplayer replayer(file, options, fake.clock());
-  const sim::ReplayStats stats = replayer.run([](const TraceMessage& m) { return m.channel && m.channel->topic == "/b"; });
+  TraceReplayer replayer(file, options, fake.clock());
+  const ReplayStats stats = replayer.run([](const TraceMessage& m) { return m.channel && m.channel->topic == "/b"; });
   EXPECT_EQ(stats.messages, 3u);
   EXPECT_FALSE(stats.stopped);
-  sim::ReplayOptions bad;
+  ReplayOptions bad;
   bad.speed = -1;
-  EXPECT_THROW(sim::TraceReplayer(file, bad), std::invalid_argument);
-  EXPECT_THROW(sim::TraceReplayer(dir() / "missing.mcap"), std::runtime_error);
+  EXPECT_THROW(TraceReplayer(file, bad), std::invalid_argument);
+  EXPECT_THROW(TraceReplayer(dir() / "missing.mcap"), std::runtime_error);
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 // memory input has none of), and its report must be self-consistent.
 #include "fuzz_targets.hpp"
 
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 
 #include <span>
 #include <stdexcept>

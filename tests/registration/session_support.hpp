@@ -3,7 +3,7 @@
 // the station does; the true offsets are only in the simulator's truth).
 #pragma once
 
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/registration/laser_geometry.hpp"
 #include "stampscan/sim/cmm_motion.hpp"
 #include "stampscan/sim/scan_scenario.hpp"

@@ -1,7 +1,7 @@
 // The simulated session: deterministic by seed, in log-time order, every message decodable, scenes
 // bracketed, cameras paired, and the raw data consistent with the cell's true geometry and clocks
 // (profiles placed with the true hand-eye transform and latency lie on the part and the sphere).
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
 #include <gtest/gtest.h>

@@ -3,7 +3,7 @@
 // (exit 1, one line naming the file).
 #include "station_test_support.hpp"
 
-#include "stampscan/acquisition/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
 
 #include <gtest/gtest.h>
 

@@ -5,6 +5,7 @@
 // log-time order. Deterministic for a given seed.
 #pragma once
 
+#include "stampscan/acquisition/trace/trace_sink.hpp"
 #include "stampscan/sim/camera_model.hpp"
 #include "stampscan/sim/cmm_motion.hpp"
 #include "stampscan/sim/digitizer_model.hpp"
@@ -25,13 +26,7 @@
 
 namespace stampscan::sim {
 
-// Where the generated messages go.
-class TraceSink {
- public:
-  virtual ~TraceSink() = default;
-  virtual void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) = 0;
-  virtual void metadata(const std::string& name, const std::map<std::string, std::string>& values) = 0;
-};
+using trace::TraceSink;
 
 struct ScanParams {
   PartKind part = PartKind::Dome;

@@ -1,23 +1,33 @@
-// Subcommands of the station program. Each registers itself on the CLI app and returns the exit code.
+// Subcommands of the station program. Each registers itself on the CLI app and returns what runs it;
+// commandTable() lists them all, in the order `station --help` shows them. A command is a thin
+// caller of the libraries below (acquisition, registration, fitting): no workflow lives here.
 #pragma once
 
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <span>
 
 namespace stampscan::station {
 
-// Each returns a callable run after parsing, which returns the process exit code.
+// Returns the process exit code.
 using CommandRunner = std::function<int()>;
 
+struct CommandEntry {
+  const char* name;
+  CommandRunner (*add)(CLI::App& app);
+};
+std::span<const CommandEntry> commandTable();
+
+CommandRunner addScanCommand(CLI::App& app);
 CommandRunner addFitCommand(CLI::App& app);
 CommandRunner addSampleCommand(CLI::App& app);
 CommandRunner addDemoCommand(CLI::App& app);
 CommandRunner addSimCommand(CLI::App& app);
 CommandRunner addProcessCommand(CLI::App& app);
 CommandRunner addDevicesCommand(CLI::App& app);
+CommandRunner addTraceCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.
 CommandRunner addServeSubcommand(CLI::App* sim);
-CommandRunner addTraceCommand(CLI::App& app);
 
 }  // namespace stampscan::station

@@ -1,4 +1,4 @@
-#include "stampscan/station/calibration_files.hpp"
+#include "stampscan/registration/calibration_store.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -7,7 +7,7 @@
 #include <fstream>
 #include <stdexcept>
 
-namespace stampscan::station {
+namespace stampscan::registration {
 
 using nlohmann::json;
 
@@ -52,7 +52,7 @@ json header(const char* kind, const std::string& created, const std::string& sou
   return {{"format", kFormat}, {"version", kVersion}, {"kind", kind}, {"created", created}, {"source", source}};
 }
 
-json cameraJson(const registration::CameraCalibration& c) {
+json cameraJson(const CameraCalibration& c) {
   json views = json::array();
   for (const auto& v : c.views)
     views.push_back({{"view", v.view}, {"used", v.used}, {"rms_px", v.rms_px}, {"note", v.note}});
@@ -120,4 +120,4 @@ DigitizerCalibrationFile loadDigitizerCalibration(const std::filesystem::path& f
   }
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::registration

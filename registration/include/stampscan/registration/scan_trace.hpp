@@ -1,10 +1,11 @@
-// A recorded or simulated scan trace, read and decoded for processing: the CMM's head track, the
-// devices' clock pairs, the sweeps (from the CMM's events), every laser profile, and the camera
+// A recorded or simulated scan trace, read and decoded for processing: the session description,
+// the CMM's head track, the devices' clock pairs, the sweeps (from the CMM's events), every laser profile, and the camera
 // frames of the calibration plate. Damage to the trace is kept in `health` and reported; whatever
 // could be recovered is processed.
 #pragma once
 
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/registration/laser_geometry.hpp"
 
 #include <opencv2/core.hpp>
@@ -13,10 +14,11 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
-namespace stampscan::station {
+namespace stampscan::registration {
 
 struct SweepWindow {
   std::string label;  // the CMM event's detail, e.g. "part sweep 3", "reference_sphere sweep 0"
@@ -31,11 +33,11 @@ struct CameraImage {
 };
 
 struct ScanTrace {
-  std::map<std::string, std::string> cell;  // the "cell" metadata record
-  std::vector<registration::HeadSample> head;
+  std::optional<trace::SessionDescription> session;  // absent in a trace that has none
+  std::vector<HeadSample> head;
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> clock_pairs;  // device -> (station, device)
   std::vector<SweepWindow> sweeps;
-  std::vector<registration::Profile> profiles;
+  std::vector<Profile> profiles;
   // Frames taken while the calibration plate was in view, paired by trigger (left[i] with right[i]).
   std::vector<CameraImage> plate_left, plate_right;
   std::size_t part_frames = 0;  // frames of the part
@@ -46,10 +48,8 @@ struct ScanTrace {
 };
 
 using LoadProgress = std::function<void(double fraction)>;
-// Throws std::runtime_error naming the file when it is not an MCAP trace or holds no CMM reports.
+// Throws std::runtime_error naming the file when it is not an MCAP trace, holds no CMM reports, or
+// has a session description that does not decode.
 ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress = {}, bool keep_part_frames = false);
 
-// A cell metadata value parsed as numbers; throws naming the key when absent or malformed.
-std::vector<double> cellNumbers(const ScanTrace& trace, const std::string& key, std::size_t count);
-
-}  // namespace stampscan::station
+}  // namespace stampscan::registration

@@ -1,4 +1,4 @@
-#include "stampscan/acquisition/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
 
 #include "mcap_codec.hpp"
 #include "mcap_compression.hpp"

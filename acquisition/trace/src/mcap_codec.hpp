@@ -3,7 +3,7 @@
 // never reads outside the span it is given and reports malformed content by returning false.
 #pragma once
 
-#include "stampscan/acquisition/mcap_records.hpp"
+#include "stampscan/acquisition/trace/mcap_records.hpp"
 
 #include <cstddef>
 #include <cstdint>

@@ -2,7 +2,7 @@
 #pragma once
 
 #include "mcap_codec.hpp"
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 
 #include <cstdint>
 #include <functional>

@@ -3,7 +3,7 @@
 // decoded from the bytes that are there.
 #pragma once
 
-#include "stampscan/acquisition/mcap_records.hpp"
+#include "stampscan/acquisition/trace/mcap_records.hpp"
 
 #include <cstddef>
 #include <cstdint>

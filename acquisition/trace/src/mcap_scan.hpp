@@ -16,7 +16,7 @@
 
 #include "byte_source.hpp"
 #include "mcap_codec.hpp"
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 
 #include <cstdint>
 #include <limits>

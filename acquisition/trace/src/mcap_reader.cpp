@@ -1,4 +1,4 @@
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 
 #include "byte_source.hpp"
 #include "mcap_chunk.hpp"

@@ -1,6 +1,6 @@
-#include "stampscan/acquisition/trace_recorder.hpp"
+#include "stampscan/acquisition/trace/trace_recorder.hpp"
 
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 
 #include <stdexcept>
 

@@ -16,18 +16,18 @@
 #include <filesystem>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::registration {
 
 struct DigitizerCalibrationFile {
-  registration::DigitizerCalibration calibration;  // clock_offset_ns is not kept: it changes every power-up
+  DigitizerCalibration calibration;  // clock_offset_ns is not kept: it changes every power-up
   double residual_rms_mm = 0;
   std::size_t points = 0;
   std::string created, source;
 };
 
 struct CameraCalibrationFile {
-  registration::StereoCalibration stereo;
-  registration::HandEyeResult head_from_left;
+  StereoCalibration stereo;
+  HandEyeResult head_from_left;
   std::string created, source;
 };
 
@@ -39,4 +39,4 @@ void saveCameraCalibration(const std::filesystem::path& file, const CameraCalibr
 // Throws std::runtime_error naming the file and the field that is missing or malformed.
 DigitizerCalibrationFile loadDigitizerCalibration(const std::filesystem::path& file);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::registration

@@ -1,12 +1,11 @@
-#include "stampscan/station/scan_trace.hpp"
+#include "stampscan/registration/scan_trace.hpp"
 
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 
 #include <algorithm>
-#include <sstream>
 #include <stdexcept>
 
-namespace stampscan::station {
+namespace stampscan::registration {
 
 namespace msg = stampscan::trace;
 
@@ -38,10 +37,10 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
       if (topic == msg::topics::kCmmPosition) {
         const auto p = msg::decode<msg::CmmPosition>(m.data);
         if (out.head.empty() || p.station_time_ns > out.head.back().time_ns)
-          out.head.push_back({p.station_time_ns, registration::Vec3(p.x, p.y, p.z), p.head_a, p.head_b});
+          out.head.push_back({p.station_time_ns, Vec3(p.x, p.y, p.z), p.head_a, p.head_b});
       } else if (topic == msg::topics::kLaserProfile) {
         const auto p = msg::decode<msg::LaserProfile>(m.data);
-        registration::Profile prof;
+        Profile prof;
         prof.device_time_ns = p.device_time_ns;
         prof.angle_min = p.angle_min;
         prof.angle_increment = p.angle_increment;
@@ -88,7 +87,13 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
     out.health.damage.push_back({0, trace::DamageKind::BadRecord,
                                  std::to_string(decode_errors) + " messages did not decode; the first: " + first_decode_error});
   for (const auto& md : out.health.metadata)
-    if (md.name == "cell") out.cell = md.metadata;
+    if (md.name == trace::kSessionMetadataName) {
+      try {
+        out.session = trace::decodeSession(md.metadata);
+      } catch (const trace::SessionDescriptionError& e) {
+        throw std::runtime_error(file.string() + ": " + e.what());
+      }
+    }
   for (auto& [trigger, pair] : plate_pairs) {
     if (pair.first.data.empty() || pair.second.data.empty()) continue;
     out.plate_left.push_back({trigger, pair.first.device_time_ns, imageOf(pair.first)});
@@ -105,15 +110,4 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
   return out;
 }
 
-std::vector<double> cellNumbers(const ScanTrace& trace, const std::string& key, std::size_t count) {
-  const auto it = trace.cell.find(key);
-  if (it == trace.cell.end()) throw std::runtime_error("the trace's cell description has no '" + key + "'");
-  std::istringstream in(it->second);
-  std::vector<double> v;
-  for (double x; in >> x;) v.push_back(x);
-  if (v.size() < count)
-    throw std::runtime_error("the trace's cell description has a malformed '" + key + "': '" + it->second + "'");
-  return v;
-}
-
-}  // namespace stampscan::station
+}  // namespace stampscan::registration

@@ -1,4 +1,4 @@
-#include "stampscan/sim/trace_replay.hpp"
+#include "stampscan/acquisition/trace/trace_replay.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <thread>
 
-namespace stampscan::sim {
+namespace stampscan::trace {
 
 namespace {
 std::int64_t steadyNow() {
@@ -55,7 +55,7 @@ ReplayStats TraceReplayer::run(const Consumer& consumer) {
   long double lateness_sum = 0;
   const long double speed = options_.speed;
   stats.health = reader_.readMessages(
-      [&](const trace::TraceMessage& m) {
+      [&](const TraceMessage& m) {
         if (stop_) return false;
         std::int64_t now = clock_.now_ns();
         if (first) {
@@ -88,4 +88,4 @@ ReplayStats TraceReplayer::run(const Consumer& consumer) {
   return stats;
 }
 
-}  // namespace stampscan::sim
+}  // namespace stampscan::trace

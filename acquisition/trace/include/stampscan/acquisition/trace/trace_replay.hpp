@@ -11,7 +11,7 @@
 // stop() may be called from any thread (or from the consumer) and wakes a replay that is waiting.
 #pragma once
 
-#include "stampscan/acquisition/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/mcap_reader.hpp"
 
 #include <atomic>
 #include <condition_variable>
@@ -20,7 +20,7 @@
 #include <functional>
 #include <mutex>
 
-namespace stampscan::sim {
+namespace stampscan::trace {
 
 struct ReplayClock {
   std::function<std::int64_t()> now_ns;              // a monotonic clock, ns
@@ -33,7 +33,7 @@ ReplayClock steadyReplayClock();
 
 struct ReplayOptions {
   double speed = 1.0;          // 1: original timing, N: N times faster, 0: as fast as possible
-  trace::ReadOptions read;     // channel, topic and log-time filters
+  ReadOptions read;     // channel, topic and log-time filters
 };
 
 struct ReplayStats {
@@ -44,7 +44,7 @@ struct ReplayStats {
   std::int64_t max_lateness_ns = 0;
   double mean_lateness_ns = 0;
   bool stopped = false;                 // stop() or the consumer ended the replay early
-  trace::TraceHealth health;            // what the reader found in the trace
+  TraceHealth health;            // what the reader found in the trace
 
   std::uint64_t spanNs() const { return messages ? last_log_time_ns - first_log_time_ns : 0; }
 };
@@ -52,7 +52,7 @@ struct ReplayStats {
 class TraceReplayer {
  public:
   // Returns false to stop the replay.
-  using Consumer = std::function<bool(const trace::TraceMessage&)>;
+  using Consumer = std::function<bool(const TraceMessage&)>;
 
   // Opens the trace (throws std::runtime_error naming it when it cannot); std::invalid_argument for
   // a negative or non-finite speed. Without a clock (both functions empty) it uses steady_clock.
@@ -65,7 +65,7 @@ class TraceReplayer {
  private:
   void sleepUntil(std::int64_t due_ns);
 
-  trace::McapReader reader_;
+  McapReader reader_;
   ReplayOptions options_;
   ReplayClock clock_;
   bool own_clock_ = false;
@@ -74,4 +74,4 @@ class TraceReplayer {
   std::condition_variable wake_;
 };
 
-}  // namespace stampscan::sim
+}  // namespace stampscan::trace

@@ -2,7 +2,7 @@
 // each primitive aligned to its own size counted from the end of the header; strings are a uint32
 // length that includes the terminating NUL, then the bytes and the NUL; sequences a uint32 count then
 // the elements.
-#include "stampscan/acquisition/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
 
 #include <bit>
 #include <cstring>

@@ -14,7 +14,7 @@
 // Not thread-safe: one thread writes (acquisition funnels device data through one recorder).
 #pragma once
 
-#include "stampscan/acquisition/mcap_records.hpp"
+#include "stampscan/acquisition/trace/mcap_records.hpp"
 
 #include <cstddef>
 #include <cstdint>

@@ -16,7 +16,7 @@
 // A reader is not thread-safe; open one per thread.
 #pragma once
 
-#include "stampscan/acquisition/mcap_records.hpp"
+#include "stampscan/acquisition/trace/mcap_records.hpp"
 
 #include <cstddef>
 #include <cstdint>

@@ -1,0 +1,20 @@
+#include "stampscan/station/commands.hpp"
+
+#include <array>
+
+namespace stampscan::station {
+
+std::span<const CommandEntry> commandTable() {
+  static constexpr std::array<CommandEntry, 7> kCommands{{
+      {"process", addProcessCommand},
+      {"fit", addFitCommand},
+      {"devices", addDevicesCommand},
+      {"trace", addTraceCommand},
+      {"sim", addSimCommand},
+      {"sample", addSampleCommand},
+      {"demo", addDemoCommand},
+  }};
+  return kCommands;
+}
+
+}  // namespace stampscan::station
