@@ -12,6 +12,7 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <variant>
 
 namespace stampscan::sim {
 
@@ -76,6 +77,178 @@ constexpr double kRigHalfBaseline = 60;  // mm: cameras at x = -+60 on the head
 constexpr double kRigDrop = 60;          // mm below the head's reference point
 const Vec3 kDigitizerMount(0, 0, -120);  // nominal: the mirror 120 mm below the reference point
 
+
+// ---- The plan -----------------------------------------------------------------------------------
+// What the cell does, as a plan both executors play (this simulator and the ScanRunner on a cell).
+
+// The plate stands still on its fixture beside the part, tilted a little.
+Eigen::Isometry3d platePoseFor(const CirclePlate& plate) {
+  const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translate(Vec3(-250, 0, -40));
+  pose.rotate(Eigen::AngleAxisd(0.2, Vec3::UnitZ()) * Eigen::AngleAxisd(0.15, Vec3::UnitX()) *
+              Eigen::AngleAxisd(-0.1, Vec3::UnitY()));
+  pose.translate(-centre_on_plate);
+  return pose;
+}
+
+class Planner {
+ public:
+  explicit Planner(const ScanParams& p) : p_(p), part_(makePart(p)), rng_(p.seed * 0x2545F4914F6CDD1Dull + 0x9Aull) {}
+
+  acquisition::ScanPlan plan() {
+    plan_.name = std::string(part_->name()) + (p_.calibration ? ", with calibration" : "");
+    plan_.part.kind = part_->name();
+    plan_.part.grid = toString(p_.grid.kind);
+    plan_.part.pitch = p_.grid.pitch;
+    plan_.part.circle_diameter = p_.grid.circle_diameter;
+    plan_.part.line_width = p_.grid.line_width;
+    plan_.travel_speed = 200;
+    plan_.park = {{0, 0, 450}, 0, 0};
+    if (p_.calibration) {
+      planPlate();
+      planSphere();
+    }
+    if (p_.laser) planLaserStrips();
+    if (p_.stereo) planStereo();
+    return std::move(plan_);
+  }
+
+ private:
+  static acquisition::HeadPose pose(const Vec3& head, double a, double b) { return {{head.x(), head.y(), head.z()}, a, b}; }
+
+  // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
+  // nominal mount (the planner does not know the true one).
+  static Vec3 headForSensor(const Vec3& sensor, double a, double b) {
+    const HeadState h{Vec3::Zero(), a, b, 0};
+    return sensor - h.pose().linear() * kDigitizerMount;
+  }
+
+  void sweep(const char* scene, std::uint32_t index, const Vec3& sensor_from, const Vec3& sensor_to, double a, double b,
+             double speed) {
+    acquisition::SweepStep s;
+    s.scene = scene;
+    s.index = index;
+    s.start = pose(headForSensor(sensor_from, a, b), a, b);
+    s.end = pose(headForSensor(sensor_to, a, b), a, b);
+    s.speed = speed;
+    plan_.steps.emplace_back(s);
+  }
+
+  void view(const char* scene, std::uint32_t index, const Vec3& head, double a, double b) {
+    acquisition::StereoStep v;
+    v.scene = scene;
+    v.index = index;
+    v.pose = pose(head, a, b);
+    v.settle_s = 0.4;
+    plan_.steps.emplace_back(v);
+  }
+
+  void planPlate() {
+    // The head looks at the fixed plate from many directions and distances. That gives the view
+    // diversity intrinsic calibration needs, and, with the plate fixed, the head-to-camera
+    // (hand-eye) transform is observable too.
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const CirclePlate& plate = p_.plate;
+    const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
+    const Eigen::Isometry3d plate_pose = platePoseFor(plate);
+    for (int k = 0; k < p_.plate_poses; ++k) {
+      // Turns within +-30 degrees: the plate then stays within +-45 degrees of upright in the image,
+      // where its dots are numbered unambiguously.
+      const double a = 0.4 * u(rng_), b = 0.5 * u(rng_);
+      const Vec3 target = plate_pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
+      const HeadState h{Vec3::Zero(), a, b, 0};
+      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
+      view(acquisition::kScenePlate, static_cast<std::uint32_t>(k), head, a, b);
+    }
+  }
+
+  void planSphere() {
+    // Sweeps that look different from the sensor: the ball passes through the left, middle and right
+    // of the fan and near and far in the measuring range (otherwise a turn of the mount could not be
+    // told from a shift); the head turns and tilts between sweeps (otherwise the mount's offset could
+    // not be told from the ball's position); speeds and directions vary (the latency shifts points
+    // along the sweep by speed x latency).
+    struct SweepPlan {
+      double b, a, speed, direction, lateral, depth;
+    };
+    const double quarter = std::numbers::pi / 2;
+    const SweepPlan plans[] = {{0, 0, 10, 1, -12, 0},           {quarter, 0.3, 40, -1, 12, 8},
+                               {0, -0.3, 40, 1, 0, 15},         {quarter, 0, 10, -1, 0, -15},
+                               {0, 0.3, 10, -1, 8, -8},         {quarter, -0.3, 40, 1, -8, 0},
+                               {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
+    const ReferenceSphere& s = p_.sphere;
+    for (int k = 0; k < p_.sphere_sweeps; ++k) {
+      const SweepPlan& plan = plans[k % 8];
+      const HeadState h{Vec3::Zero(), plan.a, plan.b, 0};
+      const Eigen::Matrix3d R = h.pose().linear();  // the nominal mount does not turn the sensor
+      // The mirror above the ball, offset across the fan and along the view.
+      const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
+      const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
+      sweep(acquisition::kSceneSphere, static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a, plan.b,
+            plan.speed);
+    }
+  }
+
+  BlankRect region() const {
+    const BlankRect whole = part_->footprint();
+    if (p_.scan_region.max.x() <= p_.scan_region.min.x()) return whole;
+    return {whole.min.cwiseMax(p_.scan_region.min), whole.max.cwiseMin(p_.scan_region.max)};
+  }
+
+  void planLaserStrips() {
+    const BlankRect r = region();
+    const DigitizerSpec& d = p_.digitizer;
+    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
+    const double width = 2 * d.standoff * std::tan(d.half_angle);
+    const double step = width * (1 - p_.strip_overlap);
+    const int strips = std::max(1, static_cast<int>(std::ceil((r.max.x() - r.min.x()) / step)));
+    const double x0 = 0.5 * (r.min.x() + r.max.x()) - 0.5 * (strips - 1) * step;
+    const double lead = 6;
+    for (int k = 0; k < strips; ++k) {
+      // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1.
+      const double b = (k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180;
+      const Vec3 along(-std::sin(b), std::cos(b), 0);
+      const Vec3 centre(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid + d.standoff);
+      const double half = 0.5 * (r.max.y() - r.min.y()) + lead;
+      const double direction = k % 2 ? -1.0 : 1.0;
+      sweep(acquisition::kScenePart, static_cast<std::uint32_t>(k), centre - direction * half * along,
+            centre + direction * half * along, 0, b, p_.sweep_speed);
+    }
+  }
+
+  void planStereo() {
+    const BlankRect r = region();
+    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
+    const Vec2 mid = 0.5 * (r.min + r.max);
+    const Vec2 half = 0.5 * (r.max - r.min);
+    const int rows = std::max(1, p_.stereo_rows), cols = std::max(1, p_.stereo_columns);
+    std::uint32_t index = 0;
+    const double max_reach = half.norm() + 1e-9;
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < cols; ++i) {
+        const double fx = cols == 1 ? 0.0 : 2.0 * i / (cols - 1) - 1.0;
+        const double fy = rows == 1 ? 0.0 : 2.0 * j / (rows - 1) - 1.0;
+        const Vec2 at = mid + Vec2(fx * 0.6 * half.x(), fy * 0.6 * half.y());
+        // Outer views stand further out and look inwards, so that the walls are seen too.
+        const Vec2 offset = at - Vec2::Zero();
+        const double reach = std::min(1.0, offset.norm() / max_reach);
+        const double a = 0.35 * reach;
+        const double phi = std::atan2(offset.y(), offset.x());
+        const double b = reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0;
+        const HeadState h{Vec3::Zero(), a, b, 0};
+        const Vec3 target(at.x(), at.y(), z_mid);
+        const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff);
+        view(acquisition::kScenePart, index++, head, a, b);
+      }
+  }
+
+  const ScanParams& p_;
+  std::unique_ptr<FormedPart> part_;
+  std::mt19937_64 rng_;
+  acquisition::ScanPlan plan_;
+};
+
 // Messages collected for a stretch of the session and released in log-time order once nothing
 // earlier can still arrive.
 class OrderedEmitter {
@@ -128,19 +301,17 @@ class SessionGenerator {
     part_ = makePart(p_);
     part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
+    plate_scene_ = std::make_unique<PlateScene>(p_.plate, platePose(p_.plate));
     makeTruth();
-    trajectory_ = CmmTrajectory({}, HeadState{Vec3(0, 0, 450), 0, 0, 0});
+    const acquisition::ScanPlan plan = planScan(p_);
+    const Vec3 park(plan.park.position[0], plan.park.position[1], plan.park.position[2]);
+    trajectory_ = CmmTrajectory({}, HeadState{park, 0, 0, 0});
     // The operator loads the part: the door is open, then closes, then the clamp closes; the CMM
     // waits for both (the PLC's timeline below).
     trajectory_.dwell(kLoadSeconds, "load part");
     addSegment({});
-    if (p_.calibration) {
-      planPlate();
-      planSphere();
-    }
-    if (p_.laser) planLaserStrips();
-    if (p_.stereo) planStereo();
-    trajectory_.moveTo(Vec3(0, 0, 450), 0, 0, 200, "home");
+    play(plan);
+    trajectory_.moveTo(park, 0, 0, plan.travel_speed, "home");
     activities_.emplace_back();
     trajectory_.dwell(kUnloadSeconds, "unload part");
     addSegment({});
@@ -154,6 +325,37 @@ class SessionGenerator {
   }
 
  private:
+  const Scene* sceneNamed(const std::string& name) const {
+    if (name == acquisition::kScenePart) return part_scene_.get();
+    if (name == acquisition::kSceneSphere) return sphere_scene_.get();
+    return plate_scene_.get();
+  }
+
+  // The plan's steps as moves of the simulated CMM: the same plan the ScanRunner plays on a cell.
+  void play(const acquisition::ScanPlan& plan) {
+    auto sceneOf = [&](std::size_t k) -> std::string {
+      if (k >= plan.steps.size()) return {};
+      return std::visit([](const auto& step) { return step.scene; }, plan.steps[k]);
+    };
+    for (std::size_t k = 0; k < plan.steps.size(); ++k) {
+      const std::string scene = sceneOf(k);
+      const bool first = k == 0 || sceneOf(k - 1) != scene, last = sceneOf(k + 1) != scene;
+      if (const auto* w = std::get_if<acquisition::SweepStep>(&plan.steps[k])) {
+        travelTo(toVec(w->start), w->start.a, w->start.b, plan.travel_speed);
+        trajectory_.moveTo(toVec(w->end), w->end.a, w->end.b, w->speed, scene + " sweep " + std::to_string(w->index));
+        addSegment({Activity::Sweep, sceneNamed(scene), scene, w->index, first, last});
+      } else {
+        const auto& v = std::get<acquisition::StereoStep>(plan.steps[k]);
+        if (scene == acquisition::kScenePlate) truth_.plate_poses.push_back(platePose(p_.plate));
+        travelTo(toVec(v.pose), v.pose.a, v.pose.b, plan.travel_speed);
+        trajectory_.dwell(v.settle_s, "settle and trigger");
+        addSegment({Activity::Trigger, sceneNamed(scene), scene, v.index, first, last});
+      }
+    }
+  }
+
+  static Vec3 toVec(const acquisition::HeadPose& p) { return {p.position[0], p.position[1], p.position[2]}; }
+
   const ScanParams& params() const { return p_; }
 
   void makeTruth() {
@@ -192,140 +394,11 @@ class SessionGenerator {
     truth_.sphere = p_.sphere;
   }
 
-  // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
-  // nominal mount (the planner does not know the true one).
-  Vec3 headForSensor(const Vec3& sensor, double a, double b) const {
-    const HeadState h{Vec3::Zero(), a, b, 0};
-    return sensor - h.pose().linear() * truth_.head_from_digitizer_nominal.translation();
-  }
-
   void addSegment(Activity activity) { activities_.push_back(std::move(activity)); }
 
-  void travelTo(const Vec3& head, double a, double b) {
-    trajectory_.moveTo(head, a, b, 200, "travel");
+  void travelTo(const Vec3& head, double a, double b, double speed) {
+    trajectory_.moveTo(head, a, b, speed, "travel");
     addSegment({});
-  }
-
-  void trigger(const Scene* scene, const std::string& name, std::uint32_t index, bool first, bool last) {
-    trajectory_.dwell(0.4, "settle and trigger");
-    addSegment({Activity::Trigger, scene, name, index, first, last});
-  }
-
-  void planPlate() {
-    // The plate stands still on its fixture beside the part, tilted a little; the head looks at it
-    // from many directions and distances. That gives the view diversity intrinsic calibration needs,
-    // and, with the plate fixed, the head-to-camera (hand-eye) transform is observable too.
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const CirclePlate& plate = p_.plate;
-    const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translate(Vec3(-250, 0, -40));
-    pose.rotate(Eigen::AngleAxisd(0.2, Vec3::UnitZ()) * Eigen::AngleAxisd(0.15, Vec3::UnitX()) *
-                Eigen::AngleAxisd(-0.1, Vec3::UnitY()));
-    pose.translate(-centre_on_plate);
-    plate_scenes_.push_back(std::make_unique<PlateScene>(plate, pose));
-    for (int k = 0; k < p_.plate_poses; ++k) {
-      truth_.plate_poses.push_back(pose);
-      // Turns within +-30 degrees: the plate then stays within +-45 degrees of upright in the image,
-      // where its dots are numbered unambiguously.
-      const double a = 0.4 * u(rng_), b = 0.5 * u(rng_);
-      const Vec3 target = pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
-      const HeadState h{Vec3::Zero(), a, b, 0};
-      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
-      travelTo(head, a, b);
-      trigger(plate_scenes_.back().get(), "calibration_plate", static_cast<std::uint32_t>(k), k == 0,
-              k == p_.plate_poses - 1);
-    }
-  }
-
-  void sweep(const Scene* scene, const std::string& name, std::uint32_t index, const Vec3& sensor_from,
-             const Vec3& sensor_to, double a, double b, double speed, bool first, bool last) {
-    travelTo(headForSensor(sensor_from, a, b), a, b);
-    trajectory_.moveTo(headForSensor(sensor_to, a, b), a, b, speed, name + " sweep " + std::to_string(index));
-    addSegment({Activity::Sweep, scene, name, index, first, last});
-  }
-
-  void planSphere() {
-    // Sweeps that look different from the sensor: the ball passes through the left, middle and right
-    // of the fan and near and far in the measuring range (otherwise a turn of the mount could not be
-    // told from a shift); the head turns and tilts between sweeps (otherwise the mount's offset could
-    // not be told from the ball's position); speeds and directions vary (the latency shifts points
-    // along the sweep by speed x latency).
-    struct SweepPlan {
-      double b, a, speed, direction, lateral, depth;
-    };
-    const double quarter = std::numbers::pi / 2;
-    const SweepPlan plans[] = {{0, 0, 10, 1, -12, 0},           {quarter, 0.3, 40, -1, 12, 8},
-                               {0, -0.3, 40, 1, 0, 15},         {quarter, 0, 10, -1, 0, -15},
-                               {0, 0.3, 10, -1, 8, -8},         {quarter, -0.3, 40, 1, -8, 0},
-                               {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
-    const ReferenceSphere& s = p_.sphere;
-    for (int k = 0; k < p_.sphere_sweeps; ++k) {
-      const SweepPlan& plan = plans[k % 8];
-      const HeadState h{Vec3::Zero(), plan.a, plan.b, 0};
-      const Eigen::Matrix3d R = h.pose().linear() * truth_.head_from_digitizer_nominal.linear();
-      // The mirror above the ball, offset across the fan and along the view.
-      const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
-      const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
-      sweep(sphere_scene_.get(), "reference_sphere", static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a,
-            plan.b, plan.speed, k == 0, k == p_.sphere_sweeps - 1);
-    }
-  }
-
-  BlankRect region() const {
-    const BlankRect whole = part_->footprint();
-    if (p_.scan_region.max.x() <= p_.scan_region.min.x()) return whole;
-    return {whole.min.cwiseMax(p_.scan_region.min), whole.max.cwiseMin(p_.scan_region.max)};
-  }
-
-  void planLaserStrips() {
-    const BlankRect r = region();
-    const DigitizerSpec& d = p_.digitizer;
-    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
-    const double width = 2 * d.standoff * std::tan(d.half_angle);
-    const double step = width * (1 - p_.strip_overlap);
-    const int strips = std::max(1, static_cast<int>(std::ceil((r.max.x() - r.min.x()) / step)));
-    const double x0 = 0.5 * (r.min.x() + r.max.x()) - 0.5 * (strips - 1) * step;
-    const double lead = 6;
-    for (int k = 0; k < strips; ++k) {
-      // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1.
-      const double b = (k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180;
-      const Vec3 along(-std::sin(b), std::cos(b), 0);
-      const Vec3 centre(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid + d.standoff);
-      const double half = 0.5 * (r.max.y() - r.min.y()) + lead;
-      const double direction = k % 2 ? -1.0 : 1.0;
-      sweep(part_scene_.get(), "part", static_cast<std::uint32_t>(k), centre - direction * half * along,
-            centre + direction * half * along, 0, b, p_.sweep_speed, k == 0, k == strips - 1 && !p_.stereo);
-    }
-  }
-
-  void planStereo() {
-    const BlankRect r = region();
-    const double z_mid = 0.5 * (part_->minHeight() + part_->maxHeight());
-    const Vec2 mid = 0.5 * (r.min + r.max);
-    const Vec2 half = 0.5 * (r.max - r.min);
-    const int rows = std::max(1, p_.stereo_rows), cols = std::max(1, p_.stereo_columns);
-    std::uint32_t index = 0;
-    const double max_reach = half.norm() + 1e-9;
-    for (int j = 0; j < rows; ++j)
-      for (int i = 0; i < cols; ++i) {
-        const double fx = cols == 1 ? 0.0 : 2.0 * i / (cols - 1) - 1.0;
-        const double fy = rows == 1 ? 0.0 : 2.0 * j / (rows - 1) - 1.0;
-        const Vec2 at = mid + Vec2(fx * 0.6 * half.x(), fy * 0.6 * half.y());
-        // Outer views stand further out and look inwards, so that the walls are seen too.
-        const Vec2 offset = at - Vec2::Zero();
-        const double reach = std::min(1.0, offset.norm() / max_reach);
-        const double a = 0.35 * reach;
-        const double phi = std::atan2(offset.y(), offset.x());
-        const double b = reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0;
-        const HeadState h{Vec3::Zero(), a, b, 0};
-        const Vec3 target(at.x(), at.y(), z_mid);
-        const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff);
-        travelTo(head, a, b);
-        const bool first = index == 0 && !p_.laser, last = j == rows - 1 && i == cols - 1;
-        trigger(part_scene_.get(), "part", index, first, last);
-        ++index;
-      }
   }
 
   void writeMetadata() {
@@ -537,7 +610,7 @@ class SessionGenerator {
   std::unique_ptr<FormedPart> part_;
   std::unique_ptr<PartScene> part_scene_;
   std::unique_ptr<SphereScene> sphere_scene_;
-  std::vector<std::unique_ptr<PlateScene>> plate_scenes_;
+  std::unique_ptr<PlateScene> plate_scene_;
   std::unique_ptr<CameraRenderer> renderers_[2];  // made at the first frame: the pixel rays are cached
   CellTruth truth_;
   CmmTrajectory trajectory_;
@@ -548,6 +621,16 @@ class SessionGenerator {
 };
 
 }  // namespace
+
+acquisition::ScanPlan planScan(const ScanParams& params) { return Planner(params).plan(); }
+
+Eigen::Isometry3d platePose(const CirclePlate& plate) { return platePoseFor(plate); }
+
+Eigen::Isometry3d nominalDigitizerMount() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = kDigitizerMount;
+  return T;
+}
 
 std::unique_ptr<FormedPart> makePart(const ScanParams& params) {
   if (params.part == PartKind::Dome) return std::make_unique<DomePart>(params.dome);

@@ -6,7 +6,7 @@
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
-#include "stampscan/station/cell_config.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
 #include "virtual_digitizer_host.hpp"
 
@@ -17,6 +17,10 @@
 #include <vector>
 
 namespace stampscan::station {
+
+using acquisition::CellConfig;
+using acquisition::loadCellConfig;
+using acquisition::virtualCell;
 
 namespace {
 

@@ -8,6 +8,7 @@
 #include "stampscan/station/fit_runner.hpp"
 #include "stampscan/station/progress.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -89,6 +90,11 @@ CommandRunner addProcessCommand(CLI::App& app) {
 
     registration::MeasureParams params;
     params.with_stereo = opt->with_stereo;
+    const bool has_sphere = std::any_of(trace.sweeps.begin(), trace.sweeps.end(),
+                                        [](const registration::SweepWindow& w) { return w.is("reference_sphere"); });
+    if (!has_sphere && opt->calibration_dir.empty())
+      throw std::runtime_error(opt->input + " has no reference-sphere sweeps to calibrate the digitizer: pass "
+                                            "--calibration DIR with a digitizer.json");
     if (!opt->calibration_dir.empty()) {
       const fs::path file = fs::path(opt->calibration_dir) / "digitizer.json";
       if (!fs::exists(file)) throw std::runtime_error(file.string() + " does not exist");

@@ -5,7 +5,7 @@
 #include "stampscan/sim/virtual_camera.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
 #include "stampscan/sim/virtual_plc.hpp"
-#include "stampscan/station/cell_config.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <csignal>
@@ -16,6 +16,10 @@
 #include <vector>
 
 namespace stampscan::station {
+
+using acquisition::CellConfig;
+using acquisition::loadCellConfig;
+using acquisition::virtualCell;
 
 CommandRunner addServeSubcommand(CLI::App* sim) {
   struct Options {

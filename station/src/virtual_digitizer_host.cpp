@@ -16,6 +16,10 @@
 
 namespace stampscan::station {
 
+using acquisition::CellConfig;
+using acquisition::loadCellConfig;
+using acquisition::virtualCell;
+
 namespace {
 
 // Set for the re-executed process, so that it reports the failure instead of re-executing again.

@@ -6,11 +6,15 @@
 #pragma once
 
 #include "stampscan/sim/virtual_digitizer.hpp"
-#include "stampscan/station/cell_config.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 
 #include <memory>
 
 namespace stampscan::station {
+
+using acquisition::CellConfig;
+using acquisition::loadCellConfig;
+using acquisition::virtualCell;
 
 // The library umockdev-wrapper preloads; found by the dynamic loader's usual search.
 inline constexpr const char* kUmockdevPreload = "libumockdev-preload.so.0";

@@ -6,7 +6,7 @@
 
 #include "stampscan/drivers/plc/plc_register_map.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
-#include "stampscan/station/cell_config.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -31,6 +31,10 @@
 #endif
 
 namespace stampscan::station::test {
+
+using acquisition::CellConfig;
+using acquisition::loadCellConfig;
+using acquisition::virtualCell;
 namespace {
 
 // The [digitizer] section of a cell whose digitizer is the virtual one, hosted by `station devices`.

@@ -58,6 +58,7 @@ struct VirtualDigitizer::Impl {
   std::uint32_t sequence = 0;
   std::uint32_t stream_first_sequence = 0;
   std::chrono::steady_clock::time_point stream_start;
+  const std::chrono::steady_clock::time_point clock_zero = std::chrono::steady_clock::now();
   std::deque<Urb> control_done;  // answered control URBs, reaped first
   std::deque<Urb> bulk_posted;   // bulk-in URBs waiting for a profile
   std::deque<Urb> finished;      // discarded or torn-down URBs, reaped with their status
@@ -77,6 +78,10 @@ struct VirtualDigitizer::Impl {
   }
   std::uint64_t deviceTime(std::uint32_t seq) const {
     return static_cast<std::uint64_t>(static_cast<double>(seq) * 1e9 / config.profile_rate_hz);
+  }
+  std::uint64_t clockNow() const {
+    return static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - clock_zero).count());
   }
 
   // Answers a control URB at submit time; the reply waits in control_done for the reap.
@@ -104,7 +109,7 @@ struct VirtualDigitizer::Impl {
           break;
         }
         case Request::GetStatus:
-          reply(encode(DeviceStatus{statusWord(), sequence, deviceTime(sequence)}));
+          reply(encode(DeviceStatus{statusWord(), sequence, options.paced ? clockNow() : deviceTime(sequence)}));
           break;
         default: break;
       }
@@ -154,9 +159,10 @@ struct VirtualDigitizer::Impl {
     Profile profile;
     for (; drop > 0; --drop) source(sequence++, config, profile);  // made, then lost on the wire
     profile = Profile{};
+    const std::uint64_t exposure = clockNow();
     source(sequence, config, profile);
     profile.sequence = sequence;
-    profile.device_time_ns = deviceTime(sequence);
+    profile.device_time_ns = options.paced ? exposure + static_cast<std::uint64_t>(options.stamp_latency_ns) : deviceTime(sequence);
     if (mirror_fault) profile.status |= kStatusMirrorFault;
     ++sequence;
     const Bytes bytes = encode(profile);

@@ -5,6 +5,7 @@
 // log-time order. Deterministic for a given seed.
 #pragma once
 
+#include "stampscan/acquisition/scan_plan.hpp"
 #include "stampscan/acquisition/trace/trace_sink.hpp"
 #include "stampscan/sim/camera_model.hpp"
 #include "stampscan/sim/cmm_motion.hpp"
@@ -78,6 +79,18 @@ struct ScanSummary {
 };
 
 using ScanProgress = std::function<void(double fraction, std::string_view stage)>;
+
+// The session's plan: calibration views of the plate and sweeps over the reference sphere (when
+// `calibration`), laser strips over the part (`laser`) and stereo poses (`stereo`). The simulator
+// plays it below; the ScanRunner plays the same plan on a cell.
+acquisition::ScanPlan planScan(const ScanParams& params);
+
+// The drawing's mount of the digitizer on the head (the mirror 120 mm below the reference point,
+// looking down): what plans and the session description use until calibration says better.
+Eigen::Isometry3d nominalDigitizerMount();
+
+// Where the calibration plate stands on the table (machine_from_plate).
+Eigen::Isometry3d platePose(const CirclePlate& plate);
 
 // The formed part the parameters describe.
 std::unique_ptr<FormedPart> makePart(const ScanParams& params);

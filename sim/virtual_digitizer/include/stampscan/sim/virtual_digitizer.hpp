@@ -10,8 +10,11 @@
 // context (libusb enumerates at init) and only one per process at a time.
 //
 // Timing: the device answers a posted bulk transfer as soon as the host reaps it (as fast as the
-// host can take profiles) unless `paced` is set, when it keeps the configured profile rate. Device
-// timestamps always follow the configured rate: sequence / rate.
+// host can take profiles) unless `paced` is set, when it keeps the configured profile rate.
+// Unpaced, device timestamps follow the configured rate (sequence / rate), a clock that stands
+// still between streams. Paced, the device has a free-running clock like the real head's (ns since
+// the device was made): GetStatus reports it, and each profile is exposed when it is made and
+// stamped `stamp_latency_ns` later, so a profile source that renders the world "now" is right.
 //
 // Threads: umockdev runs the ioctl handler on its own worker thread; the profile source runs there,
 // under the device's lock, so it must not call back into the VirtualDigitizer. Every public method
@@ -33,6 +36,7 @@ struct VirtualDigitizerOptions {
   int bus = 1;  // the device is /dev/bus/usb/<bus>/001
   float half_angle = 0.21f;  // rad: the fan the GetConfig reply describes
   bool paced = false;
+  std::int64_t stamp_latency_ns = 0;  // paced only: profile stamp minus its exposure
 };
 
 class VirtualDigitizer {

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::acquisition {
 
 struct CellConfig {
   std::string name = "virtual cell";
@@ -37,4 +37,4 @@ CellConfig virtualCell();
 // Throws std::runtime_error naming the file and the key.
 CellConfig loadCellConfig(const std::filesystem::path& file);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::acquisition

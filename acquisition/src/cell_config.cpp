@@ -1,4 +1,4 @@
-#include "stampscan/station/cell_config.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 
 #include "stampscan/drivers/digitizer/digitizer_protocol.hpp"
 
@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <type_traits>
 
-namespace stampscan::station {
+namespace stampscan::acquisition {
 
 CellConfig virtualCell() {
   CellConfig c;
@@ -89,4 +89,4 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   return c;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::acquisition

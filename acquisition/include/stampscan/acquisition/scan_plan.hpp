@@ -1,0 +1,124 @@
+// A scan plan: what the cell does for one scan, as a plain value. The head's path through laser
+// sweeps over the part and the calibration artefacts, and the poses at which the stereo pair is
+// triggered, in the order they run. Two executors play the same plan: the ScanRunner on a cell
+// (real or virtual) and the simulator (sim/scan_scenario.hpp), so a plan tried in simulation is the
+// plan the cell runs.
+//
+// Plans come from the simulator's planner for the built-in parts (sim::planScan) or from a TOML
+// file (loadScanPlan; station/plans/ has examples):
+//
+//   name = "pan, laser"
+//   travel_speed = 200            # mm/s between steps
+//   park = [0, 0, 450]            # mm: where the head waits before and after
+//   [part]
+//   kind = "pan"                  # what is on the fixture
+//   grid = "circle"               # the printed grid: circle or square
+//   pitch = 2.54                  # mm; also circle_diameter and line_width
+//   [[step]]
+//   kind = "sweep"                # the digitizer scans from start to end at speed
+//   scene = "part"                # part, reference_sphere, calibration_plate
+//   start = [-30, -40, 160]       # mm: the head's reference point
+//   end = [-30, 40, 160]
+//   head = [0, -2]                # degrees: tilt a, turn b (see registration::headPose)
+//   speed = 25                    # mm/s
+//   [[step]]
+//   kind = "stereo"               # the stereo pair is triggered at pose, after settling
+//   scene = "part"
+//   pose = [0, 0, 420]
+//   head = [0, 0]
+//
+// Errors name the file, the line and the field.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace stampscan::acquisition {
+
+// Where the CMM puts its head: the reference point (mm, machine frame) and the articulating head's
+// angles (rad): tilt a about the ram's x axis, turn b about z.
+struct HeadPose {
+  std::array<double, 3> position{0, 0, 0};
+  double a = 0, b = 0;
+  bool operator==(const HeadPose&) const = default;
+};
+
+// The scenes a plan looks at; they bracket the recorded data (SceneMarker) and tell the measuring
+// path which sweeps calibrate the digitizer and which measure the part.
+inline constexpr const char* kScenePart = "part";
+inline constexpr const char* kSceneSphere = "reference_sphere";
+inline constexpr const char* kScenePlate = "calibration_plate";
+
+struct SweepStep {
+  std::string scene = kScenePart;
+  std::uint32_t index = 0;  // within the scene
+  HeadPose start, end;      // the head moves from start to end in a straight line, angles fixed
+  double speed = 25;        // mm/s
+  bool operator==(const SweepStep&) const = default;
+};
+
+struct StereoStep {
+  std::string scene = kScenePart;
+  std::uint32_t index = 0;
+  HeadPose pose;
+  double settle_s = 0.4;  // wait after arriving before the trigger
+  bool operator==(const StereoStep&) const = default;
+};
+
+using PlanStep = std::variant<SweepStep, StereoStep>;
+
+struct PartSpec {
+  std::string kind = "pan";
+  std::string grid = "circle";
+  double pitch = 2.54, circle_diameter = 2.54, line_width = 0.15;  // mm
+  bool operator==(const PartSpec&) const = default;
+};
+
+struct ScanPlan {
+  std::string name;
+  PartSpec part;
+  double travel_speed = 200;  // mm/s
+  HeadPose park{{0, 0, 450}, 0, 0};
+  std::vector<PlanStep> steps;
+
+  std::size_t sweepCount(const std::string& scene = "") const;
+  std::size_t stereoCount(const std::string& scene = "") const;
+  bool operator==(const ScanPlan&) const = default;
+};
+
+// What the machine can do; a plan outside it is refused before anything moves.
+struct MachineLimits {
+  std::array<double, 3> travel_min{-400, -300, -100}, travel_max{400, 300, 600};  // mm
+  double min_speed = 1, max_speed = 500;      // mm/s
+  double acceleration = 1000;                 // mm/s^2, for the motion time
+  double max_tilt = 115 * 3.14159265358979323846 / 180;  // |a|, rad
+  double max_turn = 3.14159265358979323846;              // |b|, rad
+};
+
+// The plan's problems against the limits, one line each ("step 3 (sweep part 2): end x = 450 mm is
+// outside the travel -400..400"); empty when it can run.
+std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& limits);
+
+// The time the machine needs for the plan: trapezoidal moves at the plan's speeds, settling times.
+double motionSeconds(const ScanPlan& plan, const MachineLimits& limits);
+// One straight move's time at up to `speed`: accelerate, cruise, brake (a triangle when short).
+double moveSeconds(const HeadPose& from, const HeadPose& to, double speed, const MachineLimits& limits);
+
+class PlanError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads a plan file; throws PlanError naming the file, line and field.
+ScanPlan loadScanPlan(const std::filesystem::path& file);
+ScanPlan parseScanPlan(const std::string& toml_text, const std::string& source_name);
+// The plan as a plan file (parseScanPlan reads it back equal).
+std::string toToml(const ScanPlan& plan);
+
+}  // namespace stampscan::acquisition

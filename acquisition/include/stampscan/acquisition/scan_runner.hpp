@@ -1,0 +1,115 @@
+// The ScanRunner plays a ScanPlan on a cell and records everything into a TraceSink as it arrives:
+// the CMM's positions (its move-report daemon), the digitizer's profiles, the PLC's state, the
+// devices' clock pairs, the sweeps' and scenes' brackets, and the session description. The same
+// runner drives a real cell and the virtual one; it only sees the drivers.
+//
+// A run, in order:
+//  1. The plan is checked against the machine's limits: a plan that leaves the travel, asks for a
+//     speed or a head angle the CMM refuses, is refused (ScanError) before anything moves.
+//  2. Checks before motion: every device connects and answers; the PLC reports the door closed, the
+//     e-stop chain and the light curtain healthy and the air on; the part is clamped (the runner
+//     asks the PLC to clamp and waits). A failed check is a ScanError with one line naming it.
+//  3. The CMM is homed if it is not; move reports start; for each step the head travels to the
+//     sweep's start, the laser shutter opens, the digitizer streams, the head sweeps, then the
+//     shutter closes. Each sweep is bracketed by CmmEvents sweep_begin/sweep_end ("part sweep 3")
+//     and each scene by SceneMarkers, as the measuring path (registration::measureScan) expects.
+//  4. The head parks and the clamp opens.
+// Faults mid-scan: the PLC's door, e-stop or curtain (SafetyInterlock aborts the move at once), an
+// operator abort (abort(), e.g. from Ctrl-C) or a device error end the run as Aborted: the shutter
+// is closed, the digitizer stopped, an "abort" CmmEvent records why, and the trace stays readable.
+//
+// Stereo steps are not driven yet (the cameras' triggering is not part of the runner): a plan with
+// stereo steps is refused in step 1, naming them.
+//
+// Thread safety: run() blocks; abort() may be called from any thread (a signal handler must not:
+// set a flag and call it from a thread). The sink is written from the devices' threads, one message
+// at a time under the runner's lock; the observer is called from the thread that calls run().
+#pragma once
+
+#include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/acquisition/station_clock.hpp"
+#include "stampscan/acquisition/trace/session_description.hpp"
+#include "stampscan/acquisition/trace/trace_sink.hpp"
+#include "stampscan/drivers/cmm/ipp_client.hpp"
+#include "stampscan/drivers/digitizer/usb_digitizer.hpp"
+#include "stampscan/drivers/plc/modbus_plc.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace stampscan::acquisition {
+
+// The devices a scan uses, connected or not; owned by the caller, alive for the run.
+struct CellDevices {
+  drivers::cmm::IppCmm& cmm;
+  drivers::plc::ModbusPlc& plc;
+  drivers::digitizer::UsbDigitizer& digitizer;
+};
+
+// Thrown when a check before motion fails; nothing has moved. The text is one line for the operator.
+class ScanError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ScanProgress {
+  std::size_t step = 0, steps = 0;  // steps done, of the plan's
+  std::string doing;                // "part sweep 3", "travel", "homing", ...
+  double elapsed_s = 0;
+  double remaining_s = 0;           // from the plan's motion time still ahead
+  std::uint64_t profiles = 0, lost_profiles = 0, positions = 0;
+};
+
+class ScanObserver {
+ public:
+  virtual ~ScanObserver() = default;
+  virtual void checkPassed(const std::string& /*what*/) {}
+  virtual void progress(const ScanProgress& /*progress*/) {}
+  virtual void safetyEvent(const std::string& /*what*/) {}
+};
+
+struct ScanRunParams {
+  // The session description to record: the runner fills in the part, grid and plan from the plan and
+  // the digitizer's profile format from the device; the caller gives the cell's geometry (digitizer
+  // mount and range, the reference sphere) and the part id.
+  trace::SessionDescription session;
+  MachineLimits limits;
+  double report_interval_s = 0.1;  // the CMM's move reports (I++ DME allows 0.1 s at the fastest)
+  std::chrono::milliseconds clamp_timeout{3000};
+  std::chrono::milliseconds plc_state_period{100};
+};
+
+struct ScanRunResult {
+  bool completed = false;
+  std::string abort_reason;  // when not completed
+  std::size_t steps_done = 0, sweeps_done = 0;
+  std::uint64_t profiles = 0, lost_profiles = 0, positions = 0, plc_states = 0;
+  double wall_seconds = 0;    // from the first motion to parked
+  double motion_seconds = 0;  // what the plan needs (motionSeconds), for comparison
+  std::vector<drivers::DeviceIdentity> devices;
+  std::vector<std::string> safety_events;
+};
+
+class ScanRunner {
+ public:
+  ScanRunner(CellDevices devices, trace::TraceSink& sink, const StationClock& clock, ScanObserver* observer = nullptr);
+  ~ScanRunner();
+  ScanRunner(const ScanRunner&) = delete;
+  ScanRunner& operator=(const ScanRunner&) = delete;
+
+  // Throws ScanError for a plan or a check that fails before motion. Returns completed = false when
+  // the run was aborted after motion began (the reason says why).
+  ScanRunResult run(const ScanPlan& plan, const ScanRunParams& params);
+  // Stops the run: the CMM aborts its move, the run ends Aborted with `reason`. Any thread.
+  void abort(const std::string& reason);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stampscan::acquisition

@@ -1,0 +1,402 @@
+#include "stampscan/acquisition/scan_runner.hpp"
+
+#include "stampscan/acquisition/safety_interlock.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
+
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace stampscan::acquisition {
+
+namespace msg = stampscan::trace;
+using drivers::cmm::CmmPosition;
+using drivers::cmm::MoveOutcome;
+using drivers::cmm::ToolOrientation;
+using drivers::plc::Coil;
+
+namespace {
+
+// Thrown inside run() when the run must end after motion began.
+struct Aborted {
+  std::string reason;
+};
+
+CmmPosition positionOf(const HeadPose& p) { return {p.position[0], p.position[1], p.position[2]}; }
+ToolOrientation orientationOf(const HeadPose& p) { return {p.a, p.b, 0}; }
+
+std::string describe(const PlanStep& step) {
+  return std::visit([](const auto& s) {
+    using T = std::decay_t<decltype(s)>;
+    return s.scene + (std::is_same_v<T, SweepStep> ? " sweep " : " view ") + std::to_string(s.index);
+  }, step);
+}
+
+}  // namespace
+
+struct ScanRunner::Impl {
+  CellDevices dev;
+  trace::TraceSink& sink;
+  const StationClock& clock;
+  ScanObserver* observer;
+
+  std::mutex sink_mutex;  // the devices' threads write one message at a time
+  std::atomic<std::uint64_t> positions{0}, profiles{0}, plc_states{0};
+  std::mutex abort_mutex;
+  std::optional<std::string> abort_reason;
+
+  Impl(CellDevices d, trace::TraceSink& s, const StationClock& c, ScanObserver* o) : dev(d), sink(s), clock(c), observer(o) {}
+
+  void write(std::string_view topic, std::int64_t log_time, std::vector<std::byte> bytes) {
+    std::lock_guard lock(sink_mutex);
+    sink.message(topic, log_time, std::move(bytes));
+  }
+
+  void event(const std::string& kind, const std::string& detail) {
+    msg::CmmEvent e;
+    e.station_time_ns = clock.now();
+    e.kind = kind;
+    e.detail = detail;
+    write(msg::topics::kCmmEvent, e.station_time_ns, msg::encode(e));
+  }
+
+  void marker(const std::string& scene, const char* phase, std::uint32_t index) {
+    msg::SceneMarker m;
+    m.station_time_ns = clock.now();
+    m.scene = scene;
+    m.phase = phase;
+    m.index = index;
+    write(msg::topics::kScene, m.station_time_ns, msg::encode(m));
+  }
+
+  void position(std::int64_t t, const CmmPosition& p, const ToolOrientation& o) {
+    msg::CmmPosition m;
+    m.station_time_ns = t;
+    m.x = p.x, m.y = p.y, m.z = p.z;
+    m.head_a = o.a;
+    m.head_b = o.b;
+    ++positions;
+    write(msg::topics::kCmmPosition, t, msg::encode(m));
+  }
+
+  // The head where it stands, read at one instant: a sample of the track at both ends of a move, so
+  // that the track is exact where the head is still (move reports come only while it moves).
+  void samplePose() {
+    const std::int64_t before = clock.now();
+    const drivers::cmm::CmmPose p = dev.cmm.pose();
+    const std::int64_t after = clock.now();
+    position(before + (after - before) / 2, p.position, p.orientation);
+  }
+
+  // A pair of readings of the station clock and the digitizer's, the device's between two station
+  // readings: the pair's error is at most half the request's round trip.
+  void clockSync() {
+    const std::int64_t before = clock.now();
+    drivers::digitizer::DeviceStatus status;
+    try {
+      status = dev.digitizer.readStatus();
+    } catch (const drivers::DeviceError&) {
+      return;  // one pair missing is no harm; the trace has many
+    }
+    const std::int64_t after = clock.now();
+    msg::ClockSync c;
+    c.device = "digitizer";
+    c.station_time_ns = before + (after - before) / 2;
+    c.device_time_ns = static_cast<std::int64_t>(status.device_time_ns);
+    write(msg::topics::kClockSync, c.station_time_ns, msg::encode(c));
+  }
+
+  void plcState(const drivers::plc::PlcInputs& in, const drivers::plc::PlcOutputs& out) {
+    msg::PlcState s;
+    s.station_time_ns = clock.now();
+    s.door_closed = in.door_closed;
+    s.estop_ok = in.e_stop_chain_ok;
+    s.light_curtain_clear = in.light_curtain_clear;
+    s.part_clamped = in.part_clamped;
+    s.laser_shutter_open = !in.laser_shutter_closed;
+    s.stack_light = static_cast<std::uint8_t>((out.stack_light_green ? 1 : 0) | (out.stack_light_amber ? 2 : 0) |
+                                              (out.stack_light_red ? 4 : 0));
+    s.heartbeat = in.plc_heartbeat;
+    ++plc_states;
+    write(msg::topics::kPlcState, s.station_time_ns, msg::encode(s));
+  }
+
+  std::optional<std::string> abortReason() {
+    std::lock_guard lock(abort_mutex);
+    return abort_reason;
+  }
+
+  // ---- Checks before motion --------------------------------------------------------------------
+
+  void connect(drivers::Device& device, const char* what) {
+    try {
+      if (device.state() != drivers::DeviceState::Ready) device.connect();
+    } catch (const std::exception& e) {
+      throw ScanError(std::string(what) + " does not answer: " + e.what() + " (run `station devices` to see the cell)");
+    }
+    if (observer) observer->checkPassed(std::string(what) + " answers: " + device.identity().model);
+  }
+
+  void checkInterlocks(const ScanRunParams& params) {
+    drivers::plc::PlcInputs in;
+    try {
+      in = dev.plc.readInputs();
+    } catch (const std::exception& e) {
+      throw ScanError(std::string("the PLC does not answer: ") + e.what());
+    }
+    if (!in.door_closed) throw ScanError("the cell door is open: close it and start again");
+    if (!in.e_stop_chain_ok) throw ScanError("the e-stop chain is broken: release the e-stop, reset the cell and start again");
+    if (!in.light_curtain_clear) throw ScanError("the light curtain is interrupted: clear it and start again");
+    if (!in.air_pressure_ok) throw ScanError("no air pressure: open the air supply and start again");
+    if (observer) observer->checkPassed("interlocks healthy: door closed, e-stop chain, light curtain, air");
+    // Clear a tripped interlock (no automatic restart: the station writes the coils again), ask for
+    // the clamp and motion.
+    drivers::plc::PlcOutputs out;
+    out.stack_light_amber = true;
+    out.clamp_request = true;
+    out.motion_enable = true;
+    dev.plc.writeOutputs(out);
+    const auto deadline = std::chrono::steady_clock::now() + params.clamp_timeout;
+    while (!dev.plc.readInputs().part_clamped) {
+      if (std::chrono::steady_clock::now() > deadline)
+        throw ScanError("the part is not clamped " + std::to_string(params.clamp_timeout.count()) +
+                        " ms after the clamp was asked for: check the part and the clamp");
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (observer) observer->checkPassed("part clamped");
+  }
+
+  // ---- Motion ----------------------------------------------------------------------------------
+
+  void checkAbort(SafetyInterlock& safety) {
+    if (auto reason = abortReason()) throw Aborted{*reason};
+    if (safety.tripped()) {
+      const auto events = safety.events();
+      throw Aborted{events.empty() ? "safety interlock" : events.back().what};
+    }
+  }
+
+  void move(SafetyInterlock& safety, const HeadPose& target, double speed) {
+    checkAbort(safety);
+    MoveOutcome outcome;
+    try {
+      outcome = dev.cmm.goTo(positionOf(target), orientationOf(target), speed);
+    } catch (const drivers::DeviceError& e) {
+      checkAbort(safety);  // an abort mid-move may surface as an error
+      // One retry after clearing the CMM's errors (I++ DME ClearAllErrors); then the run ends.
+      try {
+        dev.cmm.clearAllErrors();
+        outcome = dev.cmm.goTo(positionOf(target), orientationOf(target), speed);
+      } catch (const std::exception& again) {
+        throw Aborted{std::string("the CMM refused a move twice: ") + again.what()};
+      }
+    }
+    if (outcome == MoveOutcome::Aborted) {
+      checkAbort(safety);
+      throw Aborted{"the CMM stopped the move"};
+    }
+  }
+
+  void shutter(bool open) { dev.plc.setOutput(Coil::LaserShutterOpenRequest, open); }
+
+  ScanRunResult run(const ScanPlan& plan, const ScanRunParams& params) {
+    const std::vector<std::string> problems = checkPlan(plan, params.limits);
+    if (!problems.empty()) {
+      std::string text = "the plan cannot run on this cell: " + problems.front();
+      if (problems.size() > 1) text += " (and " + std::to_string(problems.size() - 1) + " more)";
+      throw ScanError(text);
+    }
+    if (plan.stereoCount() > 0)
+      throw ScanError("the plan has " + std::to_string(plan.stereoCount()) +
+                      " stereo views; scans on the cell run the laser sweeps only so far");
+    {
+      std::lock_guard lock(abort_mutex);
+      abort_reason.reset();
+    }
+    connect(dev.cmm, "the CMM");
+    connect(dev.plc, "the PLC");
+    connect(dev.digitizer, "the digitizer");
+    checkInterlocks(params);
+
+    ScanRunResult result;
+    result.motion_seconds = motionSeconds(plan, params.limits);
+    result.devices = {dev.cmm.identity(), dev.plc.identity(), dev.digitizer.identity()};
+
+    // The session description, with what the devices say of themselves.
+    const drivers::digitizer::ConfigReply config = dev.digitizer.readConfig();
+    trace::SessionDescription session = params.session;
+    session.part = plan.part.kind;
+    session.plan = plan.name;
+    session.grid = plan.part.grid;
+    session.grid_pitch_mm = plan.part.pitch;
+    session.grid_circle_diameter_mm = plan.part.circle_diameter;
+    session.grid_line_width_mm = plan.part.line_width;
+    session.digitizer_points_per_profile = config.config.points_per_profile;
+    session.digitizer_profile_rate_hz = config.config.profile_rate_hz;
+    session.station_clock = "station system clock, ns since the Unix epoch";
+    {
+      std::lock_guard lock(sink_mutex);
+      sink.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(session));
+    }
+
+    SafetyInterlock safety(dev.plc, dev.cmm);
+    const auto start = std::chrono::steady_clock::now();
+    const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+    std::atomic<bool> stop_polling{false};
+    // The PLC's state into the trace, at a steady rate (the driver's watchdog thread reads it).
+    std::thread plc_poller([&] {
+      while (!stop_polling) {
+        if (const auto in = dev.plc.lastInputs()) {
+          try {
+            plcState(*in, dev.plc.readOutputs());
+          } catch (const std::exception&) {
+          }
+        }
+        std::this_thread::sleep_for(params.plc_state_period);
+      }
+    });
+
+    dev.cmm.startMoveReports(params.report_interval_s, [this](const drivers::cmm::MoveReport& r) {
+      position(clock.fromSteady(r.station_time_ns), r.position, r.orientation.value_or(ToolOrientation{}));
+    }, drivers::cmm::MoveReportContent::PositionAndOrientation);
+
+    std::uint64_t lost_before = dev.digitizer.counters().lost_profiles;
+    double motion_done = 0;
+    HeadPose at = plan.park;
+    auto report = [&](std::size_t step, const std::string& doing) {
+      if (!observer) return;
+      ScanProgress p;
+      p.step = step;
+      p.steps = plan.steps.size();
+      p.doing = doing;
+      p.elapsed_s = elapsed();
+      p.remaining_s = std::max(0.0, result.motion_seconds - motion_done);
+      p.profiles = profiles;
+      p.lost_profiles = dev.digitizer.counters().lost_profiles - lost_before;
+      p.positions = positions;
+      observer->progress(p);
+    };
+    const auto sceneOf = [&](std::size_t k) {
+      return k < plan.steps.size() ? std::visit([](const auto& s) { return s.scene; }, plan.steps[k]) : std::string();
+    };
+    try {
+      if (!dev.cmm.isHomed()) {
+        report(0, "homing");
+        event("move_begin", "home");
+        if (dev.cmm.home() == MoveOutcome::Aborted) checkAbort(safety);
+        event("move_end", "home");
+      }
+      samplePose();
+      clockSync();
+      for (std::size_t k = 0; k < plan.steps.size(); ++k) {
+        const auto& sweep = std::get<SweepStep>(plan.steps[k]);
+        const std::string label = describe(plan.steps[k]);
+        const bool first = k == 0 || sceneOf(k - 1) != sweep.scene, last = sceneOf(k + 1) != sweep.scene;
+        report(k, "travel to " + label);
+        event("move_begin", "travel");
+        move(safety, sweep.start, plan.travel_speed);
+        event("move_end", "travel");
+        samplePose();
+        motion_done += moveSeconds(at, sweep.start, plan.travel_speed, params.limits);
+        if (first) marker(sweep.scene, "begin", sweep.index);
+        clockSync();
+        shutter(true);
+        dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
+                                drivers::digitizer::Profile&& p) {
+          msg::LaserProfile m;
+          m.sequence = p.sequence;
+          m.device_time_ns = static_cast<std::int64_t>(p.device_time_ns);
+          m.status = p.status;
+          m.angle_min = angle_min;
+          m.angle_increment = increment;
+          m.range = std::move(p.range);
+          m.intensity = std::move(p.intensity);
+          ++profiles;
+          write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
+        });
+        report(k, label);
+        const std::string sweep_label = sweep.scene + " sweep " + std::to_string(sweep.index);
+        event("sweep_begin", sweep_label);
+        try {
+          move(safety, sweep.end, sweep.speed);
+        } catch (...) {
+          dev.digitizer.stop();
+          shutter(false);
+          throw;
+        }
+        event("sweep_end", sweep_label);
+        samplePose();
+        dev.digitizer.stop();
+        shutter(false);
+        clockSync();
+        if (last) marker(sweep.scene, "end", sweep.index);
+        motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
+        at = sweep.end;
+        ++result.steps_done;
+        ++result.sweeps_done;
+      }
+      report(plan.steps.size(), "parking");
+      event("move_begin", "park");
+      move(safety, plan.park, plan.travel_speed);
+      event("move_end", "park");
+      samplePose();
+      clockSync();
+      result.completed = true;
+      dev.plc.setOutput(Coil::ClampRequest, false);
+    } catch (const Aborted& a) {
+      result.abort_reason = a.reason;
+    } catch (const std::exception& e) {
+      result.abort_reason = e.what();
+    }
+    if (!result.completed) {
+      // A clean ending: nothing more moves, the laser is off, the trace says why it ends here.
+      try {
+        dev.cmm.abort();
+      } catch (const std::exception&) {
+      }
+      dev.digitizer.stop();
+      try {
+        shutter(false);
+      } catch (const std::exception&) {
+      }
+      event("abort", result.abort_reason);
+    }
+    try {
+      dev.cmm.stopMoveReports();
+    } catch (const std::exception&) {
+    }
+    stop_polling = true;
+    plc_poller.join();
+    for (const SafetyEvent& e : safety.events()) {
+      result.safety_events.push_back(e.what);
+      if (observer) observer->safetyEvent(e.what);
+    }
+    result.wall_seconds = elapsed();
+    result.profiles = profiles;
+    result.positions = positions;
+    result.plc_states = plc_states;
+    result.lost_profiles = dev.digitizer.counters().lost_profiles - lost_before;
+    return result;
+  }
+};
+
+ScanRunner::ScanRunner(CellDevices devices, trace::TraceSink& sink, const StationClock& clock, ScanObserver* observer)
+    : impl_(std::make_unique<Impl>(devices, sink, clock, observer)) {}
+
+ScanRunner::~ScanRunner() = default;
+
+ScanRunResult ScanRunner::run(const ScanPlan& plan, const ScanRunParams& params) { return impl_->run(plan, params); }
+
+void ScanRunner::abort(const std::string& reason) {
+  {
+    std::lock_guard lock(impl_->abort_mutex);
+    if (!impl_->abort_reason) impl_->abort_reason = reason;
+  }
+  try {
+    impl_->dev.cmm.abort();
+  } catch (const std::exception&) {
+  }
+}
+
+}  // namespace stampscan::acquisition

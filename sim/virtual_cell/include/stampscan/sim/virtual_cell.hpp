@@ -1,0 +1,79 @@
+// The virtual cell as one simulated world. The part sits on its fixture, the reference sphere and
+// the calibration plate stand on the table beside it; the virtual CMM moves the head among them and
+// the virtual PLC holds the door, the clamp and the laser shutter. The virtual digitizer's profiles
+// are rendered from the head pose the CMM has at the instant of each exposure, through the true
+// (not the nominal) mount of the digitizer on the head; with the shutter closed it sees nothing.
+//
+// The station reaches these devices only through its drivers on their wire protocols (I++ DME on
+// TCP, Modbus TCP, USB under umockdev), exactly as it reaches a real cell. The virtual digitizer is
+// made by the process that hosts it (it must exist before any libusb context); this class gives it
+// its options and its profile source.
+//
+// Thread safety: start() and stop() from one thread; the profile source runs on the virtual
+// digitizer's thread and only reads the CMM's and the PLC's state (both thread-safe).
+#pragma once
+
+#include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/sim/virtual_cmm.hpp"
+#include "stampscan/sim/virtual_digitizer.hpp"
+#include "stampscan/sim/virtual_plc.hpp"
+
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <string>
+
+namespace stampscan::sim {
+
+struct VirtualCellOptions {
+  // The world: part, grid, reference sphere, calibration plate, the digitizer's optics, the seed of
+  // the sensors' noise and of the mount's deviation from its drawing.
+  ScanParams world;
+  std::string cmm_address = "127.0.0.1";
+  std::uint16_t cmm_port = 1294;  // 0: any free port (read it from cmm().port())
+  std::string plc_address = "127.0.0.1";
+  int plc_port = 1502;            // 0: any free port
+};
+
+// What the station must find out by calibrating: the simulator knows it, tests compare with it.
+struct VirtualCellTruth {
+  Eigen::Isometry3d head_from_digitizer = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d head_from_digitizer_nominal = Eigen::Isometry3d::Identity();  // the drawing's
+  std::int64_t digitizer_latency_ns = 0;
+};
+
+class VirtualCell {
+ public:
+  explicit VirtualCell(VirtualCellOptions options = {});
+  ~VirtualCell();
+  VirtualCell(const VirtualCell&) = delete;
+  VirtualCell& operator=(const VirtualCell&) = delete;
+
+  // Starts the CMM's and the PLC's servers; throws std::runtime_error naming the address.
+  void start();
+  void stop() noexcept;
+
+  VirtualCmm& cmm() { return *cmm_; }
+  VirtualPlc& plc() { return *plc_; }
+
+  // For the process that hosts the virtual digitizer: paced at its rate, its fan as the world's
+  // digitizer has it, stamped with the world's latency; and the world's profiles.
+  VirtualDigitizerOptions digitizerOptions() const;
+  VirtualDigitizer::ProfileSource profileSource();
+
+  const VirtualCellOptions& options() const { return options_; }
+  const VirtualCellTruth& truth() const { return truth_; }
+  const FormedPart& part() const { return *part_; }
+
+ private:
+  class WorldScene;
+
+  VirtualCellOptions options_;
+  VirtualCellTruth truth_;
+  std::unique_ptr<FormedPart> part_;
+  std::unique_ptr<WorldScene> scene_;
+  std::unique_ptr<VirtualCmm> cmm_;
+  std::unique_ptr<VirtualPlc> plc_;
+};
+
+}  // namespace stampscan::sim
