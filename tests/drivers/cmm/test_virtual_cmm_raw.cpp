@@ -163,6 +163,28 @@ TEST_F(VirtualCmmRaw, HeadAnglesInDegreesOnTheWire) {
       << "a refused GoTo moves no axis (6.3.3.9)";
 }
 
+TEST(VirtualCmmIndexingHead, TakesTheGridAngleExactlyAndRefusesOthers) {
+  VirtualCmmConfig config = test::quickCmmConfig();
+  config.head_kind = VirtualCmmConfig::HeadKind::Indexing;
+  config.head_index_step_deg = 7.5;
+  VirtualCmm server(config);
+  server.start();
+  test::RawIppClient nc(server.port());
+  ASSERT_EQ(nc.transact("00001", "StartSession()"), (Lines{"00001 &", "00001 %"}));
+  ASSERT_EQ(nc.transact("00002", "Home()"), (Lines{"00002 &", "00002 %"}));
+  // A client's radian round trip may add an ulp; the head still stops at its index position.
+  EXPECT_EQ(nc.transact("00003", "GoTo(Tool.A(7.500000000000001), Tool.B(-15))"), (Lines{"00003 &", "00003 %"}));
+  EXPECT_EQ(nc.transact("00004", "Get(Tool.A(), Tool.B())"),
+            (Lines{"00004 &", "00004 # Tool.A(7.5), Tool.B(-15)", "00004 %"}));
+  EXPECT_EQ(nc.transact("00005", "GoTo(Tool.B(8))"),
+            (Lines{"00005 &", "00005 ! Error(2, 2505, \"GoTo\", \"Specified angle out of range\")", "00005 %"}));
+  EXPECT_EQ(nc.transact("00006", "GetErrorInfo(2505)"),
+            (Lines{"00006 &",
+                   "00006 # \"Specified angle out of range: Tool.B(8) is not an index position of this indexing head "
+                   "(every 7.5 degrees)\"",
+                   "00006 %"}));
+}
+
 TEST_F(VirtualCmmRaw, AbortEAnswersTheRunningAndTheQueuedCommands) {
   startSession();
   homeAt(100);

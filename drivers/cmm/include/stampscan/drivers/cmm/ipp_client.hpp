@@ -129,7 +129,8 @@ class IppCmm : public Device {
 
   // GoTo(X(), Y(), Z()) (§6.3.2.12), blocking until the CMM reports the move complete. `speed` (mm/s)
   // applies to this move only; without it the speed of setSpeed() applies. Aborted when abort()
-  // stopped it. Throws std::invalid_argument for a non-finite target or a speed <= 0.
+  // stopped it. Throws std::invalid_argument for a non-finite target or a speed <= 0. The head's
+  // angles are not named, so they keep their values (§6.3.2.12).
   MoveOutcome goTo(const CmmPosition& target, std::optional<double> speed = {});
   // GoTo(X(), Y(), Z(), Tool.A(), Tool.B()[, Tool.C()]) (§6.3.2.12, §6.3.8): the ram and the head
   // start together and finish together. An angle the head cannot take (outside its range, or off an
