@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 namespace stampscan::sim::detail {
 
@@ -13,8 +15,27 @@ double distance(const Vec3& a, const Vec3& b) {
   return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
+namespace {
+// The head's part of the configuration: a bad one would divide by zero or trap the head.
+const VirtualCmmConfig& checkedHead(const VirtualCmmConfig& c) {
+  if (!(c.head_max_rate_deg_s > 0) || !(c.head_accel_deg_s2 > 0)) {
+    throw std::invalid_argument("virtual CMM: head_max_rate_deg_s and head_accel_deg_s2 must be > 0");
+  }
+  if (c.head_kind == VirtualCmmConfig::HeadKind::Indexing && !(c.head_index_step_deg > 0)) {
+    throw std::invalid_argument("virtual CMM: an indexing head needs head_index_step_deg > 0");
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!(c.head_min_deg[i] <= c.head_power_on_deg[i] && c.head_power_on_deg[i] <= c.head_max_deg[i])) {
+      throw std::invalid_argument("virtual CMM: head_power_on_deg[" + std::to_string(i) +
+                                  "] is outside [head_min_deg, head_max_deg]");
+    }
+  }
+  return c;
+}
+}  // namespace
+
 CmmMachine::CmmMachine(VirtualCmmConfig config)
-    : config_(std::move(config)),
+    : config_(checkedHead(config)),
       pose_{config_.power_on_position, config_.head_power_on_deg},
       tool_(config_.initial_tool),
       speed_(config_.default_speed),

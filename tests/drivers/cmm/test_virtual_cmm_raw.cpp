@@ -185,6 +185,19 @@ TEST(VirtualCmmIndexingHead, TakesTheGridAngleExactlyAndRefusesOthers) {
                    "00006 %"}));
 }
 
+TEST(VirtualCmmHeadConfig, RefusesAHeadThatCannotWork) {
+  VirtualCmmConfig no_step = test::quickCmmConfig();
+  no_step.head_kind = VirtualCmmConfig::HeadKind::Indexing;
+  no_step.head_index_step_deg = 0;
+  EXPECT_THROW(VirtualCmm{no_step}, std::invalid_argument);
+  VirtualCmmConfig outside = test::quickCmmConfig();
+  outside.head_power_on_deg = {0, 0, 10};  // C is fixed at 0
+  EXPECT_THROW(VirtualCmm{outside}, std::invalid_argument);
+  VirtualCmmConfig still = test::quickCmmConfig();
+  still.head_max_rate_deg_s = 0;
+  EXPECT_THROW(VirtualCmm{still}, std::invalid_argument);
+}
+
 TEST_F(VirtualCmmRaw, AbortEAnswersTheRunningAndTheQueuedCommands) {
   startSession();
   homeAt(100);

@@ -80,6 +80,8 @@ struct VirtualCmmStatus {
 
 class VirtualCmm {
  public:
+  // Throws std::invalid_argument for a head configuration that cannot work (an indexing step or a
+  // rate <= 0, a power-on angle outside its range).
   explicit VirtualCmm(VirtualCmmConfig config = {});
   ~VirtualCmm();  // stop()
   VirtualCmm(const VirtualCmm&) = delete;
