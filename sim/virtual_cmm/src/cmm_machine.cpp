@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 namespace stampscan::sim::detail {
 
@@ -12,24 +15,50 @@ double distance(const Vec3& a, const Vec3& b) {
   return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
+namespace {
+// The head's part of the configuration: a bad one would divide by zero or trap the head.
+const VirtualCmmConfig& checkedHead(const VirtualCmmConfig& c) {
+  if (!(c.head_max_rate_deg_s > 0) || !(c.head_accel_deg_s2 > 0)) {
+    throw std::invalid_argument("virtual CMM: head_max_rate_deg_s and head_accel_deg_s2 must be > 0");
+  }
+  if (c.head_kind == VirtualCmmConfig::HeadKind::Indexing && !(c.head_index_step_deg > 0)) {
+    throw std::invalid_argument("virtual CMM: an indexing head needs head_index_step_deg > 0");
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!(c.head_min_deg[i] <= c.head_power_on_deg[i] && c.head_power_on_deg[i] <= c.head_max_deg[i])) {
+      throw std::invalid_argument("virtual CMM: head_power_on_deg[" + std::to_string(i) +
+                                  "] is outside [head_min_deg, head_max_deg]");
+    }
+  }
+  return c;
+}
+}  // namespace
+
 CmmMachine::CmmMachine(VirtualCmmConfig config)
-    : config_(std::move(config)),
-      position_(config_.power_on_position),
+    : config_(checkedHead(config)),
+      pose_{config_.power_on_position, config_.head_power_on_deg},
       tool_(config_.initial_tool),
       speed_(config_.default_speed),
       accel_(config_.default_accel) {}
 
-Vec3 CmmMachine::positionLocked(Clock::time_point now) const {
-  if (!move_ || move_->length == 0) return position_;
-  const double fraction = move_->profile.distanceAt(seconds(now - move_->start)) / move_->length;
-  Vec3 p{};
-  for (std::size_t i = 0; i < 3; ++i) p[i] = move_->from[i] + (move_->to[i] - move_->from[i]) * fraction;
+MachinePose CmmMachine::poseLocked(Clock::time_point now) const {
+  if (!move_ || move_->progress.distance == 0) return pose_;
+  const double fraction = move_->progress.distanceAt(seconds(now - move_->start));
+  MachinePose p;
+  for (std::size_t i = 0; i < 6; ++i) {
+    p.axis(i) = move_->from.axis(i) + (move_->to.axis(i) - move_->from.axis(i)) * fraction;
+  }
   return p;
 }
 
 Vec3 CmmMachine::position(Clock::time_point now) const {
   std::lock_guard lock(mutex_);
-  return positionLocked(now);
+  return poseLocked(now).xyz;
+}
+
+MachinePose CmmMachine::pose(Clock::time_point now) const {
+  std::lock_guard lock(mutex_);
+  return poseLocked(now);
 }
 
 bool CmmMachine::homed() const {
@@ -98,23 +127,70 @@ std::string CmmMachine::travelProblem(const Vec3& target) const {
   return {};
 }
 
-Clock::time_point CmmMachine::beginMove(const Vec3& target, Clock::time_point now) {
+std::string CmmMachine::headProblem(const Vec3& angles) const {
+  for (std::size_t i = 0; i < 3; ++i) {
+    std::ostringstream why;
+    why << kAxisNames[i + 3] << "(" << angles[i] << ")";
+    if (angles[i] < config_.head_min_deg[i] || angles[i] > config_.head_max_deg[i]) {
+      why << " is outside the head's range [" << config_.head_min_deg[i] << ", " << config_.head_max_deg[i]
+          << "] degrees";
+      return why.str();
+    }
+    if (config_.head_kind == VirtualCmmConfig::HeadKind::Indexing) {
+      const double steps = angles[i] / config_.head_index_step_deg;
+      // A millionth of a degree: what the client's radian-degree round trip may add, far below any head.
+      if (std::abs(steps - std::round(steps)) * config_.head_index_step_deg > 1e-6) {
+        why << " is not an index position of this indexing head (every " << config_.head_index_step_deg
+            << " degrees)";
+        return why.str();
+      }
+    }
+  }
+  return {};
+}
+
+Vec3 CmmMachine::headTarget(const Vec3& angles) const {
+  if (config_.head_kind != VirtualCmmConfig::HeadKind::Indexing) return angles;
+  Vec3 grid{};
+  for (std::size_t i = 0; i < 3; ++i) {
+    grid[i] = std::round(angles[i] / config_.head_index_step_deg) * config_.head_index_step_deg;
+  }
+  return grid;
+}
+
+Clock::time_point CmmMachine::beginMove(const MachinePose& target, Clock::time_point now) {
   std::lock_guard lock(mutex_);
   Move move;
   move.start = now;
-  move.from = positionLocked(now);
+  move.from = poseLocked(now);
   move.to = target;
-  move.length = distance(move.from, target);
-  move.profile = planTrapezoid(move.length, std::min(speed_, config_.max_speed), accel_);
+  // The progress p runs from 0 to 1. The ram moves length * p, each angle delta * p: its speed and
+  // acceleration limits become limits on dp/dt of limit / length and limit / delta, and the tightest
+  // of them all shapes the one trapezoid every axis follows. A move of the ram alone keeps the
+  // timing of a plain trapezoid over its length.
+  const double length = distance(move.from.xyz, target.xyz);
+  double turn = 0;
+  for (std::size_t i = 0; i < 3; ++i) turn = std::max(turn, std::abs(target.abc[i] - move.from.abc[i]));
+  double rate = std::numeric_limits<double>::infinity();
+  double accel = std::numeric_limits<double>::infinity();
+  if (length > 0) {
+    rate = std::min(speed_, config_.max_speed) / length;
+    accel = accel_ / length;
+  }
+  if (turn > 0) {
+    rate = std::min(rate, config_.head_max_rate_deg_s / turn);
+    accel = std::min(accel, config_.head_accel_deg_s2 / turn);
+  }
+  move.progress = length > 0 || turn > 0 ? planTrapezoid(1.0, rate, accel) : planTrapezoid(0.0, 1.0, 1.0);
   move_ = move;
-  return now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(move.profile.duration()));
+  return now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(move.progress.duration()));
 }
 
 void CmmMachine::endMove(bool reached, Clock::time_point now) {
   std::lock_guard lock(mutex_);
   if (!move_) return;
   // Reached: exactly the commanded target, not the interpolation's rounding of it.
-  position_ = reached ? move_->to : positionLocked(now);
+  pose_ = reached ? move_->to : poseLocked(now);
   move_.reset();
   ++(reached ? completed_ : aborted_);
 }

@@ -1,6 +1,7 @@
-// The machine behind the virtual CMM's I++ DME server: where the ram is, whether it is homed, the
-// active tool and its GoToPar (§6.3.6), and the move in progress. It outlives connections, like a
-// real controller. Thread-safe: the session's executor moves it while the reader thread queries it.
+// The machine behind the virtual CMM's I++ DME server: where the ram is, the head's angles, whether
+// it is homed, the active tool and its GoToPar (§6.3.6), and the move in progress. It outlives
+// connections, like a real controller. Thread-safe: the session's executor moves it while the reader
+// thread queries it.
 #pragma once
 
 #include "stampscan/sim/trapezoid_move.hpp"
@@ -20,12 +21,23 @@ using Vec3 = std::array<double, 3>;
 double seconds(Clock::duration d);
 double distance(const Vec3& a, const Vec3& b);
 
+// Six axes in the order of the wire names X, Y, Z, Tool.A, Tool.B, Tool.C: mm and degrees (§6.1.2).
+struct MachinePose {
+  Vec3 xyz{};
+  Vec3 abc{};  // degrees
+  double axis(std::size_t i) const { return i < 3 ? xyz[i] : abc[i - 3]; }
+  double& axis(std::size_t i) { return i < 3 ? xyz[i] : abc[i - 3]; }
+  bool operator==(const MachinePose&) const = default;
+};
+inline constexpr std::array<const char*, 6> kAxisNames{"X", "Y", "Z", "Tool.A", "Tool.B", "Tool.C"};
+
 class CmmMachine {
  public:
   explicit CmmMachine(VirtualCmmConfig config);
   const VirtualCmmConfig& config() const { return config_; }
 
   Vec3 position(Clock::time_point now) const;  // interpolated along the move in progress
+  MachinePose pose(Clock::time_point now) const;  // position and angles at the same instant
   bool homed() const;
   bool moving() const;
   void setHomed();
@@ -43,10 +55,18 @@ class CmmMachine {
 
   // Empty when `target` is inside the travel, otherwise which axis is out and by how much.
   std::string travelProblem(const Vec3& target) const;
+  // Empty when the head can take `angles` (degrees): inside each axis' range and, for an indexing
+  // head, on the index grid. Otherwise which angle and why.
+  std::string headProblem(const Vec3& angles) const;
+  // The angles the head takes for `angles`: an indexing head's grid values exactly, so that rounding
+  // in the client's degree conversion does not accumulate.
+  Vec3 headTarget(const Vec3& angles) const;
 
-  // Starts a straight move to `target` at the actual speed and acceleration (the speed never above
-  // the machine's maximum); returns the time it will arrive.
-  Clock::time_point beginMove(const Vec3& target, Clock::time_point now);
+  // Starts a move to `target`: the ram on a straight line at the actual speed and acceleration (the
+  // speed never above the machine's maximum), the head at its own rate limits, all six axes on one
+  // trapezoidal progress from 0 to 1 so that they start and finish together (§6.3.2.12). Returns the
+  // time it will arrive.
+  Clock::time_point beginMove(const MachinePose& target, Clock::time_point now);
   // Ends the move: at the target when `reached`, else where the ram is at `now` (an abort).
   void endMove(bool reached, Clock::time_point now);
 
@@ -56,15 +76,14 @@ class CmmMachine {
  private:
   struct Move {
     Clock::time_point start;
-    Vec3 from, to;
-    double length = 0;
-    TrapezoidMove profile;
+    MachinePose from, to;
+    TrapezoidMove progress;  // "distance" 0..1 along the move; 0 long when nothing moves
   };
-  Vec3 positionLocked(Clock::time_point now) const;
+  MachinePose poseLocked(Clock::time_point now) const;
 
   const VirtualCmmConfig config_;
   mutable std::mutex mutex_;
-  Vec3 position_;
+  MachinePose pose_;
   bool homed_ = false;
   std::string tool_;
   double speed_, accel_;

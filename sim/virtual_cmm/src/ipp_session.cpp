@@ -5,6 +5,7 @@
 #include "stampscan/drivers/cmm/ipp_errors.hpp"
 
 #include <algorithm>
+#include <string_view>
 
 namespace stampscan::sim::detail {
 
@@ -16,6 +17,14 @@ constexpr auto kMinReportGap = 100ms;      // §6.3.2.7: at most 10 reports a se
 constexpr auto kDistancePollStep = 20ms;   // how often a Dis(d) daemon looks at the distance moved
 constexpr std::size_t kMaxQueued = 64;    // commands acknowledged but not yet started
 constexpr const char* kLineMethod = "CommandLine";  // F3 for errors found before a command was known
+constexpr const char* kDeviceTimeItem = "SS.Time";   // our extension of §9.1 (PROTOCOL.md)
+
+// What OnMoveReportE can report (§6.3.2.7): the six axes (§6.3.8 for the head's) and our clock.
+bool isReportItem(const ipp::Argument& a) {
+  if (a.kind != ipp::Argument::Kind::Call || !a.args.empty()) return false;
+  return a.text == kDeviceTimeItem ||
+         std::find(kAxisNames.begin(), kAxisNames.end(), std::string_view(a.text)) != kAxisNames.end();
+}
 
 // §6.2.5: in the error state only these are served (AbortE and GetErrStatusE on the fast queue).
 bool allowedInErrorState(const std::string& name) {
@@ -193,9 +202,10 @@ bool IppSession::commandAllowed(const std::string& name, bool fast, Responder& o
     return false;
   }
   if (in_error && !allowedInErrorState(name) && !(fast && name == "AbortE")) {
-    // As in the example of §6.3.1.7.
-    out.error(error::kErrorProcessingMethod, name + " refused: the server is in the error state", 2);
-    out.error(error::kUseClearAllErrors, "send ClearAllErrors() first (6.2.5)", 2);
+    // As in the example of §6.3.1.7, but with the classes of the table of §8.2: 0511 is class 3
+    // there (the example shows 2), 0514 class 2.
+    out.error(error::kErrorProcessingMethod, name + " refused: the server is in the error state");
+    out.error(error::kUseClearAllErrors, "send ClearAllErrors() first (6.2.5)");
     return false;
   }
   return true;
@@ -270,7 +280,7 @@ void IppSession::onMoveReportE(const ipp::Command& command, Responder& out) {
     } else if (a.isCall("Dis")) {
       if (!(a.args[0].number > 0)) throw CommandFailure(error::kBadArgument, "Dis(d) needs d > 0");
       daemon.min_distance = a.args[0].number;
-    } else if ((a.isCall("X") || a.isCall("Y") || a.isCall("Z") || a.isCall("SS.Time")) && a.args.empty()) {
+    } else if (isReportItem(a)) {
       if (std::find(daemon.items.begin(), daemon.items.end(), a.text) != daemon.items.end()) {
         throw CommandFailure(error::kIncorrectArguments, a.text + "() asked for twice (6.1.3)");
       }
@@ -279,7 +289,9 @@ void IppSession::onMoveReportE(const ipp::Command& command, Responder& out) {
       throw CommandFailure(error::kBadProperty, "cannot report " + ipp::formatArgument(a));
     }
   }
-  if (daemon.items.empty()) throw CommandFailure(error::kIncorrectArguments, "nothing to report: add X(), Y(), Z()");
+  if (daemon.items.empty()) {
+    throw CommandFailure(error::kIncorrectArguments, "nothing to report: add X(), Y(), Z(), Tool.A(), ...");
+  }
   std::lock_guard lock(mutex_);
   if (daemon_) {
     throw CommandFailure(error::kDaemonAlreadyExists, "OnMoveReportE " + daemon_->tag.str() + " is still running");
@@ -341,7 +353,7 @@ bool IppSession::pause(Clock::time_point until) {
   return !motion_.wait_until(lock, until, [this] { return abort_requested_ || closing_; });
 }
 
-bool IppSession::runMove(const Vec3& target) {
+bool IppSession::runMove(const MachinePose& target) {
   const Clock::time_point arrival = machine_.beginMove(target, Clock::now());
   std::unique_lock lock(mutex_);
   for (;;) {
@@ -369,7 +381,7 @@ bool IppSession::runMove(const Vec3& target) {
       lock.lock();
       break;
     }
-    if (!daemon_->reported || daemon_->last_position == machine_.position(Clock::now())) break;
+    if (!daemon_->reported || daemon_->last_pose == machine_.pose(Clock::now())) break;
     motion_.wait_until(lock, daemon_->last_time + kMinReportGap);
   }
   return true;
@@ -378,31 +390,32 @@ bool IppSession::runMove(const Vec3& target) {
 std::optional<std::string> IppSession::dueReport(Clock::time_point now, bool at_rest) {
   if (!daemon_) return std::nullopt;
   MoveDaemon& d = *daemon_;
-  const Vec3 position = machine_.position(now);
+  const MachinePose pose = machine_.pose(now);
   if (d.reported) {
     const auto since = now - d.last_time;
     if (since < kMinReportGap) return std::nullopt;
     bool due = false;
     if (at_rest) {
-      due = position != d.last_position;
+      due = pose != d.last_pose;  // a turn of the head alone ends somewhere new too
     } else if (d.interval == 0 && d.min_distance == 0) {
       due = true;  // neither Time nor Dis: as often as allowed
     } else {
       due = (d.interval > 0 && seconds(since) >= d.interval) ||
-            (d.min_distance > 0 && distance(position, d.last_position) >= d.min_distance);
+            (d.min_distance > 0 && distance(pose.xyz, d.last_pose.xyz) >= d.min_distance);  // Dis is mm
     }
     if (!due) return std::nullopt;
   }
   d.reported = true;
   d.last_time = now;
-  d.last_position = position;
+  d.last_pose = pose;
   std::vector<ipp::Argument> items;
   for (const std::string& item : d.items) {
     double value = 0;
-    if (item == "SS.Time") {
+    if (item == kDeviceTimeItem) {
       value = seconds(now - session_start_);
     } else {
-      value = position[item == "X" ? 0 : item == "Y" ? 1 : 2];
+      const auto axis = std::find(kAxisNames.begin(), kAxisNames.end(), std::string_view(item));
+      value = pose.axis(static_cast<std::size_t>(axis - kAxisNames.begin()));
     }
     items.push_back(ipp::Argument::call(item, {ipp::Argument::num(value)}));
   }

@@ -89,10 +89,10 @@ class IppSession {
     ipp::Tag tag;
     double interval = 0;      // Time(s), 0 when not given
     double min_distance = 0;  // Dis(d), 0 when not given
-    std::vector<std::string> items;  // X, Y, Z, SS.Time, in the order asked for
+    std::vector<std::string> items;  // X, Y, Z, Tool.A, Tool.B, Tool.C, SS.Time, in the order asked for
     bool reported = false;
     Clock::time_point last_time;
-    Vec3 last_position{};
+    MachinePose last_pose{};
   };
   class Responder;
 
@@ -109,7 +109,7 @@ class IppSession {
   void executorLoop();
   void execute(Pending& pending);
   void dispatch(const ipp::Command& command, Responder& out);  // session_commands.cpp
-  bool runMove(const Vec3& target);                              // false when aborted
+  bool runMove(const MachinePose& target);                       // false when aborted
   bool pause(Clock::time_point until);                           // false when aborted
   std::optional<std::string> dueReport(Clock::time_point now, bool at_rest);  // with mutex_ held
   Clock::time_point nextReportCheck(Clock::time_point now) const;             // with mutex_ held

@@ -4,7 +4,9 @@
 
 #include "stampscan/drivers/cmm/ipp_errors.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <string_view>
 #include <sstream>
 
 namespace stampscan::sim::detail {
@@ -28,24 +30,20 @@ bool isNumberCall(const ipp::Argument& a) {
   return a.kind == ipp::Argument::Kind::Call && a.args.size() == 1 && a.args[0].kind == ipp::Argument::Kind::Number;
 }
 
-// X, Y, Z -> 0, 1, 2; -1 for anything else.
+// X, Y, Z, Tool.A, Tool.B, Tool.C -> 0..5 (MachinePose::axis); -1 for anything else.
 int axisIndex(const ipp::Argument& a) {
   if (a.kind != ipp::Argument::Kind::Call) return -1;
-  if (a.text == "X") return 0;
-  if (a.text == "Y") return 1;
-  if (a.text == "Z") return 2;
-  return -1;
+  const auto it = std::find(kAxisNames.begin(), kAxisNames.end(), std::string_view(a.text));
+  return it == kAxisNames.end() ? -1 : static_cast<int>(it - kAxisNames.begin());
 }
 
-// Axes a Cartesian machine without rotary table or head does not have (§6.3.8, §6.3.3.13).
-bool isAbsentAxis(const std::string& name) {
-  return name == "Tool.A" || name == "Tool.B" || name == "Tool.C" || name == "A" || name == "B" || name == "C" ||
-         name == "R";
-}
+// Axes this CartCMM does not have: a rotary table's (§6.3.3.13) and bare A, B, C, which §6.3.8 only
+// knows as the tool's Tool.A, Tool.B, Tool.C.
+bool isAbsentAxis(const std::string& name) { return name == "A" || name == "B" || name == "C" || name == "R"; }
 
-std::string where(const Vec3& p) {
+std::string where(const MachinePose& p) {
   std::ostringstream text;
-  text << "X(" << p[0] << "), Y(" << p[1] << "), Z(" << p[2] << ")";
+  for (std::size_t i = 0; i < 6; ++i) text << (i == 0 ? "" : ", ") << kAxisNames[i] << "(" << p.axis(i) << ")";
   return text.str();
 }
 
@@ -180,17 +178,18 @@ void IppSession::home(const ipp::Command& c, Responder&) {
     std::lock_guard lock(mutex_);
     user_enabled_ = false;  // §6.3.2.4: moving commands disable the user
   }
-  if (!runMove(machine_.config().home_position)) {
-    throw CommandFailure(error::kTransactionAborted, "AbortE stopped Home() at " + where(machine_.position(Clock::now())));
+  // Homing moves the ram; the head keeps its angles.
+  if (!runMove({machine_.config().home_position, machine_.pose(Clock::now()).abc})) {
+    throw CommandFailure(error::kTransactionAborted, "AbortE stopped Home() at " + where(machine_.pose(Clock::now())));
   }
   machine_.setHomed();
 }
 
 void IppSession::goTo(const ipp::Command& c, Responder&) {
-  if (c.args.empty()) throw CommandFailure(error::kIncorrectArguments, "GoTo needs X(x), Y(y) or Z(z)");
-  // §6.3.2.12: axes not named keep their value.
-  Vec3 target = machine_.position(Clock::now());
-  std::array<bool, 3> named{};
+  if (c.args.empty()) throw CommandFailure(error::kIncorrectArguments, "GoTo needs X(x), Y(y), Z(z) or Tool.A(a), ...");
+  // §6.3.2.12: axes not named keep their value, the head's as much as the ram's.
+  MachinePose target = machine_.pose(Clock::now());
+  std::array<bool, 6> named{};
   for (const ipp::Argument& a : c.args) {
     const int axis = axisIndex(a);
     if (axis < 0) {
@@ -202,28 +201,35 @@ void IppSession::goTo(const ipp::Command& c, Responder&) {
     if (a.args.empty()) throw CommandFailure(error::kBadContext, a.text + "() without a value belongs in Get (6.3.3.5)");
     if (!isNumberCall(a)) throw CommandFailure(error::kBadArgument, a.text + "(...) takes one number");
     if (named[axis]) throw CommandFailure(error::kIncorrectArguments, a.text + " named twice (6.1.3)");
-    named[axis] = true;
-    target[axis] = a.args[0].number;
+    named[static_cast<std::size_t>(axis)] = true;
+    target.axis(static_cast<std::size_t>(axis)) = a.args[0].number;
   }
   if (!machine_.homed()) throw CommandFailure(error::kUnableToMove, "not homed: send Home() first (6.3.2.1)");
   // §6.3.3.9: out of limits, the machine does not move at all.
-  if (const std::string problem = machine_.travelProblem(target); !problem.empty()) {
+  if (const std::string problem = machine_.travelProblem(target.xyz); !problem.empty()) {
     throw CommandFailure(error::kMachineLimit, problem);
   }
+  // §8.2 has one error for an angle the head cannot take, 2505 (class 2: the client can repair
+  // it). It serves for an indexing head's off-grid angle too: 1004 is fatal (class 9), and 0509
+  // is for arguments that are malformed rather than unreachable.
+  if (const std::string problem = machine_.headProblem(target.abc); !problem.empty()) {
+    throw CommandFailure(error::kAngleOutOfRange, problem);
+  }
+  target.abc = machine_.headTarget(target.abc);
   {
     std::lock_guard lock(mutex_);
     user_enabled_ = false;
   }
   if (!runMove(target)) {
-    throw CommandFailure(error::kTransactionAborted, "AbortE stopped GoTo at " + where(machine_.position(Clock::now())));
+    throw CommandFailure(error::kTransactionAborted, "AbortE stopped GoTo at " + where(machine_.pose(Clock::now())));
   }
 }
 
 void IppSession::get(const ipp::Command& c, Responder& out) {
-  if (c.args.empty()) throw CommandFailure(error::kIncorrectArguments, "Get needs X(), Y() or Z()");
-  const Vec3 position = machine_.position(Clock::now());
+  if (c.args.empty()) throw CommandFailure(error::kIncorrectArguments, "Get needs X(), Y(), Z() or Tool.A(), ...");
+  const MachinePose pose = machine_.pose(Clock::now());  // one instant for every item
   std::vector<ipp::Argument> items;
-  std::array<bool, 3> named{};
+  std::array<bool, 6> named{};
   for (const ipp::Argument& a : c.args) {
     const int axis = axisIndex(a);
     if (axis < 0) {
@@ -234,8 +240,8 @@ void IppSession::get(const ipp::Command& c, Responder& out) {
     }
     if (!a.args.empty()) throw CommandFailure(error::kBadContext, a.text + "(value) belongs in GoTo (6.3.3.9)");
     if (named[axis]) throw CommandFailure(error::kIncorrectArguments, a.text + " named twice (6.1.3)");
-    named[axis] = true;
-    items.push_back(ipp::Argument::call(a.text, {ipp::Argument::num(position[axis])}));
+    named[static_cast<std::size_t>(axis)] = true;
+    items.push_back(ipp::Argument::call(a.text, {ipp::Argument::num(pose.axis(static_cast<std::size_t>(axis)))}));
   }
   out.data(std::move(items));  // §6.2.2.2: exactly the data asked for, in that order
 }
@@ -256,6 +262,12 @@ ipp::Argument IppSession::propertyValue(const ipp::Argument& property) const {
     tool = found_tool_;
   }
   if (rest == "Name") return ipp::Argument::call(name, {ipp::Argument::str(tool)});
+  // §6.3.8 names Get and OnReport for the head's angles; GetProp(Tool.A()) answers the same, as
+  // clients ask for them as tool properties too.
+  if (!found_tool && (rest == "A" || rest == "B" || rest == "C")) {
+    const MachinePose pose = machine_.pose(Clock::now());
+    return ipp::Argument::call(name, {ipp::Argument::num(pose.abc[rest == "A" ? 0 : rest == "B" ? 1 : 2])});
+  }
   if (tool == "UnDefTool") throw CommandFailure(error::kToolNotDefined, "FoundTool is not set: FindTool() first");
   const bool active = tool == machine_.activeToolName();  // other tools hold their defaults (§6.3.6)
   const VirtualCmmConfig& k = machine_.config();

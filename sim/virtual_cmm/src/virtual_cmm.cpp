@@ -18,6 +18,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <numbers>
 #include <stdexcept>
 #include <thread>
 
@@ -114,7 +115,12 @@ void VirtualCmm::stop() {
 VirtualCmmStatus VirtualCmm::status() const {
   const Impl& m = *impl_;
   VirtualCmmStatus s;
-  s.position = m.machine.position(detail::Clock::now());
+  const detail::MachinePose pose = m.machine.pose(detail::Clock::now());
+  s.position = pose.xyz;
+  constexpr double kRadPerDeg = std::numbers::pi / 180;  // the wire's degrees (§6.1.2) to the house's radians
+  s.head_a = pose.abc[0] * kRadPerDeg;
+  s.head_b = pose.abc[1] * kRadPerDeg;
+  s.head_c = pose.abc[2] * kRadPerDeg;
   s.homed = m.machine.homed();
   s.moving = m.machine.moving();
   s.active_tool = m.machine.activeToolName();

@@ -34,6 +34,8 @@ inline sim::VirtualCmmConfig quickCmmConfig() {
   c.default_accel = 4000;
   c.power_on_position = {0, 0, 480};
   c.tool_change_seconds = 0.05;
+  c.head_max_rate_deg_s = 180;  // a turn of 90 degrees in 0.75 s
+  c.head_accel_deg_s2 = 720;
   return c;
 }
 

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <numbers>
 
 namespace stampscan::sim {
 namespace {
@@ -66,7 +67,7 @@ TEST_F(VirtualCmmRaw, RejectsBadCommandsWithTheSpecErrors) {
                    "00013 # \"Machine limit encountered [Move Out Of Limits]: X(1000) is outside the travel [-400, 400]\"",
                    "00013 %"}));
   expectError("00014", "GoTo(Q(1))", "Error(3, 0505, \"GoTo\", \"Argument not recognized\")");
-  expectError("00015", "GoTo(Tool.A(5))", "Error(3, 0506, \"GoTo\", \"Argument not supported\")");
+  expectError("00015", "GoTo(R(5))", "Error(3, 0506, \"GoTo\", \"Argument not supported\")");  // no rotary table
   expectError("00016", "GoTo(X(1), X(2))", "Error(3, 0502, \"GoTo\", \"Incorrect arguments\")");
   expectError("00017", "Get(X(1))", "Error(3, 0508, \"Get\", \"Bad context\")");
   expectError("00018", "SetProp(Tool.GoToPar.Speed.Max(5))", "Error(3, 0510, \"SetProp\", \"Bad property\")");
@@ -86,9 +87,10 @@ TEST_F(VirtualCmmRaw, RejectsBadCommandsWithTheSpecErrors) {
   // §6.2.1: an unreadable tag is answered on E0000.
   nc_->sendLine("0025 Home()");
   EXPECT_EQ(nc_->readLine(), "E0000 ! Error(2, 0001, \"CommandLine\", \"Illegal tag\")");
-  // In the error state, everything but ClearAllErrors and a few queries gets 0511 and 0514 (§6.3.1.7).
+  // In the error state, everything but ClearAllErrors and a few queries gets 0511 and 0514 (§6.3.1.7),
+  // each with the class of the table of §8.2 (the example of §6.3.1.7 shows 0511 as class 2).
   EXPECT_EQ(nc_->transact("00026", "Get(X())"),
-            (Lines{"00026 &", "00026 ! Error(2, 0511, \"Get\", \"Error processing method\")",
+            (Lines{"00026 &", "00026 ! Error(3, 0511, \"Get\", \"Error processing method\")",
                    "00026 ! Error(2, 0514, \"Get\", \"Use ClearAllErrors to continue\")", "00026 %"}));
   EXPECT_EQ(nc_->transact("00027", "ClearAllErrors()"), (Lines{"00027 &", "00027 %"}));
   EXPECT_EQ(nc_->transact("00028", "Get(X(), Z())"), (Lines{"00028 &", "00028 # X(0), Z(500)", "00028 %"}));
@@ -129,6 +131,71 @@ TEST_F(VirtualCmmRaw, MoveReportDaemon) {
   EXPECT_EQ(nc_->transact("E0010", "OnMoveReportE(Time(0.01), X())"),
             (Lines{"E0010 &", "E0010 ! Error(1, 0504, \"OnMoveReportE\", \"Argument out of range\")", "E0010 %"}));
   EXPECT_EQ(nc_->transact("00011", "EndSession()"), (Lines{"00011 &", "00011 %"}));  // stops the daemon too
+}
+
+TEST_F(VirtualCmmRaw, HeadAnglesInDegreesOnTheWire) {
+  startSession();
+  homeAt(500);
+  EXPECT_EQ(nc_->transact("00004", "Get(Tool.A(), Tool.B(), Tool.C())"),
+            (Lines{"00004 &", "00004 # Tool.A(0), Tool.B(0), Tool.C(0)", "00004 %"}));
+  EXPECT_EQ(nc_->transact("00005", "GoTo(Tool.A(30), Tool.B(-45))"), (Lines{"00005 &", "00005 %"}));
+  // §6.3.2.12: X, Y, Z were not named and stay where Home() left them.
+  EXPECT_EQ(nc_->transact("00006", "Get(X(), Z(), Tool.B(), Tool.A())"),
+            (Lines{"00006 &", "00006 # X(0), Z(500), Tool.B(-45), Tool.A(30)", "00006 %"}));
+  EXPECT_EQ(nc_->transact("00007", "GetProp(Tool.A(), Tool.C())"),
+            (Lines{"00007 &", "00007 # Tool.A(30), Tool.C(0)", "00007 %"}));
+  const VirtualCmmStatus status = server_.status();
+  EXPECT_NEAR(status.head_a, 30 * std::numbers::pi / 180, 1e-12) << "radians in the status";
+  EXPECT_NEAR(status.head_b, -45 * std::numbers::pi / 180, 1e-12);
+  EXPECT_EQ(status.head_c, 0);
+
+  expectError("00008", "GoTo(Z(400), Tool.A(120))", "Error(2, 2505, \"GoTo\", \"Specified angle out of range\")");
+  EXPECT_EQ(nc_->transact("00009", "GetErrorInfo(2505)"),
+            (Lines{"00009 &",
+                   "00009 # \"Specified angle out of range: Tool.A(120) is outside the head's range [-115, 115] degrees\"",
+                   "00009 %"}));
+  expectError("00010", "GoTo(Tool.C(5))", "Error(2, 2505, \"GoTo\", \"Specified angle out of range\")");  // C is fixed
+  expectError("00011", "GoTo(A(5))", "Error(3, 0506, \"GoTo\", \"Argument not supported\")");  // a table's axis
+  expectError("00012", "GoTo(Tool.A())", "Error(3, 0508, \"GoTo\", \"Bad context\")");
+  expectError("00013", "Get(Tool.A(5))", "Error(3, 0508, \"Get\", \"Bad context\")");
+  EXPECT_EQ(nc_->transact("00014", "Get(Z(), Tool.A())"),
+            (Lines{"00014 &", "00014 # Z(500), Tool.A(30)", "00014 %"}))
+      << "a refused GoTo moves no axis (6.3.3.9)";
+}
+
+TEST(VirtualCmmIndexingHead, TakesTheGridAngleExactlyAndRefusesOthers) {
+  VirtualCmmConfig config = test::quickCmmConfig();
+  config.head_kind = VirtualCmmConfig::HeadKind::Indexing;
+  config.head_index_step_deg = 7.5;
+  VirtualCmm server(config);
+  server.start();
+  test::RawIppClient nc(server.port());
+  ASSERT_EQ(nc.transact("00001", "StartSession()"), (Lines{"00001 &", "00001 %"}));
+  ASSERT_EQ(nc.transact("00002", "Home()"), (Lines{"00002 &", "00002 %"}));
+  // A client's radian round trip may add an ulp; the head still stops at its index position.
+  EXPECT_EQ(nc.transact("00003", "GoTo(Tool.A(7.500000000000001), Tool.B(-15))"), (Lines{"00003 &", "00003 %"}));
+  EXPECT_EQ(nc.transact("00004", "Get(Tool.A(), Tool.B())"),
+            (Lines{"00004 &", "00004 # Tool.A(7.5), Tool.B(-15)", "00004 %"}));
+  EXPECT_EQ(nc.transact("00005", "GoTo(Tool.B(8))"),
+            (Lines{"00005 &", "00005 ! Error(2, 2505, \"GoTo\", \"Specified angle out of range\")", "00005 %"}));
+  EXPECT_EQ(nc.transact("00006", "GetErrorInfo(2505)"),
+            (Lines{"00006 &",
+                   "00006 # \"Specified angle out of range: Tool.B(8) is not an index position of this indexing head "
+                   "(every 7.5 degrees)\"",
+                   "00006 %"}));
+}
+
+TEST(VirtualCmmHeadConfig, RefusesAHeadThatCannotWork) {
+  VirtualCmmConfig no_step = test::quickCmmConfig();
+  no_step.head_kind = VirtualCmmConfig::HeadKind::Indexing;
+  no_step.head_index_step_deg = 0;
+  EXPECT_THROW(VirtualCmm{no_step}, std::invalid_argument);
+  VirtualCmmConfig outside = test::quickCmmConfig();
+  outside.head_power_on_deg = {0, 0, 10};  // C is fixed at 0
+  EXPECT_THROW(VirtualCmm{outside}, std::invalid_argument);
+  VirtualCmmConfig still = test::quickCmmConfig();
+  still.head_max_rate_deg_s = 0;
+  EXPECT_THROW(VirtualCmm{still}, std::invalid_argument);
 }
 
 TEST_F(VirtualCmmRaw, AbortEAnswersTheRunningAndTheQueuedCommands) {

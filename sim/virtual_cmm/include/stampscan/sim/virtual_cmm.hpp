@@ -7,6 +7,11 @@
 // - Moves (Home, GoTo) are straight lines with trapezoidal speed profiles (trapezoid_move.hpp) run in
 //   real time, so AbortE during a move stops the machine where it is, and OnMoveReportE daemons
 //   report the position while it moves.
+// - An articulating probe head with angles Tool.A, Tool.B, Tool.C (§6.3.8), continuous or indexing,
+//   turned by GoTo together with X, Y, Z: all axes of a GoTo start and finish together on one
+//   trapezoidal progress (§6.3.2.12). Angles are degrees on the wire (§6.1.2) and in the config,
+//   radians in VirtualCmmStatus. The head's frame is HeadState's (sim/cmm_motion.hpp):
+//   translation(ram) * Rz(b) * Rx(a) * Rz(c); PROTOCOL.md has the details.
 // - Bad or out-of-context commands get the error responses of §8.2 (PROTOCOL.md has the table).
 // - Tests can inject faults: an error for the next command, a dropped connection, silence.
 //
@@ -32,6 +37,21 @@ struct VirtualCmmConfig {
   std::array<double, 3> home_position{0, 0, 500};
   std::array<double, 3> power_on_position{0, 0, 450};  // where the machine stands before Home()
 
+  // The probe head, in degrees as on the wire (§6.1.2), in the order A, B, C. A tilts about the
+  // ram's x axis, B turns about its z axis; C is fixed at 0 (its range [0, 0]) unless configured.
+  // An angle outside its range is refused with 2505 "Specified angle out of range".
+  enum class HeadKind {
+    Continuous,  // any angle inside the range: the virtual cell's plans use small ones such as 2 degrees
+    Indexing,    // only multiples of head_index_step_deg; others are refused with 2505 as well
+  };
+  HeadKind head_kind = HeadKind::Continuous;
+  double head_index_step_deg = 7.5;
+  std::array<double, 3> head_min_deg{-115, -180, 0};
+  std::array<double, 3> head_max_deg{115, 180, 0};
+  std::array<double, 3> head_power_on_deg{0, 0, 0};  // Home() does not turn the head
+  // The head's own limits; a GoTo is as slow as its slowest axis group needs (cmm_machine.hpp).
+  double head_max_rate_deg_s = 90, head_accel_deg_s2 = 360;
+
   // Tool.GoToPar (§6.3.6), the same Min/Max/Def for every tool.
   double min_speed = 1, max_speed = 500, default_speed = 250;          // mm/s
   double min_accel = 10, max_accel = 2000, default_accel = 1000;      // mm/s^2
@@ -44,6 +64,9 @@ struct VirtualCmmConfig {
 
 struct VirtualCmmStatus {
   std::array<double, 3> position{};  // now, also during a move
+  // The head's angles a, b, c in radians (not the wire's degrees), now, also during a move, sampled
+  // at the same instant as `position`: a simulated world renders the sensors from this pose.
+  double head_a = 0, head_b = 0, head_c = 0;
   bool homed = false;
   bool moving = false;
   bool connected = false;
@@ -57,6 +80,8 @@ struct VirtualCmmStatus {
 
 class VirtualCmm {
  public:
+  // Throws std::invalid_argument for a head configuration that cannot work (an indexing step or a
+  // rate <= 0, a power-on angle outside its range).
   explicit VirtualCmm(VirtualCmmConfig config = {});
   ~VirtualCmm();  // stop()
   VirtualCmm(const VirtualCmm&) = delete;

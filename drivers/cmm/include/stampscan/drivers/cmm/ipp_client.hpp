@@ -2,6 +2,15 @@
 // The same code drives a real controller and the virtual CMM of sim/virtual_cmm; only the address
 // differs. drivers/cmm/PROTOCOL.md lists the subset of I++ DME it speaks.
 //
+// The probe head. A CMM with an articulating head has the tool's rotary axes Tool.A, Tool.B and,
+// on some heads, Tool.C (§6.3.8). The driver speaks of them as a ToolOrientation in radians, the
+// house's unit, and converts to the wire's degrees (§6.1.2) and back. A tilts about the ram's x axis,
+// B turns about its z axis, C rolls about the tool's own axis: the head frame is translation(ram) *
+// Rz(b) * Rx(a) * Rz(c), sim/cmm_motion.hpp's HeadState::pose(). goTo() with an orientation moves
+// all axes together (§6.3.2.12); pose() reads position and angles in one Get; move reports carry the
+// angles when asked. IppCmmOptions::head_has_c says whether Tool.C exists: without it the driver
+// never names Tool.C, so that a two-axis head (ToolAB) is not sent an axis it lacks.
+//
 // connect() opens the TCP connection and the session (StartSession, §6.3.1.1); disconnect() ends it
 // (EndSession, §6.3.1.2). Every call is one or more transactions (§6.2.3), each bounded by a timeout.
 //
@@ -48,6 +57,8 @@ struct IppCmmOptions {
   // Ask the CMM to stamp each move report with its own clock (the SS.Time() extension of
   // PROTOCOL.md). The virtual CMM has it; a real controller answers 0510 Bad property.
   bool device_time_in_reports = false;
+  // The head has a third angle, Tool.C (a ToolABC, §6.3.8). Without it ToolOrientation::c must be 0.
+  bool head_has_c = false;
 };
 
 // Machine coordinates of the active tool, mm (§6.1.2).
@@ -55,12 +66,37 @@ struct CmmPosition {
   double x = 0, y = 0, z = 0;
 };
 
+// The probe head's angles Tool.A, Tool.B, Tool.C in radians (degrees only on the wire, §6.1.2).
+// a: tilt about the ram's x axis; b: turn about its z axis, applied after a; c: roll about the
+// tool's own axis, applied first. The head frame is translation(ram) * Rz(b) * Rx(a) * Rz(c).
+struct ToolOrientation {
+  double a = 0, b = 0, c = 0;
+
+  static ToolOrientation fromDegrees(double a_deg, double b_deg, double c_deg = 0);
+  double aDegrees() const;
+  double bDegrees() const;
+  double cDegrees() const;
+};
+
+// Where the active tool is and how the head is turned, read at one instant.
+struct CmmPose {
+  CmmPosition position;
+  ToolOrientation orientation;
+};
+
 struct MoveReport {
   std::int64_t station_time_ns = 0;      // station steady clock when the line arrived
   std::optional<double> device_time_s;   // the CMM's clock (s since StartSession), if asked for
   CmmPosition position;
+  std::optional<ToolOrientation> orientation;  // with MoveReportContent::PositionAndOrientation
 };
 using MoveReportCallback = std::function<void(const MoveReport&)>;
+
+// What each move report carries besides the position (startMoveReports()).
+enum class MoveReportContent {
+  Position,                 // X(), Y(), Z()
+  PositionAndOrientation,   // also Tool.A(), Tool.B() (and Tool.C() with IppCmmOptions::head_has_c)
+};
 
 enum class MoveOutcome { Reached, Aborted };
 
@@ -93,10 +129,18 @@ class IppCmm : public Device {
 
   // GoTo(X(), Y(), Z()) (§6.3.2.12), blocking until the CMM reports the move complete. `speed` (mm/s)
   // applies to this move only; without it the speed of setSpeed() applies. Aborted when abort()
-  // stopped it. Throws std::invalid_argument for a non-finite target or a speed <= 0.
+  // stopped it. Throws std::invalid_argument for a non-finite target or a speed <= 0. The head's
+  // angles are not named, so they keep their values (§6.3.2.12).
   MoveOutcome goTo(const CmmPosition& target, std::optional<double> speed = {});
+  // GoTo(X(), Y(), Z(), Tool.A(), Tool.B()[, Tool.C()]) (§6.3.2.12, §6.3.8): the ram and the head
+  // start together and finish together. An angle the head cannot take (outside its range, or off an
+  // indexing head's grid) is refused by the CMM with 2505 and throws IppError; nothing moves. Also
+  // throws std::invalid_argument for a non-finite angle, or c != 0 without head_has_c.
+  MoveOutcome goTo(const CmmPosition& target, const ToolOrientation& orientation, std::optional<double> speed = {});
   // Get(X(), Y(), Z()) (§6.3.2.11).
   CmmPosition position();
+  // Get(X(), Y(), Z(), Tool.A(), Tool.B()[, Tool.C()]) (§6.3.2.11): one Get, so one instant.
+  CmmPose pose();
 
   // Tool.GoToPar.Speed and .Accel of the active tool (§6.3.1.9, §6.3.1.11, §6.3.6). The setters
   // return the value in effect: the CMM clamps to its Min/Max with warning 0504.
@@ -113,10 +157,13 @@ class IppCmm : public Device {
   // EnumTools() (§6.3.2.23).
   std::vector<std::string> tools();
 
-  // OnMoveReportE(Time(interval), X(), Y(), Z()) (§6.3.2.7): a daemon on an event tag reporting the
-  // position while the machine moves, at most 10 times a second (interval >= 0.1 s). Replaces a
-  // running one. Reports stop with stopMoveReports() (StopDaemon, §6.3.1.3) or the connection.
-  void startMoveReports(double interval_s, MoveReportCallback callback);
+  // OnMoveReportE(Time(interval), X(), Y(), Z()[, Tool.A(), Tool.B()[, Tool.C()]]) (§6.3.2.7): a
+  // daemon on an event tag reporting the position (and with PositionAndOrientation the head's
+  // angles, MoveReport::orientation) while the machine moves, at most 10 times a second (interval
+  // >= 0.1 s). Replaces a running one. Reports stop with stopMoveReports() (StopDaemon, §6.3.1.3)
+  // or the connection.
+  void startMoveReports(double interval_s, MoveReportCallback callback,
+                        MoveReportContent content = MoveReportContent::Position);
   void stopMoveReports();
 
   // AbortE() (§6.3.1.5) then ClearAllErrors(): stops the machine where it is; a goTo() in progress
@@ -153,7 +200,10 @@ class IppCmm : public Device {
   double writeProperty(const std::string& property, double value);
   void applySpeed(double mm_per_s);
   void readMotionParameters();
-  void onMoveReportLine(const ipp::Reply& reply);
+  void onMoveReportLine(const ipp::Reply& reply, bool with_orientation);
+  MoveOutcome move(std::vector<ipp::Argument> axes, std::optional<double> speed);
+  std::vector<ipp::Argument> headAxes(const ToolOrientation* orientation) const;  // Tool.A(..) or Tool.A()
+  std::optional<ToolOrientation> orientationIn(const std::vector<ipp::Argument>& items) const;
   [[noreturn]] void badResponse(const std::string& what, const Result& result);
 
   IppCmmOptions options_;

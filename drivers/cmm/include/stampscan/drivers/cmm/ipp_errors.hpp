@@ -33,6 +33,7 @@ inline constexpr int kUnableToMove = 1011;
 inline constexpr int kToolNotFound = 1502;
 inline constexpr int kToolNotDefined = 1503;
 inline constexpr int kMachineLimit = 2500;
+inline constexpr int kAngleOutOfRange = 2505;
 }  // namespace error
 
 struct ErrorDefinition {
