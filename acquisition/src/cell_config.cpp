@@ -15,6 +15,7 @@ CellConfig virtualCell() {
   CellConfig c;
   c.source = "built-in";
   c.digitizer_virtual = true;
+  c.cmm_device_time = true;
   return c;
 }
 
@@ -62,6 +63,7 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   c.cmm.host = get<std::string>(t, "cmm", "host", c.cmm.host, file);
   c.cmm.port = static_cast<int>(get<std::int64_t>(t, "cmm", "port", c.cmm.port, file));
   checkPort(c.cmm.port, file, "cmm");
+  c.cmm_device_time = get<bool>(t, "cmm", "device_time", false, file);
   c.plc.host = get<std::string>(t, "plc", "host", c.plc.host, file);
   c.plc.port = static_cast<int>(get<std::int64_t>(t, "plc", "port", c.plc.port, file));
   checkPort(c.plc.port, file, "plc");

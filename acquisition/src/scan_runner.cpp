@@ -3,7 +3,9 @@
 #include "stampscan/acquisition/safety_interlock.hpp"
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 
+#include <cmath>
 #include <condition_variable>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -257,8 +259,19 @@ struct ScanRunner::Impl {
       }
     });
 
-    dev.cmm.startMoveReports(params.report_interval_s, [this](const drivers::cmm::MoveReport& r) {
-      position(clock.fromSteady(r.station_time_ns), r.position, r.orientation.value_or(ToolOrientation{}));
+    // A report's position was sampled by the CMM some time before the line arrived, and how long
+    // before varies with the load on both sides (a millisecond is 25 um along a sweep at 25 mm/s).
+    // When the CMM stamps its reports with its own clock, that stamp is put on the station clock
+    // by the smallest arrival delay seen so far: the delay's floor, which the jitter only adds to.
+    std::int64_t cmm_offset = std::numeric_limits<std::int64_t>::max();  // the reader thread's alone
+    dev.cmm.startMoveReports(params.report_interval_s, [this, &cmm_offset](const drivers::cmm::MoveReport& r) {
+      std::int64_t t = clock.fromSteady(r.station_time_ns);
+      if (r.device_time_s) {
+        const auto device_ns = static_cast<std::int64_t>(std::llround(*r.device_time_s * 1e9));
+        cmm_offset = std::min(cmm_offset, t - device_ns);
+        t = device_ns + cmm_offset;
+      }
+      position(t, r.position, r.orientation.value_or(ToolOrientation{}));
     }, drivers::cmm::MoveReportContent::PositionAndOrientation);
 
     std::uint64_t lost_before = dev.digitizer.counters().lost_profiles;

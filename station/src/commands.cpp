@@ -5,7 +5,8 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 7> kCommands{{
+  static constexpr std::array<CommandEntry, 8> kCommands{{
+      {"scan", addScanCommand},
       {"process", addProcessCommand},
       {"fit", addFitCommand},
       {"devices", addDevicesCommand},

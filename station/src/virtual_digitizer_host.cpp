@@ -118,10 +118,9 @@ void requireUmockdevPreload() {
                            ": " + std::strerror(errno));
 }
 
-std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell) {
+std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell, sim::VirtualDigitizerOptions options) {
   if (!cell.digitizer_virtual) return nullptr;
   requireUmockdevPreload();
-  sim::VirtualDigitizerOptions options;
   if (!cell.digitizer_serial.empty()) options.identity.serial = cell.digitizer_serial;  // the one the cell looks for
   try {
     return std::make_unique<sim::VirtualDigitizer>(options);

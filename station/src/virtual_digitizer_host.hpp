@@ -32,6 +32,6 @@ void requireUmockdevPreload();
 // returned object. Otherwise returns null. The testbed redirects /sys and /dev for the whole process
 // and libusb enumerates when a context is made, so call it before any libusb context exists: before
 // the digitizer driver connects and before Aravis looks for cameras (it has a libusb context too).
-std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell);
+std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell, sim::VirtualDigitizerOptions options = {});
 
 }  // namespace stampscan::station

@@ -17,6 +17,9 @@ struct CellConfig {
     int port = 0;
   };
   Endpoint cmm{"127.0.0.1", 1294};
+  // The CMM stamps its move reports with its own clock (the SS.Time() extension of
+  // drivers/cmm/PROTOCOL.md): positions are then timed by the CMM, not by their arrival.
+  bool cmm_device_time = false;
   Endpoint plc{"127.0.0.1", 1502};
   int plc_unit_id = 1;
   struct Camera {
