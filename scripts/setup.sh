@@ -39,5 +39,7 @@ if [ ! -d "$interop/node_modules" ] || [ "$interop/package-lock.json" -nt "$inte
   npm ci --prefix "$interop" --no-audit --no-fund --loglevel=error
 fi
 
-cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="${STAMPSCAN_BUILD_TYPE:-Release}" "$@" >/dev/null
+# Warnings are errors in every build, so that `scripts/test.sh` after this finds the same
+# configuration and builds nothing again.
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="${STAMPSCAN_BUILD_TYPE:-Release}" -DSTAMPSCAN_WERROR=ON "$@" >/dev/null
 cmake --build "$build_dir" -j "${STAMPSCAN_JOBS:-$(nproc)}"

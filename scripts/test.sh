@@ -9,6 +9,6 @@ if [ "${1:-}" = "--sanitize" ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 else
   build_dir=build
-  scripts/setup.sh "$build_dir" -DSTAMPSCAN_WERROR=ON
+  scripts/setup.sh "$build_dir"
 fi
 ctest --test-dir "$build_dir" --output-on-failure -j "$(nproc)" --timeout 900

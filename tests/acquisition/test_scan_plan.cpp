@@ -1,0 +1,112 @@
+// ScanPlan: the plan file reads back what was written, the simulator's plans are sound, and bad plans
+// are refused with the file, the line and the field.
+#include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace stampscan::acquisition {
+namespace {
+
+void expectSamePose(const HeadPose& a, const HeadPose& b) {
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(a.position[i], b.position[i], 1e-9);
+  EXPECT_NEAR(a.a, b.a, 1e-12);
+  EXPECT_NEAR(a.b, b.b, 1e-12);
+}
+
+TEST(ScanPlan, PlanFileRoundTrip) {
+  sim::ScanParams p = sim::ScanParams::quick();
+  p.part = sim::PartKind::Dome;
+  const ScanPlan plan = sim::planScan(p);
+  ASSERT_GT(plan.sweepCount(kScenePart), 0u);
+  ASSERT_GT(plan.sweepCount(kSceneSphere), 0u);
+  ASSERT_GT(plan.stereoCount(kScenePlate), 0u);
+  const ScanPlan back = parseScanPlan(toToml(plan), "round-trip");
+  EXPECT_EQ(back.name, plan.name);
+  EXPECT_EQ(back.part, plan.part);
+  ASSERT_EQ(back.steps.size(), plan.steps.size());
+  for (std::size_t k = 0; k < plan.steps.size(); ++k) {
+    ASSERT_EQ(back.steps[k].index(), plan.steps[k].index());
+    if (const auto* s = std::get_if<SweepStep>(&plan.steps[k])) {
+      const auto& t = std::get<SweepStep>(back.steps[k]);
+      EXPECT_EQ(t.scene, s->scene);
+      EXPECT_EQ(t.index, s->index);
+      expectSamePose(t.start, s->start);
+      expectSamePose(t.end, s->end);
+      EXPECT_DOUBLE_EQ(t.speed, s->speed);
+    } else {
+      const auto& v = std::get<StereoStep>(plan.steps[k]);
+      const auto& w = std::get<StereoStep>(back.steps[k]);
+      EXPECT_EQ(w.scene, v.scene);
+      expectSamePose(w.pose, v.pose);
+    }
+  }
+}
+
+TEST(ScanPlan, SimulatorPlansFitTheMachine) {
+  for (const auto part : {sim::PartKind::Dome, sim::PartKind::Pan}) {
+    sim::ScanParams p;
+    p.part = part;
+    const ScanPlan plan = sim::planScan(p);
+    const auto problems = checkPlan(plan, MachineLimits{});
+    EXPECT_TRUE(problems.empty()) << problems.front();
+    EXPECT_GT(motionSeconds(plan, MachineLimits{}), 10.0);
+  }
+}
+
+TEST(ScanPlan, MotionTimeOfOneSweep) {
+  ScanPlan plan;
+  plan.park = {{0, 0, 100}, 0, 0};
+  plan.travel_speed = 100;
+  SweepStep s;
+  s.start = {{0, 0, 100}, 0, 0};
+  s.end = {{0, 100, 100}, 0, 0};
+  s.speed = 25;
+  plan.steps.emplace_back(s);
+  MachineLimits limits;
+  limits.acceleration = 1000;
+  // 100 mm at 25 mm/s with 1000 mm/s^2: 4 s + 0.025 s; back 100 mm at 100 mm/s: 1 s + 0.1 s.
+  EXPECT_NEAR(motionSeconds(plan, limits), 4.025 + 1.1, 1e-9);
+}
+
+TEST(ScanPlan, LimitsAreCheckedStepByStep) {
+  ScanPlan plan;
+  SweepStep s;
+  s.start = {{0, 0, 100}, 0.0, 0.0};
+  s.end = {{0, 500, 100}, 0.0, 0.0};
+  s.speed = 900;
+  plan.steps.emplace_back(s);
+  StereoStep v;
+  v.pose = {{0, 0, 100}, 2.5, 0};
+  plan.steps.emplace_back(v);
+  const auto problems = checkPlan(plan, MachineLimits{});
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_NE(problems[0].find("step 1 (sweep part 0): end y = 500 mm is outside the travel -300..300"), std::string::npos)
+      << problems[0];
+  EXPECT_NE(problems[1].find("speed 900 mm/s"), std::string::npos) << problems[1];
+  EXPECT_NE(problems[2].find("step 2 (stereo part 0): pose head tilt"), std::string::npos) << problems[2];
+}
+
+TEST(ScanPlan, BadFilesNameTheLineAndField) {
+  const auto error = [](const std::string& text) {
+    try {
+      parseScanPlan(text, "plan.toml");
+    } catch (const PlanError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error("name = \"x\"\n"), "plan.toml:1: step is missing: a plan needs at least one [[step]]");
+  EXPECT_EQ(error("[[step]]\nkind = \"sweep\"\nstart = [0, 0, 1]\nend = [0, 1, 1]\nspeed = \"fast\"\n"),
+            "plan.toml:5: step[1].speed must be a number");
+  EXPECT_EQ(error("[[step]]\nkind = \"hover\"\n"), "plan.toml:2: step[1].kind must be \"sweep\" or \"stereo\", is \"hover\"");
+  EXPECT_EQ(error("[[step]]\nkind = \"stereo\"\npose = [0, 0, 1]\nspeeed = 3\n"), "plan.toml:4: step[1].speeed is not a known field");
+  EXPECT_EQ(error("[part]\ngrid = \"hex\"\n[[step]]\nkind = \"stereo\"\npose = [0, 0, 1]\n"),
+            "plan.toml:2: part.grid must be \"circle\" or \"square\"");
+  EXPECT_NE(error("name = [\n").find("plan.toml:"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace stampscan::acquisition
