@@ -45,6 +45,7 @@ struct ScanRunner::Impl {
 
   std::mutex sink_mutex;  // the devices' threads write one message at a time
   std::atomic<std::uint64_t> positions{0}, profiles{0}, plc_states{0};
+  std::atomic<std::uint64_t> last_profile_device_ns{0};
   std::mutex abort_mutex;
   std::optional<std::string> abort_reason;
 
@@ -202,6 +203,21 @@ struct ScanRunner::Impl {
 
   void shutter(bool open) { dev.plc.setOutput(Coil::LaserShutterOpenRequest, open); }
 
+  // The digitizer delivers a profile some time after its exposure (processing, USB): wait until the
+  // profiles up to now have arrived before stopping it, or the end of the sweep is lost. Bounded:
+  // a device that has fallen far behind loses the rest, and the trace shows where it stopped.
+  void drainDigitizer(std::chrono::milliseconds limit = std::chrono::milliseconds(3000)) {
+    std::uint64_t device_now = 0;
+    try {
+      device_now = dev.digitizer.readStatus().device_time_ns;
+    } catch (const drivers::DeviceError&) {
+      return;
+    }
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (last_profile_device_ns < device_now && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+
   ScanRunResult run(const ScanPlan& plan, const ScanRunParams& params) {
     const std::vector<std::string> problems = checkPlan(plan, params.limits);
     if (!problems.empty()) {
@@ -326,6 +342,7 @@ struct ScanRunner::Impl {
           m.range = std::move(p.range);
           m.intensity = std::move(p.intensity);
           ++profiles;
+          last_profile_device_ns = p.device_time_ns;
           write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
         });
         report(k, label);
@@ -340,6 +357,7 @@ struct ScanRunner::Impl {
         }
         event("sweep_end", sweep_label);
         samplePose();
+        drainDigitizer();
         dev.digitizer.stop();
         shutter(false);
         clockSync();

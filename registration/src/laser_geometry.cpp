@@ -20,6 +20,33 @@ HeadTrack::HeadTrack(std::vector<HeadSample> samples) : samples_(std::move(sampl
   for (std::size_t i = 1; i < samples_.size(); ++i)
     if (samples_[i].time_ns <= samples_[i - 1].time_ns)
       throw std::invalid_argument("head track: position report " + std::to_string(i) + " is not later than the one before");
+  // Velocity of each interval (index i: samples i-1 .. i), then the chord error bound from the
+  // change of velocity to the intervals before and after.
+  const std::size_t n = samples_.size();
+  std::vector<Vec3> velocity(n, Vec3::Zero());
+  std::vector<double> dt(n, 0.0);
+  for (std::size_t i = 1; i < n; ++i) {
+    dt[i] = static_cast<double>(samples_[i].time_ns - samples_[i - 1].time_ns) * 1e-9;
+    velocity[i] = (samples_[i].position - samples_[i - 1].position) / dt[i];
+  }
+  chord_error_.assign(n, 0.0);
+  for (std::size_t i = 1; i < n; ++i) {
+    double dv = 0;
+    if (i > 1) dv = std::max(dv, (velocity[i] - velocity[i - 1]).norm());
+    if (i + 1 < n) dv = std::max(dv, (velocity[i + 1] - velocity[i]).norm());
+    chord_error_[i] = dv * dt[i] / 4;
+  }
+}
+
+std::size_t HeadTrack::intervalOf(std::int64_t t) const {
+  const auto it = std::lower_bound(samples_.begin(), samples_.end(), t,
+                                   [](const HeadSample& s, std::int64_t v) { return s.time_ns < v; });
+  return std::max<std::size_t>(1, static_cast<std::size_t>(it - samples_.begin()));
+}
+
+double HeadTrack::chordError(std::int64_t t) const {
+  if (!covers(t)) throw std::out_of_range("head track: time " + std::to_string(t) + " ns is outside the CMM's reports");
+  return chord_error_[intervalOf(t)];
 }
 
 HeadSample HeadTrack::at(std::int64_t t) const {

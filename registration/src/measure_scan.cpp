@@ -33,12 +33,17 @@ std::string format(const char* fmt, auto... args) {
   return buf;
 }
 
-// The profiles whose exposure falls within the sweep's window.
-std::vector<Profile> profilesIn(const ScanTrace& t, const SweepWindow& w, std::int64_t clock_offset, std::int64_t latency) {
+// The profiles whose exposure falls within the sweep's window, where the head track is to be
+// trusted (HeadTrack::chordError): where the head started or stopped between two sparse position
+// reports, the track is off by up to a tenth of a millimetre and rings there come out squashed.
+std::vector<Profile> profilesIn(const ScanTrace& t, const HeadTrack& track, const SweepWindow& w, std::int64_t clock_offset,
+                                std::int64_t latency, double max_chord_error) {
   std::vector<Profile> out;
   for (const auto& p : t.profiles) {
     const std::int64_t exposure = p.device_time_ns - clock_offset - latency;
-    if (exposure >= w.begin_ns && exposure <= w.end_ns) out.push_back(p);
+    if (exposure >= w.begin_ns && exposure <= w.end_ns && track.covers(exposure) &&
+        track.chordError(exposure) <= max_chord_error)
+      out.push_back(p);
   }
   return out;
 }
@@ -141,7 +146,7 @@ ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params,
   std::vector<Profile> sphere;
   for (const auto& w : trace.sweeps)
     if (w.is("reference_sphere")) {
-      auto p = profilesIn(trace, w, digitizer_offset, 0);
+      auto p = profilesIn(trace, track, w, digitizer_offset, 0, params.max_track_error_mm);
       sphere.insert(sphere.end(), p.begin(), p.end());
     }
   if (!sphere.empty()) {
@@ -212,7 +217,8 @@ ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params,
   std::vector<RingDetectionStats> stats(part.size());
   const bool circles = session.grid == "circle";
   tbb::parallel_for(std::size_t{0}, part.size(), [&](std::size_t k) {
-    const auto profiles = profilesIn(trace, part[k], out.digitizer.clock_offset_ns, out.digitizer.latency_ns);
+    const auto profiles =
+        profilesIn(trace, track, part[k], out.digitizer.clock_offset_ns, out.digitizer.latency_ns, params.max_track_error_mm);
     const auto id = static_cast<std::uint32_t>(k);
     per_sweep[k] = circles ? detectLaserRings(profiles, track, out.digitizer, rings, id, &stats[k])
                            : detectLaserSquares(profiles, track, out.digitizer, squares, id, &stats[k]);

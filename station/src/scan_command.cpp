@@ -175,7 +175,7 @@ CommandRunner addScanCommand(CLI::App& app) {
         hostVirtualDigitizer(cell, vcell ? vcell->digitizerOptions() : sim::VirtualDigitizerOptions{});
     if (vcell) {
       vcell->start();
-      if (vdigitizer) vdigitizer->setProfileSource(vcell->profileSource());
+      if (vdigitizer) vdigitizer->setTimedProfileSource(vcell->profileSource());
     }
 
     drivers::cmm::IppCmmOptions cmm_options;

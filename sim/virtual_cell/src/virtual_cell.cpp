@@ -75,16 +75,16 @@ VirtualDigitizerOptions VirtualCell::digitizerOptions() const {
   return o;
 }
 
-VirtualDigitizer::ProfileSource VirtualCell::profileSource() {
+VirtualDigitizer::TimedProfileSource VirtualCell::profileSource() {
   return [this](std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
-                drivers::digitizer::Profile& profile) {
+                std::chrono::steady_clock::time_point exposure, drivers::digitizer::Profile& profile) {
     const std::size_t n = static_cast<std::size_t>(config.points_per_profile);
     profile.range.assign(n, 0.0f);
     profile.intensity.assign(n, 0);
     // The PLC's shutter: closed, the laser line never reaches the part.
     if (!plc_->coil(drivers::plc::Coil::LaserShutterOpenRequest) || plc_->input(drivers::plc::DiscreteInput::LaserShutterClosed))
       return;
-    const VirtualCmmStatus st = cmm_->status();
+    const VirtualCmmStatus st = cmm_->statusAt(exposure);
     const HeadState head{Vec3(st.position[0], st.position[1], st.position[2]), st.head_a, st.head_b, 0};
     DigitizerSpec spec = options_.world.digitizer;
     spec.points_per_profile = config.points_per_profile;

@@ -112,10 +112,12 @@ void VirtualCmm::stop() {
   m.listen_fd = m.wake_fd = -1;
 }
 
-VirtualCmmStatus VirtualCmm::status() const {
+VirtualCmmStatus VirtualCmm::status() const { return statusAt(detail::Clock::now()); }
+
+VirtualCmmStatus VirtualCmm::statusAt(std::chrono::steady_clock::time_point when) const {
   const Impl& m = *impl_;
   VirtualCmmStatus s;
-  const detail::MachinePose pose = m.machine.pose(detail::Clock::now());
+  const detail::MachinePose pose = m.machine.pose(when);
   s.position = pose.xyz;
   constexpr double kRadPerDeg = std::numbers::pi / 180;  // the wire's degrees (§6.1.2) to the house's radians
   s.head_a = pose.abc[0] * kRadPerDeg;

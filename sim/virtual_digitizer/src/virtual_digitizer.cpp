@@ -53,6 +53,7 @@ struct VirtualDigitizer::Impl {
 
   mutable std::mutex mutex;
   ProfileSource source = &VirtualDigitizer::testPattern;
+  TimedProfileSource timed_source;  // when set, used instead of `source`
   DigitizerConfig config;
   bool streaming = false;
   std::uint32_t sequence = 0;
@@ -159,10 +160,21 @@ struct VirtualDigitizer::Impl {
     Profile profile;
     for (; drop > 0; --drop) source(sequence++, config, profile);  // made, then lost on the wire
     profile = Profile{};
-    const std::uint64_t exposure = clockNow();
-    source(sequence, config, profile);
+    // Paced, the profile was exposed when it fell due, however late the host reaps it: a real head
+    // exposes at its rate and buffers.
+    const auto exposure = options.paced ? stream_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                             std::chrono::duration<double>((sequence - stream_first_sequence) /
+                                                                                           config.profile_rate_hz))
+                                        : std::chrono::steady_clock::now();
+    if (timed_source)
+      timed_source(sequence, config, exposure, profile);
+    else
+      source(sequence, config, profile);
     profile.sequence = sequence;
-    profile.device_time_ns = options.paced ? exposure + static_cast<std::uint64_t>(options.stamp_latency_ns) : deviceTime(sequence);
+    const auto exposure_ns = static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(exposure - clock_zero).count());
+    profile.device_time_ns =
+        options.paced ? exposure_ns + static_cast<std::uint64_t>(options.stamp_latency_ns) : deviceTime(sequence);
     if (mirror_fault) profile.status |= kStatusMirrorFault;
     ++sequence;
     const Bytes bytes = encode(profile);
@@ -350,8 +362,14 @@ bool VirtualDigitizer::preloadActive() {
   return false;
 }
 
+void VirtualDigitizer::setTimedProfileSource(TimedProfileSource source) {
+  std::lock_guard lock(impl_->mutex);
+  impl_->timed_source = std::move(source);
+}
+
 void VirtualDigitizer::setProfileSource(ProfileSource source) {
   std::lock_guard lock(impl_->mutex);
+  impl_->timed_source = nullptr;
   impl_->source = source ? std::move(source) : ProfileSource(&VirtualDigitizer::testPattern);
 }
 

@@ -23,8 +23,12 @@ struct HeadSample {
   double a = 0, b = 0;
 };
 
-// The CMM's reported positions over time, interpolated linearly (reports come at 250 Hz or more;
-// between two of them the head moves on a nearly straight line at a nearly constant speed).
+// The CMM's reported positions over time, interpolated linearly. Between two reports the head moves
+// on a straight line, but not always at a constant speed: a CMM's move report daemon reports at
+// 10 Hz at most (I++ DME §6.3.2.7), and a move that starts or stops between two reports leaves the
+// chord up to |dv| dt / 4 away from the true path (0.15 mm for a 25 mm/s sweep starting within a
+// 0.1 s interval). chordError() bounds that per interval from the change of velocity at its ends,
+// so the measuring path can leave out data taken where the track is not to be trusted.
 class HeadTrack {
  public:
   // Samples in time order; throws std::invalid_argument otherwise or with fewer than two.
@@ -33,10 +37,17 @@ class HeadTrack {
   // Throws std::out_of_range outside the track.
   HeadSample at(std::int64_t t) const;
   Eigen::Isometry3d poseAt(std::int64_t t) const;
+  // How far (mm) the interpolated position at t may be from where the head was: |dv| dt / 4 for the
+  // interval holding t, dv the larger change of velocity between it and its neighbours. Throws
+  // std::out_of_range outside the track.
+  double chordError(std::int64_t t) const;
   const std::vector<HeadSample>& samples() const { return samples_; }
 
  private:
+  std::size_t intervalOf(std::int64_t t) const;  // i: samples_[i - 1] .. samples_[i] holds t
+
   std::vector<HeadSample> samples_;
+  std::vector<double> chord_error_;  // per interval, indexed by its end sample
 };
 
 // A digitizer profile as the device sent it (see the trace's LaserProfile message).

@@ -30,6 +30,9 @@ struct MeasureParams {
   bool with_stereo = false;
   // Fewer plate views than this and the cameras are not calibrated from the trace.
   std::size_t min_plate_views = 5;
+  // Profiles taken where the head track may be further than this from the true path are left out
+  // (HeadTrack::chordError): a tenth of the goal for positions.
+  double max_track_error_mm = 0.005;
 };
 
 // What happened, stage by stage, for the operator; `stage` is a short word ("digitizer", "laser",

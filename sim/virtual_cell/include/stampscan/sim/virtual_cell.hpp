@@ -59,7 +59,7 @@ class VirtualCell {
   // For the process that hosts the virtual digitizer: paced at its rate, its fan as the world's
   // digitizer has it, stamped with the world's latency; and the world's profiles.
   VirtualDigitizerOptions digitizerOptions() const;
-  VirtualDigitizer::ProfileSource profileSource();
+  VirtualDigitizer::TimedProfileSource profileSource();
 
   const VirtualCellOptions& options() const { return options_; }
   const VirtualCellTruth& truth() const { return truth_; }

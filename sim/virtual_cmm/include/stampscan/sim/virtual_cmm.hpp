@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -95,6 +96,10 @@ class VirtualCmm {
   std::uint16_t port() const;  // the bound port once started
   const VirtualCmmConfig& config() const;
   VirtualCmmStatus status() const;
+  // The machine's position and head angles at `when` (steady clock) during the current move or at
+  // rest, for a simulated sensor that renders the world at its own exposure time; the other fields
+  // as status().
+  VirtualCmmStatus statusAt(std::chrono::steady_clock::time_point when) const;
 
   // Fault injection. The next command of the normal queue is answered with `error_number` (class
   // `severity`, or the §8.2 default) instead of being executed.

@@ -13,13 +13,16 @@
 // host can take profiles) unless `paced` is set, when it keeps the configured profile rate.
 // Unpaced, device timestamps follow the configured rate (sequence / rate), a clock that stands
 // still between streams. Paced, the device has a free-running clock like the real head's (ns since
-// the device was made): GetStatus reports it, and each profile is exposed when it is made and
-// stamped `stamp_latency_ns` later, so a profile source that renders the world "now" is right.
+// the device was made): GetStatus reports it, and profile k of a stream is exposed at
+// start + k / rate, whenever the host happens to reap it, and stamped `stamp_latency_ns` later; a
+// timed profile source is told that exposure time, so it renders the world as it was then.
 //
 // Threads: umockdev runs the ioctl handler on its own worker thread; the profile source runs there,
 // under the device's lock, so it must not call back into the VirtualDigitizer. Every public method
 // is thread-safe. The destructor removes the testbed; disconnect the driver first.
 #pragma once
+
+#include <chrono>
 
 #include <cstdint>
 #include <functional>
@@ -57,6 +60,12 @@ class VirtualDigitizer {
 
   // The source of profile data; the default is testPattern().
   void setProfileSource(ProfileSource source);
+  // A source that is also told when the profile was exposed (steady clock): a simulated world
+  // renders itself as it was at that instant. Replaces the plain source.
+  using TimedProfileSource =
+      std::function<void(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
+                         std::chrono::steady_clock::time_point exposure, drivers::digitizer::Profile& profile)>;
+  void setTimedProfileSource(TimedProfileSource source);
   // A deterministic pattern of the sequence number: ranges 80..120 mm with every 97th point a
   // dropout (0), intensities cycling.
   static void testPattern(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
