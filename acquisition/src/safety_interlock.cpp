@@ -12,7 +12,8 @@ void SafetyInterlock::onPlcEvent(const drivers::plc::PlcEvent& event) {
   const bool stop = event.kind == PlcEventKind::DoorOpened || event.kind == PlcEventKind::EStopBroken ||
                     event.kind == PlcEventKind::LightCurtainInterrupted || event.kind == PlcEventKind::InterlockTripped ||
                     event.kind == PlcEventKind::PlcSilent;
-  std::string what = drivers::plc::toString(event.kind);
+  // The driver's words for the operator ("door opened"), its code when it has none.
+  std::string what = event.text.empty() ? drivers::plc::toString(event.kind) : event.text;
   if (stop) {
     // abort() is safe from another thread and returns at once; a CMM that is not moving ignores it.
     try {

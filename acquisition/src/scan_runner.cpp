@@ -176,7 +176,8 @@ struct ScanRunner::Impl {
     if (auto reason = abortReason()) throw Aborted{*reason};
     if (safety.tripped()) {
       const auto events = safety.events();
-      throw Aborted{events.empty() ? "safety interlock" : events.back().what};
+      // The first event is the cause; the interlock's own trip follows it.
+      throw Aborted{events.empty() ? "safety interlock" : events.front().what};
     }
   }
 

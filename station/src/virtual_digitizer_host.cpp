@@ -130,3 +130,30 @@ std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& ce
 }
 
 }  // namespace stampscan::station
+
+namespace stampscan::station {
+
+HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base) : config_(base) {
+  sim::VirtualCellOptions o;
+  o.world = world;
+  o.cmm_address = base.cmm.host;
+  o.cmm_port = 0;  // free ports: a served cell or another scan may hold the configured ones
+  o.plc_address = base.plc.host;
+  o.plc_port = 0;
+  cell_ = std::make_unique<sim::VirtualCell>(o);
+  acquisition::CellConfig with_digitizer = base;
+  with_digitizer.digitizer_virtual = true;
+  digitizer_ = hostVirtualDigitizer(with_digitizer, cell_->digitizerOptions());
+  digitizer_->setTimedProfileSource(cell_->profileSource());
+  cell_->start();
+  config_.cmm.port = cell_->cmm().port();
+  config_.plc.port = cell_->plc().port();
+  config_.digitizer_virtual = true;
+}
+
+HostedVirtualCell::~HostedVirtualCell() {
+  cell_->stop();
+  digitizer_.reset();
+}
+
+}  // namespace stampscan::station

@@ -5,6 +5,7 @@
 // instead, and the unmodified USB driver then finds it on the (mocked) bus like the real head.
 #pragma once
 
+#include "stampscan/sim/virtual_cell.hpp"
 #include "stampscan/sim/virtual_digitizer.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 
@@ -33,5 +34,29 @@ void requireUmockdevPreload();
 // and libusb enumerates when a context is made, so call it before any libusb context exists: before
 // the digitizer driver connects and before Aravis looks for cameras (it has a libusb context too).
 std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell, sim::VirtualDigitizerOptions options = {});
+
+}  // namespace stampscan::station
+
+namespace stampscan::station {
+
+// The whole virtual cell hosted in this process as one world (sim/virtual_cell): the CMM and the PLC
+// serving on free loopback ports, the digitizer under umockdev rendering the world. Construct it
+// first thing (it may re-execute the program, see requireUmockdevPreload). config() is the cell
+// config to reach it with: the base with the servers' actual ports.
+class HostedVirtualCell {
+ public:
+  HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base);
+  ~HostedVirtualCell();
+  HostedVirtualCell(const HostedVirtualCell&) = delete;
+  HostedVirtualCell& operator=(const HostedVirtualCell&) = delete;
+
+  const acquisition::CellConfig& config() const { return config_; }
+  sim::VirtualCell& cell() { return *cell_; }
+
+ private:
+  std::unique_ptr<sim::VirtualCell> cell_;
+  std::unique_ptr<sim::VirtualDigitizer> digitizer_;
+  acquisition::CellConfig config_;
+};
 
 }  // namespace stampscan::station

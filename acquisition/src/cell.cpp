@@ -1,0 +1,30 @@
+#include "stampscan/acquisition/cell.hpp"
+
+namespace stampscan::acquisition {
+
+Cell::Cell(const CellConfig& config) : config_(config) {
+  drivers::cmm::IppCmmOptions cmm;
+  cmm.host = config.cmm.host;
+  cmm.port = static_cast<std::uint16_t>(config.cmm.port);
+  cmm.device_time_in_reports = config.cmm_device_time;
+  cmm_ = std::make_unique<drivers::cmm::IppCmm>(cmm);
+  drivers::plc::ModbusPlcOptions plc;
+  plc.host = config.plc.host;
+  plc.port = config.plc.port;
+  plc.unit_id = config.plc_unit_id;
+  plc_ = std::make_unique<drivers::plc::ModbusPlc>(plc);
+  drivers::digitizer::UsbDigitizerOptions digitizer;
+  digitizer.vendor_id = config.digitizer_vendor;
+  digitizer.product_id = config.digitizer_product;
+  digitizer.serial = config.digitizer_serial;
+  digitizer_ = std::make_unique<drivers::digitizer::UsbDigitizer>(digitizer);
+}
+
+Cell::~Cell() {
+  // The digitizer first: its event thread may still deliver into a sink the caller owns.
+  digitizer_->disconnect();
+  plc_->disconnect();
+  cmm_->disconnect();
+}
+
+}  // namespace stampscan::acquisition

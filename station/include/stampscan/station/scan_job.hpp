@@ -1,0 +1,85 @@
+// A scan job: what `station scan` does, and what the operator's panel will start. A plan on a cell
+// into a run folder: the trace recorded live by the ScanRunner, then measured (measureScan), fitted
+// and written, with a run.json summary. The command and the panel differ only in how they show
+// progress (the observer) and how they abort (abort()).
+//
+//   RUNS/<UTC time>-<part id>/trace.mcap   every device message as it arrived
+//                            cloud4d.ply   the grid elements with their strains
+//                            fitted.ply    the fitted surface, one point per element, coloured by thinning
+//                            mesh.ply      the fitted surface as a mesh
+//                            run.json      part id, plan, cell, devices, counts, times, outcome (and the
+//                                          accuracy against the truth when the cell is simulated)
+//
+// A plan or check refused before motion (acquisition::ScanError) leaves no run folder. An aborted
+// run keeps its trace and a run.json saying why, and run() throws naming both.
+#pragma once
+
+#include "stampscan/acquisition/cell.hpp"
+#include "stampscan/acquisition/scan_runner.hpp"
+#include "stampscan/fitting/cloud.hpp"
+#include "stampscan/registration/measure_scan.hpp"
+
+#include <atomic>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace stampscan::station {
+
+// What the simulator knows of a virtual cell's scan, for the accuracy figures.
+struct SimulationTruth {
+  fitting::Cloud elements;                // the part's true grid elements
+  std::int64_t digitizer_latency_ns = 0;  // the virtual digitizer's
+};
+
+struct ScanJobOptions {
+  acquisition::ScanPlan plan;
+  acquisition::ScanRunParams run;  // the session description's cell geometry, limits
+  std::string part_id = "part";
+  std::filesystem::path runs_dir = "stampscan-runs";
+  // When the cell is simulated: the job then reports its accuracy against the truth.
+  std::optional<SimulationTruth> truth;
+};
+
+struct ScanAccuracy {
+  std::size_t matched = 0;        // measured elements within 0.5 mm of a true one
+  double position_rms_mm = 0, strain_rms = 0;
+};
+
+struct ScanJobResult {
+  std::filesystem::path run_dir;
+  acquisition::ScanRunResult run;
+  std::size_t elements = 0;
+  double measure_seconds = 0;     // from the end of the scan to the files written
+  registration::DigitizerCalibration digitizer;
+  std::optional<double> sphere_residual_mm;
+  std::optional<ScanAccuracy> accuracy;
+};
+
+class ScanJobObserver : public acquisition::ScanObserver, public registration::MeasureObserver {
+ public:
+  virtual void runFolder(const std::filesystem::path& /*dir*/) {}
+  void stageDone(std::string_view /*stage*/, const std::string& /*text*/) override {}
+};
+
+class ScanJob {
+ public:
+  ScanJob(acquisition::Cell& cell, ScanJobObserver* observer = nullptr);
+  // Throws acquisition::ScanError when refused before motion (no folder is left), std::runtime_error
+  // when the run was aborted (its folder keeps the trace and run.json) or measuring failed.
+  ScanJobResult run(const ScanJobOptions& options);
+  // Any thread: the run stops (motion aborted, shutter closed) and run() throws with the reason.
+  void abort(const std::string& reason);
+
+ private:
+  acquisition::Cell& cell_;
+  ScanJobObserver* observer_;
+  std::mutex mutex_;
+  acquisition::ScanRunner* runner_ = nullptr;  // while a run is under way
+  std::optional<std::string> pending_abort_;
+};
+
+// Every measured element against the nearest true one.
+ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth);
+
+}  // namespace stampscan::station

@@ -1,0 +1,187 @@
+#include "stampscan/station/scan_job.hpp"
+
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/trace_recorder.hpp"
+#include "stampscan/fitting/kdtree.hpp"
+#include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/station/fit_runner.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+
+namespace stampscan::station {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string runFolderName(const std::string& part_id) {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &tm);
+  std::string id;
+  for (char c : part_id) id.push_back(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_');
+  return std::string(stamp) + "-" + (id.empty() ? "part" : id);
+}
+
+// A fresh folder under `runs`: two scans of one part within a second get "-2", "-3", ...
+fs::path newRunFolder(const fs::path& runs, const std::string& part_id) {
+  fs::create_directories(runs);
+  const std::string base = runFolderName(part_id);
+  for (int k = 1;; ++k) {
+    const fs::path dir = runs / (k == 1 ? base : base + "-" + std::to_string(k));
+    if (fs::create_directory(dir)) return dir;
+  }
+}
+
+void writeJsonAtomically(const fs::path& file, const nlohmann::json& j) {
+  const fs::path tmp = file.string() + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp);
+    out << j.dump(2) << "\n";
+    if (!out) throw std::runtime_error(file.string() + ": cannot be written");
+  }
+  fs::rename(tmp, file);
+}
+
+nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell, const acquisition::ScanRunResult& r) {
+  nlohmann::json run = {{"part_id", o.part_id},
+                        {"plan", o.plan.name},
+                        {"cell", cell.config().name},
+                        {"trace", "trace.mcap"},
+                        {"completed", r.completed},
+                        {"scan", {{"sweeps", r.sweeps_done},
+                                  {"wall_seconds", r.wall_seconds},
+                                  {"motion_seconds", r.motion_seconds},
+                                  {"profiles", r.profiles},
+                                  {"lost_profiles", r.lost_profiles},
+                                  {"positions", r.positions}}}};
+  for (const auto& d : r.devices)
+    run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
+  if (!r.completed) run["abort_reason"] = r.abort_reason;
+  if (!r.safety_events.empty()) run["safety_events"] = r.safety_events;
+  return run;
+}
+
+}  // namespace
+
+ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
+  ScanAccuracy a;
+  if (truth.size() == 0 || !measured.hasStrain() || !truth.hasStrain()) return a;
+  const fitting::KdTree tree(truth.positions);
+  std::vector<fitting::Neighbor> nn;
+  double sp = 0, ss = 0;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    tree.knn(measured.positions[i], 1, nn);
+    if (nn.empty() || nn[0].distance_sq > 0.5 * 0.5) continue;
+    ++a.matched;
+    sp += nn[0].distance_sq;
+    const double d = measured.strain[i] - truth.strain[nn[0].index];
+    ss += d * d;
+  }
+  if (a.matched) {
+    a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
+    a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
+  }
+  return a;
+}
+
+ScanJob::ScanJob(acquisition::Cell& cell, ScanJobObserver* observer) : cell_(cell), observer_(observer) {}
+
+void ScanJob::abort(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (runner_)
+    runner_->abort(reason);
+  else if (!pending_abort_)
+    pending_abort_ = reason;
+}
+
+ScanJobResult ScanJob::run(const ScanJobOptions& o) {
+  ScanJobResult result;
+  // Refuse a plan that cannot run before a folder is made for it.
+  const auto problems = acquisition::checkPlan(o.plan, o.run.limits);
+  if (!problems.empty()) throw acquisition::ScanError("the plan cannot run on this cell: " + problems.front());
+  result.run_dir = newRunFolder(o.runs_dir, o.part_id);
+  if (observer_) observer_->runFolder(result.run_dir);
+  const fs::path trace_file = result.run_dir / "trace.mcap";
+  {
+    trace::McapWriter writer(trace_file);
+    trace::TraceRecorder recorder(writer);
+    const acquisition::StationClock clock;
+    acquisition::ScanRunner runner(cell_.devices(), recorder, clock, observer_);
+    {
+      std::lock_guard lock(mutex_);
+      runner_ = &runner;
+      if (pending_abort_) runner.abort(*pending_abort_);
+    }
+    try {
+      result.run = runner.run(o.plan, o.run);
+    } catch (const acquisition::ScanError&) {
+      {
+        std::lock_guard lock(mutex_);
+        runner_ = nullptr;
+      }
+      writer.close();
+      std::error_code ignored;
+      fs::remove_all(result.run_dir, ignored);  // nothing moved: no run to keep
+      throw;
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      runner_ = nullptr;
+      throw;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      runner_ = nullptr;
+    }
+    writer.close();
+  }
+  nlohmann::json record = runRecord(o, cell_, result.run);
+  if (!result.run.completed) {
+    writeJsonAtomically(result.run_dir / "run.json", record);
+    throw std::runtime_error("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
+                             trace_file.string() + ")");
+  }
+
+  // Measure, fit, write.
+  const auto t0 = std::chrono::steady_clock::now();
+  const registration::ScanTrace trace = registration::loadScanTrace(trace_file);
+  const registration::ScanMeasurement m = registration::measureScan(trace, {}, observer_);
+  fitting::Cloud cloud = registration::toCloud(m.elements);
+  fitting::PlyWriteOptions w;
+  w.comment = "StampScan Cloud4D, part " + o.part_id;
+  fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+  MeshRequest mesh_request;
+  FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
+  colorByStrain(fit.surface);
+  colorByStrain(fit.mesh.vertices);
+  fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
+  fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+  result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  result.elements = cloud.size();
+  result.digitizer = m.digitizer;
+  if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
+  record["measurement"] = {{"elements", cloud.size()},
+                           {"seconds_after_scan", result.measure_seconds},
+                           {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
+  if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
+  if (o.truth) {
+    result.accuracy = accuracyAgainst(cloud, o.truth->elements);
+    record["accuracy"] = {{"matched", result.accuracy->matched},
+                          {"position_rms_mm", result.accuracy->position_rms_mm},
+                          {"strain_rms", result.accuracy->strain_rms},
+                          {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
+  }
+  writeJsonAtomically(result.run_dir / "run.json", record);
+  return result;
+}
+
+}  // namespace stampscan::station
