@@ -105,6 +105,10 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
     out.part_right.push_back({trigger, pair.second.device_time_ns, imageOf(pair.second)});
   }
   if (out.head.size() < 2) throw std::runtime_error(file.string() + ": the trace holds no CMM position reports");
+  // A trace cut during a sweep (a crash, a power cut) keeps the sweep up to the cut: its window ends
+  // with the last position the CMM reported.
+  if (sweep_begin >= 0 && out.health.truncated && out.head.back().time_ns > sweep_begin)
+    out.sweeps.push_back({sweep_label, sweep_begin, out.head.back().time_ns});
   out.scan_seconds = static_cast<double>(out.head.back().time_ns - out.head.front().time_ns) * 1e-9;
   if (progress) progress(1.0);
   return out;

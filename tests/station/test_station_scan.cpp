@@ -4,10 +4,15 @@
 #include "station_test_support.hpp"
 
 #include "stampscan/acquisition/trace/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
+#include "stampscan/fitting/kdtree.hpp"
+#include "stampscan/fitting/ply_io.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <random>
+#include <sys/wait.h>
 
 namespace stampscan::station::test {
 namespace {
@@ -58,6 +63,61 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   // The latency found on the sphere is the virtual digitizer's own, to within 0.3 ms.
   EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
               j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);
+
+  // A trace cut at a random byte (as by a power cut while recording) still gives every element
+  // measured before the cut, where the full trace has it. Cuts fall in the part sweeps, the last
+  // quarter of the file (the sphere sweeps before them calibrate the digitizer).
+  const Cloud full = fitting::readPly(dir / "cloud4d.ply");
+  const fitting::KdTree tree(full.positions);
+  const std::string bytes = readFile(dir / "trace.mcap");
+  std::mt19937_64 rng(20261124);
+  std::uniform_real_distribution<double> where(0.80, 0.99);
+  for (int k = 0; k < 2; ++k) {
+    const auto cut = static_cast<std::size_t>(where(rng) * static_cast<double>(bytes.size()));
+    const fs::path cut_trace = work() / "cut.mcap", out = work() / "cut.ply";
+    writeFile(cut_trace, bytes.substr(0, cut));
+    const RunResult p = run("process " + quote(cut_trace) + " -o " + quote(out) + " -q");
+    ASSERT_EQ(p.exit_code, 0) << "cut at byte " << cut << ": " << p.out << p.err;
+    EXPECT_NE(p.out.find("the trace is cut at byte"), std::string::npos) << p.out;
+    const Cloud part = fitting::readPly(out);
+    EXPECT_GT(part.size(), 0u);
+    EXPECT_LE(part.size(), full.size() + 5);
+    std::vector<fitting::Neighbor> nn;
+    std::size_t same = 0;
+    for (const Vec3& q : part.positions) {
+      tree.knn(q, 1, nn);
+      same += !nn.empty() && nn[0].distance_sq < 0.02 * 0.02;
+    }
+    EXPECT_GE(same, part.size() * 95 / 100) << "cut at byte " << cut;
+  }
+}
+
+TEST_F(StationTest, CtrlCEndsAScanCleanly) {
+  const fs::path runs = work() / "runs", code = work() / "code.txt";
+  // Start a scan, wait until it records, interrupt it as an operator's Ctrl-C would.
+  const std::string script = quote(std::string(STATION_EXE)) + " scan -q -o " + quote(runs) + " >" +
+                             quote(work() / "out.txt") + " 2>" + quote(work() / "err.txt") + " </dev/null & pid=$!; " +
+                             "for i in $(seq 1 600); do [ -n \"$(find " + quote(runs) +
+                             " -name trace.mcap -size +1000k 2>/dev/null)\" ] && break; sleep 0.05; done; " +
+                             "kill -INT $pid; wait $pid; echo $? >" + quote(code);
+  ASSERT_EQ(std::system(("sh -c " + quote(script)).c_str()), 0);
+  EXPECT_EQ(readFile(code), "1\n") << readFile(work() / "out.txt") << readFile(work() / "err.txt");
+  EXPECT_NE(readFile(work() / "err.txt").find("operator abort (Ctrl-C)"), std::string::npos) << readFile(work() / "err.txt");
+  const fs::path dir = onlyRunFolder(runs);
+  std::ifstream in(dir / "run.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_FALSE(j.at("completed").get<bool>());
+  EXPECT_EQ(j.at("abort_reason"), "operator abort (Ctrl-C)");
+  // The trace was closed cleanly: whole, with the abort in it.
+  trace::McapReader reader(dir / "trace.mcap");
+  bool abort_event = false;
+  const trace::TraceHealth health = reader.readMessages([&](const trace::TraceMessage& m) {
+    if (m.channel && m.channel->topic == trace::topics::kCmmEvent)
+      abort_event |= trace::decode<trace::CmmEvent>(m.data).kind == "abort";
+    return true;
+  });
+  EXPECT_TRUE(health.healthy());
+  EXPECT_TRUE(abort_event);
 }
 
 TEST_F(StationTest, ScanRefusesAPlanBeforeAnythingMoves) {
