@@ -1,5 +1,7 @@
 #include "stampscan/acquisition/cell.hpp"
 
+#include <tuple>
+
 namespace stampscan::acquisition {
 
 Cell::Cell(const CellConfig& config) : config_(config) {
@@ -18,11 +20,20 @@ Cell::Cell(const CellConfig& config) : config_(config) {
   digitizer.product_id = config.digitizer_product;
   digitizer.serial = config.digitizer_serial;
   digitizer_ = std::make_unique<drivers::digitizer::UsbDigitizer>(digitizer);
+  for (auto [camera, config_of, name] : {std::tuple{&left_camera_, &config.left_camera, "camera_l"},
+                                         std::tuple{&right_camera_, &config.right_camera, "camera_r"}}) {
+    drivers::camera::GigECameraOptions o;
+    o.serial = config_of->serial;
+    o.address = config_of->address;
+    *camera = std::make_unique<drivers::camera::GigECamera>(name, o);
+  }
 }
 
 Cell::~Cell() {
   // The digitizer first: its event thread may still deliver into a sink the caller owns.
   digitizer_->disconnect();
+  left_camera_->disconnect();
+  right_camera_->disconnect();
   plc_->disconnect();
   cmm_->disconnect();
 }

@@ -2,6 +2,7 @@
 
 #include "stampscan/acquisition/safety_interlock.hpp"
 #include "stampscan/acquisition/trace/trace_messages.hpp"
+#include "stampscan/drivers/camera/stereo_pair.hpp"
 
 #include <cmath>
 #include <condition_variable>
@@ -46,6 +47,9 @@ struct ScanRunner::Impl {
   std::mutex sink_mutex;  // the devices' threads write one message at a time
   std::atomic<std::uint64_t> positions{0}, profiles{0}, plc_states{0};
   std::atomic<std::uint64_t> last_profile_device_ns{0};
+  std::mutex pair_mutex;  // the stereo pairs that arrived, by trigger id
+  std::condition_variable pair_arrived;
+  std::uint64_t last_pair_trigger = 0;
   std::mutex abort_mutex;
   std::optional<std::string> abort_reason;
 
@@ -123,6 +127,51 @@ struct ScanRunner::Impl {
     s.heartbeat = in.plc_heartbeat;
     ++plc_states;
     write(msg::topics::kPlcState, s.station_time_ns, msg::encode(s));
+  }
+
+  // A pair of frames from the stereo pair's stream threads: both frames and both cameras' clock
+  // pairs (the driver's station time of a frame is its device time plus the measured offset).
+  void onStereoPair(const drivers::camera::StereoFrame& pair) {
+    for (const drivers::camera::Frame* f : {&pair.left, &pair.right}) {
+      const bool left = f == &pair.left;
+      msg::CameraFrame m;
+      m.camera = left ? "left" : "right";
+      m.frame_id = f->info.frame_id;
+      m.trigger_id = pair.trigger_id;
+      m.device_time_ns = f->info.device_time_ns;
+      m.width = f->info.width;
+      m.height = f->info.height;
+      m.encoding = f->info.pixel_format == "Mono16" ? "mono16" : "mono8";
+      m.step = m.width * (m.encoding == "mono16" ? 2u : 1u);
+      m.data = f->data;
+      write(left ? msg::topics::kCameraLeft : msg::topics::kCameraRight, clock.now(), msg::encode(m));
+      msg::ClockSync c;
+      c.device = left ? "camera_left" : "camera_right";
+      c.station_time_ns = f->info.station_time_ns;
+      c.device_time_ns = f->info.device_time_ns;
+      write(msg::topics::kClockSync, clock.now(), msg::encode(c));
+    }
+    {
+      std::lock_guard lock(pair_mutex);
+      last_pair_trigger = std::max(last_pair_trigger, pair.trigger_id);
+    }
+    pair_arrived.notify_all();
+  }
+
+  void configureCameras(const ScanRunParams& params) {
+    if (!params.session.camera_nominal)
+      throw ScanError("the plan has stereo views, but the session description gives no camera image size");
+    drivers::camera::CameraConfig config;
+    config.pixel_format = params.session.camera_bits > 8 ? "Mono16" : "Mono8";
+    config.roi = {0, 0, params.session.camera_nominal->width, params.session.camera_nominal->height};
+    config.trigger = drivers::camera::TriggerMode::Software;
+    for (drivers::camera::GigECamera* camera : {dev.left_camera, dev.right_camera}) {
+      try {
+        camera->configure(config);
+      } catch (const std::exception& e) {
+        throw ScanError(camera->name() + " refuses the scan's image format: " + e.what());
+      }
+    }
   }
 
   std::optional<std::string> abortReason() {
@@ -226,9 +275,9 @@ struct ScanRunner::Impl {
       if (problems.size() > 1) text += " (and " + std::to_string(problems.size() - 1) + " more)";
       throw ScanError(text);
     }
-    if (plan.stereoCount() > 0)
-      throw ScanError("the plan has " + std::to_string(plan.stereoCount()) +
-                      " stereo views; scans on the cell run the laser sweeps only so far");
+    const bool stereo = plan.stereoCount() > 0;
+    if (stereo && (!dev.left_camera || !dev.right_camera))
+      throw ScanError("the plan has " + std::to_string(plan.stereoCount()) + " stereo views, but the cell has no cameras");
     {
       std::lock_guard lock(abort_mutex);
       abort_reason.reset();
@@ -236,11 +285,20 @@ struct ScanRunner::Impl {
     connect(dev.cmm, "the CMM");
     connect(dev.plc, "the PLC");
     connect(dev.digitizer, "the digitizer");
+    if (stereo) {
+      connect(*dev.left_camera, "the left camera");
+      connect(*dev.right_camera, "the right camera");
+      configureCameras(params);
+    }
     checkInterlocks(params);
 
     ScanRunResult result;
     result.motion_seconds = motionSeconds(plan, params.limits);
     result.devices = {dev.cmm.identity(), dev.plc.identity(), dev.digitizer.identity()};
+    if (stereo) {
+      result.devices.push_back(dev.left_camera->identity());
+      result.devices.push_back(dev.right_camera->identity());
+    }
 
     // The session description, with what the devices say of themselves.
     const drivers::digitizer::ConfigReply config = dev.digitizer.readConfig();
@@ -291,6 +349,17 @@ struct ScanRunner::Impl {
       position(t, r.position, r.orientation.value_or(ToolOrientation{}));
     }, drivers::cmm::MoveReportContent::PositionAndOrientation);
 
+    std::unique_ptr<drivers::camera::StereoPair> pair;
+    if (stereo) {
+      // The trigger id pairs the frames; the head stands still through a view, so how far apart
+      // the two exposures are stamped does not move the geometry. A wide tolerance keeps cameras
+      // whose clock offsets are only estimated from frame arrivals (no timestamp latch) paired.
+      drivers::camera::StereoPairOptions pairing;
+      pairing.tolerance = std::chrono::seconds(1);
+      pair = std::make_unique<drivers::camera::StereoPair>(
+          *dev.left_camera, *dev.right_camera, [this](const drivers::camera::StereoFrame& f) { onStereoPair(f); }, pairing);
+      pair->start();
+    }
     std::uint64_t lost_before = dev.digitizer.counters().lost_profiles;
     double motion_done = 0;
     HeadPose at = plan.park;
@@ -320,9 +389,42 @@ struct ScanRunner::Impl {
       samplePose();
       clockSync();
       for (std::size_t k = 0; k < plan.steps.size(); ++k) {
-        const auto& sweep = std::get<SweepStep>(plan.steps[k]);
         const std::string label = describe(plan.steps[k]);
-        const bool first = k == 0 || sceneOf(k - 1) != sweep.scene, last = sceneOf(k + 1) != sweep.scene;
+        const std::string scene = sceneOf(k);
+        const bool first = k == 0 || sceneOf(k - 1) != scene, last = sceneOf(k + 1) != scene;
+        if (const auto* view = std::get_if<StereoStep>(&plan.steps[k])) {
+          report(k, "travel to " + label);
+          event("move_begin", "travel");
+          move(safety, view->pose, plan.travel_speed);
+          event("move_end", "travel");
+          samplePose();
+          motion_done += moveSeconds(at, view->pose, plan.travel_speed, params.limits) + view->settle_s;
+          if (first) marker(scene, "begin", view->index);
+          report(k, label);
+          // Settle, then trigger both cameras and wait for the pair (the scene's end marker must
+          // come after its frames).
+          std::this_thread::sleep_for(std::chrono::duration<double>(view->settle_s));
+          checkAbort(safety);
+          bool arrived = false;
+          try {
+            const std::uint64_t id = pair->trigger();
+            std::unique_lock lock(pair_mutex);
+            arrived = pair_arrived.wait_for(lock, params.frame_timeout, [&] { return last_pair_trigger >= id; });
+          } catch (const drivers::DeviceError& e) {
+            if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
+          }
+          if (arrived) {
+            ++result.views_done;
+          } else {
+            ++result.views_missing;
+            event("view_missing", label);
+          }
+          if (last) marker(scene, "end", view->index);
+          at = view->pose;
+          ++result.steps_done;
+          continue;
+        }
+        const auto& sweep = std::get<SweepStep>(plan.steps[k]);
         report(k, "travel to " + label);
         event("move_begin", "travel");
         move(safety, sweep.start, plan.travel_speed);
@@ -394,6 +496,7 @@ struct ScanRunner::Impl {
       }
       event("abort", result.abort_reason);
     }
+    if (pair) pair->stop();
     try {
       dev.cmm.stopMoveReports();
     } catch (const std::exception&) {

@@ -249,6 +249,47 @@ class Planner {
   acquisition::ScanPlan plan_;
 };
 
+// The cell's true geometry and clocks for a seed: what calibration has to recover. The simulated
+// sessions and the virtual cell draw it alike, so one seed is one cell.
+CellTruth drawTruth(const ScanParams& p) {
+  CellTruth truth;
+  std::mt19937_64 rng(p.seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const CameraIntrinsics nominal = p.camera.scaled(p.image_scale);
+  for (CameraIntrinsics* c : {&truth.left, &truth.right}) {
+    *c = nominal;
+    c->fx *= 1 + 0.004 * g(rng);
+    c->fy = c->fx * (1 + 0.0005 * g(rng));
+    c->cx += 8 * p.image_scale * g(rng);
+    c->cy += 8 * p.image_scale * g(rng);
+    c->k1 += 0.01 * g(rng);
+    c->k2 += 0.02 * g(rng);
+    c->p1 = 2e-4 * g(rng);
+    c->p2 = 2e-4 * g(rng);
+  }
+  const Vec3 look(0, 0, -kRigDrop - p.stereo_standoff);
+  Eigen::Isometry3d left = cameraOnHead(Vec3(-kRigHalfBaseline, 0, -kRigDrop), look);
+  Eigen::Isometry3d right = cameraOnHead(Vec3(kRigHalfBaseline, 0, -kRigDrop), look);
+  for (Eigen::Isometry3d* T : {&left, &right}) {
+    T->linear() = smallRotation(rng, 0.003) * T->linear();
+    T->translation() += Vec3(0.3 * g(rng), 0.3 * g(rng), 0.3 * g(rng));
+  }
+  truth.head_from_left = left;
+  truth.head_from_right = right;
+  truth.head_from_digitizer_nominal = Eigen::Isometry3d::Identity();
+  truth.head_from_digitizer_nominal.translation() = kDigitizerMount;
+  truth.head_from_digitizer = truth.head_from_digitizer_nominal;
+  truth.head_from_digitizer.linear() = smallRotation(rng, 0.008);
+  truth.head_from_digitizer.translation() += Vec3(g(rng), g(rng), g(rng));
+  truth.digitizer_clock_offset_ns = toNs(1 + 99 * u(rng));
+  truth.digitizer_latency_ns = toNs(0.002 + 0.002 * u(rng));
+  truth.camera_clock_offset_ns[0] = toNs(10 + 1000 * u(rng));
+  truth.camera_clock_offset_ns[1] = toNs(10 + 1000 * u(rng));
+  truth.sphere = p.sphere;
+  return truth;
+}
+
 // Messages collected for a stretch of the session and released in log-time order once nothing
 // earlier can still arrive.
 class OrderedEmitter {
@@ -358,41 +399,7 @@ class SessionGenerator {
 
   const ScanParams& params() const { return p_; }
 
-  void makeTruth() {
-    std::normal_distribution<double> g(0.0, 1.0);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    const CameraIntrinsics nominal = p_.camera.scaled(p_.image_scale);
-    for (CameraIntrinsics* c : {&truth_.left, &truth_.right}) {
-      *c = nominal;
-      c->fx *= 1 + 0.004 * g(rng_);
-      c->fy = c->fx * (1 + 0.0005 * g(rng_));
-      c->cx += 8 * p_.image_scale * g(rng_);
-      c->cy += 8 * p_.image_scale * g(rng_);
-      c->k1 += 0.01 * g(rng_);
-      c->k2 += 0.02 * g(rng_);
-      c->p1 = 2e-4 * g(rng_);
-      c->p2 = 2e-4 * g(rng_);
-    }
-    const Vec3 look(0, 0, -kRigDrop - p_.stereo_standoff);
-    Eigen::Isometry3d left = cameraOnHead(Vec3(-kRigHalfBaseline, 0, -kRigDrop), look);
-    Eigen::Isometry3d right = cameraOnHead(Vec3(kRigHalfBaseline, 0, -kRigDrop), look);
-    for (Eigen::Isometry3d* T : {&left, &right}) {
-      T->linear() = smallRotation(rng_, 0.003) * T->linear();
-      T->translation() += Vec3(0.3 * g(rng_), 0.3 * g(rng_), 0.3 * g(rng_));
-    }
-    truth_.head_from_left = left;
-    truth_.head_from_right = right;
-    truth_.head_from_digitizer_nominal = Eigen::Isometry3d::Identity();
-    truth_.head_from_digitizer_nominal.translation() = kDigitizerMount;
-    truth_.head_from_digitizer = truth_.head_from_digitizer_nominal;
-    truth_.head_from_digitizer.linear() = smallRotation(rng_, 0.008);
-    truth_.head_from_digitizer.translation() += Vec3(g(rng_), g(rng_), g(rng_));
-    truth_.digitizer_clock_offset_ns = toNs(1 + 99 * u(rng_));
-    truth_.digitizer_latency_ns = toNs(0.002 + 0.002 * u(rng_));
-    truth_.camera_clock_offset_ns[0] = toNs(10 + 1000 * u(rng_));
-    truth_.camera_clock_offset_ns[1] = toNs(10 + 1000 * u(rng_));
-    truth_.sphere = p_.sphere;
-  }
+  void makeTruth() { truth_ = drawCellTruth(p_); }
 
   void addSegment(Activity activity) { activities_.push_back(std::move(activity)); }
 
@@ -402,24 +409,8 @@ class SessionGenerator {
   }
 
   void writeMetadata() {
-    const DigitizerSpec& d = p_.digitizer;
-    const CameraIntrinsics nominal = p_.camera.scaled(p_.image_scale);
-    trace::SessionDescription cell;
+    trace::SessionDescription cell = describeSession(p_);
     cell.part = part_->name();
-    cell.grid = toString(p_.grid.kind);
-    cell.grid_pitch_mm = p_.grid.pitch;
-    cell.grid_circle_diameter_mm = p_.grid.circle_diameter;
-    cell.grid_line_width_mm = p_.grid.line_width;
-    cell.digitizer_points_per_profile = d.points_per_profile;
-    cell.digitizer_profile_rate_hz = d.profile_rate;
-    cell.digitizer_standoff_mm = d.standoff;
-    cell.digitizer_measuring_range_mm = d.measuring_range;
-    cell.head_from_digitizer_nominal = rigidPose(truth_.head_from_digitizer_nominal);
-    cell.camera_nominal = intrinsicsRecord(nominal);
-    cell.camera_bits = p_.camera_sensor.bits;
-    cell.stereo_half_baseline_mm = kRigHalfBaseline;
-    cell.plate = trace::PlateRecord{p_.plate.columns, p_.plate.rows, p_.plate.pitch, p_.plate.dot_diameter};
-    cell.reference_sphere_radius_mm = p_.sphere.radius;
     sink_.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(cell));
     std::map<std::string, std::string> truth = {
         {"seed", std::to_string(p_.seed)},
@@ -625,6 +616,29 @@ class SessionGenerator {
 acquisition::ScanPlan planScan(const ScanParams& params) { return Planner(params).plan(); }
 
 Eigen::Isometry3d platePose(const CirclePlate& plate) { return platePoseFor(plate); }
+
+CellTruth drawCellTruth(const ScanParams& params) { return drawTruth(params); }
+
+trace::SessionDescription describeSession(const ScanParams& p) {
+  const DigitizerSpec& d = p.digitizer;
+  trace::SessionDescription cell;
+  cell.part = p.part == PartKind::Dome ? "dome" : "pan";
+  cell.grid = toString(p.grid.kind);
+  cell.grid_pitch_mm = p.grid.pitch;
+  cell.grid_circle_diameter_mm = p.grid.circle_diameter;
+  cell.grid_line_width_mm = p.grid.line_width;
+  cell.digitizer_points_per_profile = d.points_per_profile;
+  cell.digitizer_profile_rate_hz = d.profile_rate;
+  cell.digitizer_standoff_mm = d.standoff;
+  cell.digitizer_measuring_range_mm = d.measuring_range;
+  cell.head_from_digitizer_nominal = rigidPose(nominalDigitizerMount());
+  cell.camera_nominal = intrinsicsRecord(p.camera.scaled(p.image_scale));
+  cell.camera_bits = p.camera_sensor.bits;
+  cell.stereo_half_baseline_mm = kRigHalfBaseline;
+  cell.plate = trace::PlateRecord{p.plate.columns, p.plate.rows, p.plate.pitch, p.plate.dot_diameter};
+  cell.reference_sphere_radius_mm = p.sphere.radius;
+  return cell;
+}
 
 Eigen::Isometry3d nominalDigitizerMount() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

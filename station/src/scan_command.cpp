@@ -45,6 +45,14 @@ class TerminalObserver final : public ScanJobObserver {
     bar_.update(text, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
   }
   void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void scanDone(const acquisition::ScanRunResult& r) override {
+    bar_.finish();
+    std::printf("  scan        %zu sweeps and %zu stereo views in %.1f s (the plan's motion: %.1f s); %llu profiles "
+                "(%llu lost), %llu positions%s\n",
+                r.sweeps_done, r.views_done, r.wall_seconds, r.motion_seconds, static_cast<unsigned long long>(r.profiles),
+                static_cast<unsigned long long>(r.lost_profiles), static_cast<unsigned long long>(r.positions),
+                r.views_missing ? (", " + std::to_string(r.views_missing) + " views missing").c_str() : "");
+  }
   void stageDone(std::string_view stage, const std::string& text) override {
     bar_.finish();
     std::printf("  %-11.*s %s\n", static_cast<int>(stage.size()), stage.data(), text.c_str());
@@ -95,11 +103,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     world.seed = opt->seed;
     ScanJobOptions job;
     job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
-    if (opt->plan.empty()) {
-      // The runner drives the laser sweeps; the stereo pair is not triggered on a cell yet.
-      std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
-      job.plan.name = job.plan.part.kind + ", laser with the digitizer's calibration sweeps";
-    }
+    if (opt->plan.empty()) job.plan.name = job.plan.part.kind + ", laser and stereo, with calibration scenes";
     if (opt->dry_run) {
       const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
       printDryRun(job.plan, config, job.run.limits, problems);
@@ -117,13 +121,10 @@ CommandRunner addScanCommand(CLI::App& app) {
     acquisition::Cell cell(config);
     job.part_id = opt->part_id;
     job.runs_dir = opt->runs;
-    job.run.session.part_id = opt->part_id;
     // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry
-    // it yet; the virtual cell's digitizer is the simulator's.)
-    job.run.session.digitizer_standoff_mm = world.digitizer.standoff;
-    job.run.session.digitizer_measuring_range_mm = world.digitizer.measuring_range;
-    job.run.session.head_from_digitizer_nominal = registration::toRigidPose(sim::nominalDigitizerMount());
-    job.run.session.reference_sphere_radius_mm = world.sphere.radius;
+    // it yet; the virtual cell's sensors are the simulator's.)
+    job.run.session = sim::describeSession(world);
+    job.run.session.part_id = opt->part_id;
 
     std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");
@@ -156,10 +157,6 @@ CommandRunner addScanCommand(CLI::App& app) {
       throw;
     }
     stop_watcher();
-    std::printf("  scan        %zu sweeps in %.1f s (the plan's motion: %.1f s); %llu profiles (%llu lost), %llu positions\n",
-                r.run.sweeps_done, r.run.wall_seconds, r.run.motion_seconds,
-                static_cast<unsigned long long>(r.run.profiles), static_cast<unsigned long long>(r.run.lost_profiles),
-                static_cast<unsigned long long>(r.run.positions));
     std::printf("  measured    %zu grid elements; cloud4d.ply, fitted.ply, mesh.ply (%.1f s after the scan)\n", r.elements,
                 r.measure_seconds);
     if (r.accuracy && hosted)

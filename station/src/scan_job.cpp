@@ -63,6 +63,8 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
                                   {"motion_seconds", r.motion_seconds},
                                   {"profiles", r.profiles},
                                   {"lost_profiles", r.lost_profiles},
+                                  {"stereo_views", r.views_done},
+                                  {"stereo_views_missing", r.views_missing},
                                   {"positions", r.positions}}}};
   for (const auto& d : r.devices)
     run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
@@ -144,6 +146,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     }
     writer.close();
   }
+  if (observer_) observer_->scanDone(result.run);
   nlohmann::json record = runRecord(o, cell_, result.run);
   if (!result.run.completed) {
     writeJsonAtomically(result.run_dir / "run.json", record);
@@ -153,8 +156,14 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
 
   // Measure, fit, write.
   const auto t0 = std::chrono::steady_clock::now();
-  const registration::ScanTrace trace = registration::loadScanTrace(trace_file);
-  const registration::ScanMeasurement m = registration::measureScan(trace, {}, observer_);
+  // The stereo views are measured when the plan has views of the part and enough of the plate to
+  // calibrate the cameras on.
+  registration::MeasureParams measure;
+  measure.with_stereo = o.plan.stereoCount(acquisition::kScenePart) > 0 &&
+                        o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views &&
+                        result.run.views_missing == 0;
+  const registration::ScanTrace trace = registration::loadScanTrace(trace_file, {}, measure.with_stereo);
+  const registration::ScanMeasurement m = registration::measureScan(trace, measure, observer_);
   fitting::Cloud cloud = registration::toCloud(m.elements);
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;

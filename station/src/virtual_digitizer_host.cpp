@@ -140,6 +140,11 @@ HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisi
   o.cmm_port = 0;  // free ports: a served cell or another scan may hold the configured ones
   o.plc_address = base.plc.host;
   o.plc_port = 0;
+  o.cameras = true;
+  o.left_address = base.left_camera.address;
+  o.left_serial = base.left_camera.serial;
+  o.right_address = base.right_camera.address;
+  o.right_serial = base.right_camera.serial;
   cell_ = std::make_unique<sim::VirtualCell>(o);
   acquisition::CellConfig with_digitizer = base;
   with_digitizer.digitizer_virtual = true;

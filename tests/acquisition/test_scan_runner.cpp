@@ -28,6 +28,11 @@ class MemorySink final : public trace::TraceSink {
     if (topic == msg::topics::kCmmPosition) ++positions_;
     if (topic == msg::topics::kPlcState) ++plc_;
     if (topic == msg::topics::kCmmEvent) events_.push_back(msg::decode<msg::CmmEvent>(bytes));
+    if (topic == msg::topics::kCameraLeft || topic == msg::topics::kCameraRight) {
+      if (frames_++ == 0) first_frame_ = msg::decode<msg::CameraFrame>(bytes);
+    }
+    if (topic == msg::topics::kClockSync && msg::decode<msg::ClockSync>(bytes).device.rfind("camera", 0) == 0)
+      ++camera_pairs_;
   }
   void metadata(const std::string& name, const std::map<std::string, std::string>& values) override {
     std::lock_guard lock(mutex_);
@@ -45,6 +50,18 @@ class MemorySink final : public trace::TraceSink {
     std::lock_guard lock(mutex_);
     return plc_;
   }
+  std::size_t frames() const {
+    std::lock_guard lock(mutex_);
+    return frames_;
+  }
+  std::size_t cameraClockPairs() const {
+    std::lock_guard lock(mutex_);
+    return camera_pairs_;
+  }
+  msg::CameraFrame firstFrame() const {
+    std::lock_guard lock(mutex_);
+    return first_frame_;
+  }
   std::vector<msg::CmmEvent> events() const {
     std::lock_guard lock(mutex_);
     return events_;
@@ -56,7 +73,8 @@ class MemorySink final : public trace::TraceSink {
 
  private:
   mutable std::mutex mutex_;
-  std::size_t profiles_ = 0, positions_ = 0, plc_ = 0;
+  std::size_t profiles_ = 0, positions_ = 0, plc_ = 0, frames_ = 0, camera_pairs_ = 0;
+  msg::CameraFrame first_frame_;
   std::vector<msg::CmmEvent> events_;
   std::map<std::string, std::map<std::string, std::string>> metadata_;
 };
@@ -70,6 +88,7 @@ class ScanRunnerTest : public ::testing::Test {
     o.world = sim::ScanParams::quick();
     o.cmm_port = 0;
     o.plc_port = 0;
+    o.cameras = withCameras();
     cell_ = std::make_unique<sim::VirtualCell>(o);
     digitizer_device_ = std::make_unique<sim::VirtualDigitizer>(cell_->digitizerOptions());
     digitizer_device_->setTimedProfileSource(cell_->profileSource());
@@ -82,8 +101,18 @@ class ScanRunnerTest : public ::testing::Test {
     p.port = cell_->plc().port();
     plc_ = std::make_unique<drivers::plc::ModbusPlc>(p);
     digitizer_ = std::make_unique<drivers::digitizer::UsbDigitizer>();
+    if (withCameras()) {
+      for (auto [camera, serial] : {std::pair{&left_, "STAMPSCAN-LEFT"}, std::pair{&right_, "STAMPSCAN-RIGHT"}}) {
+        drivers::camera::GigECameraOptions options;
+        options.serial = serial;
+        *camera = std::make_unique<drivers::camera::GigECamera>(serial, options);
+      }
+    }
   }
+  virtual bool withCameras() const { return false; }
   void TearDown() override {
+    if (left_) left_->disconnect();
+    if (right_) right_->disconnect();
     if (digitizer_) digitizer_->disconnect();
     if (plc_) plc_->disconnect();
     if (cmm_) cmm_->disconnect();
@@ -107,7 +136,7 @@ class ScanRunnerTest : public ::testing::Test {
     p.session.digitizer_measuring_range_mm = 60;
     return p;
   }
-  CellDevices devices() { return {*cmm_, *plc_, *digitizer_}; }
+  CellDevices devices() { return {*cmm_, *plc_, *digitizer_, left_.get(), right_.get()}; }
   bool shutterOpen() { return cell_->plc().coil(drivers::plc::Coil::LaserShutterOpenRequest); }
   static bool hasEvent(const std::vector<msg::CmmEvent>& events, const std::string& kind) {
     return std::any_of(events.begin(), events.end(), [&](const msg::CmmEvent& e) { return e.kind == kind; });
@@ -118,6 +147,7 @@ class ScanRunnerTest : public ::testing::Test {
   std::unique_ptr<drivers::cmm::IppCmm> cmm_;
   std::unique_ptr<drivers::plc::ModbusPlc> plc_;
   std::unique_ptr<drivers::digitizer::UsbDigitizer> digitizer_;
+  std::unique_ptr<drivers::camera::GigECamera> left_, right_;
   StationClock clock_;
   MemorySink sink_;
 };
@@ -193,14 +223,84 @@ TEST_F(ScanRunnerTest, AnOperatorAbortStopsTheScan) {
   EXPECT_FALSE(shutterOpen());
 }
 
-TEST_F(ScanRunnerTest, APlanWithStereoViewsIsRefusedNamingThem) {
+TEST_F(ScanRunnerTest, StereoViewsNeedTheCameras) {
   ScanPlan plan = shortPlan();
   StereoStep v;
   v.pose = {{0, 0, 400}, 0, 0};
   plan.steps.emplace_back(v);
   ScanRunner runner(devices(), sink_, clock_);
-  EXPECT_THROW(runner.run(plan, params()), ScanError);
+  try {
+    runner.run(plan, params());
+    FAIL() << "ran stereo views without cameras";
+  } catch (const ScanError& e) {
+    EXPECT_NE(std::string(e.what()).find("1 stereo views, but the cell has no cameras"), std::string::npos) << e.what();
+  }
   EXPECT_EQ(cell_->cmm().status().moves_completed, 0u);
+}
+
+// With the virtual cameras (Aravis fake cameras on 127.0.0.1 and 127.0.0.2: one suite at a time).
+class ScanRunnerStereoTest : public ScanRunnerTest {
+ protected:
+  bool withCameras() const override { return true; }
+  static ScanPlan stereoPlan() {
+    ScanPlan plan;
+    plan.name = "two views and a sweep";
+    plan.park = {{0, 0, 450}, 0, 0};
+    for (std::uint32_t k = 0; k < 2; ++k) {
+      StereoStep v;
+      v.index = k;
+      v.pose = {{k == 0 ? -10.0 : 10.0, 0, 360}, 0, 0};
+      v.settle_s = 0.1;
+      plan.steps.emplace_back(v);
+    }
+    SweepStep s;
+    s.start = {{0, -10, 200}, 0, 0};
+    s.end = {{0, 10, 200}, 0, 0};
+    plan.steps.emplace_back(s);
+    return plan;
+  }
+  ScanRunParams stereoParams() const {
+    ScanRunParams p = params();
+    p.session = sim::describeSession(cell_->options().world);
+    p.frame_timeout = std::chrono::milliseconds(3000);
+    return p;
+  }
+  std::size_t frames() { return sink_.frames(); }
+};
+
+TEST_F(ScanRunnerStereoTest, EachViewIsAPairOfFramesOfTheWorld) {
+  ScanRunner runner(devices(), sink_, clock_);
+  const ScanRunResult r = runner.run(stereoPlan(), stereoParams());
+  ASSERT_TRUE(r.completed) << r.abort_reason;
+  EXPECT_EQ(r.views_done, 2u);
+  EXPECT_EQ(r.views_missing, 0u);
+  EXPECT_EQ(r.sweeps_done, 1u);
+  EXPECT_EQ(sink_.frames(), 4u);
+  EXPECT_EQ(sink_.cameraClockPairs(), 4u);
+  // The frames are the world's, rendered at the camera's size, not the fake camera's test pattern:
+  // the part under a ring light is bright in the middle of the image.
+  const msg::CameraFrame f = sink_.firstFrame();
+  const auto nominal = sim::describeSession(cell_->options().world).camera_nominal;
+  ASSERT_TRUE(nominal.has_value());
+  EXPECT_EQ(static_cast<int>(f.width), nominal->width);
+  EXPECT_EQ(static_cast<int>(f.height), nominal->height);
+  const std::size_t centre = (f.height / 2) * f.step + f.width / 2;
+  EXPECT_GT(f.data.at(centre), 60) << "the centre of the view is dark";
+}
+
+TEST_F(ScanRunnerStereoTest, ALostCameraMarksItsViewsMissingAndTheScanGoesOn) {
+  ScanRunner runner(devices(), sink_, clock_);
+  auto running = std::async(std::launch::async, [&] { return runner.run(stereoPlan(), stereoParams()); });
+  // Unplug the right camera once the first pair is in.
+  for (int i = 0; i < 1000 && sink_.frames() < 2; ++i) std::this_thread::sleep_for(10ms);
+  cell_->stopRightCamera();
+  ASSERT_EQ(running.wait_for(60s), std::future_status::ready);
+  const ScanRunResult r = running.get();
+  EXPECT_TRUE(r.completed) << r.abort_reason;
+  EXPECT_EQ(r.views_done + r.views_missing, 2u);
+  EXPECT_GE(r.views_missing, 1u);
+  EXPECT_EQ(r.sweeps_done, 1u);
+  EXPECT_TRUE(hasEvent(sink_.events(), "view_missing"));
 }
 
 }  // namespace

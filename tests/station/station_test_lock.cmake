@@ -3,5 +3,7 @@
 # so they take the same lock (see tests/drivers/camera/camera_test_lock.cmake).
 set(_served_cell_tests
   StationTest.DevicesFindsTheServedVirtualCell StationTest.ArvToolTalksToTheServedCameras
-  StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm)
+  StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm
+  # `station scan` hosts the virtual cell with its cameras
+  StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

@@ -4,7 +4,9 @@
 #include "stampscan/sim/digitizer_model.hpp"
 #include "stampscan/sim/scene.hpp"
 
+#include <algorithm>
 #include <random>
+#include <stdexcept>
 
 namespace stampscan::sim {
 
@@ -33,17 +35,7 @@ class VirtualCell::WorldScene final : public Scene {
 VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(options)) {
   part_ = makePart(options_.world);
   scene_ = std::make_unique<WorldScene>(*part_, options_.world);
-  // The mount as built differs from its drawing by a millimetre and half a degree or so, and the
-  // digitizer stamps its profiles 2-4 ms after exposure: what calibration has to find.
-  std::mt19937_64 rng(options_.world.seed * 0x9E3779B97F4A7C15ull + 0xCE11ull);
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  truth_.head_from_digitizer_nominal = nominalDigitizerMount();
-  truth_.head_from_digitizer = truth_.head_from_digitizer_nominal;
-  const Vec3 w(0.008 * g(rng), 0.008 * g(rng), 0.008 * g(rng));
-  if (w.norm() > 0) truth_.head_from_digitizer.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
-  truth_.head_from_digitizer.translation() += Vec3(g(rng), g(rng), g(rng));
-  truth_.digitizer_latency_ns = static_cast<std::int64_t>((0.002 + 0.002 * u(rng)) * 1e9);
+  truth_ = drawCellTruth(options_.world);
 
   VirtualCmmConfig cmm;
   cmm.address = options_.cmm_address;
@@ -53,6 +45,36 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
   plc.address = options_.plc_address;
   plc.port = options_.plc_port;
   plc_ = std::make_unique<VirtualPlc>(plc);
+  if (options_.cameras) {
+    for (int c = 0; c < 2; ++c) {
+      VirtualCameraOptions o;
+      o.address = c == 0 ? options_.left_address : options_.right_address;
+      o.serial = c == 0 ? options_.left_serial : options_.right_serial;
+      cameras_.push_back(std::make_unique<VirtualCamera>(o));
+      renderers_[c] = std::make_unique<CameraRenderer>(c == 0 ? truth_.left : truth_.right);
+      cameras_.back()->setFrameSource([this, c](const FrameRequest& request, std::span<std::uint8_t> out) {
+        return renderFrame(c, request, out);
+      });
+    }
+  }
+}
+
+bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const {
+  const CameraRenderer& renderer = *renderers_[camera];
+  const CameraIntrinsics& in = renderer.intrinsics();
+  // The image the camera is set to must be the size its optics are simulated at.
+  if (static_cast<int>(request.width) != in.width || static_cast<int>(request.height) != in.height) return false;
+  const VirtualCmmStatus st = cmm_->status();
+  const HeadState head{Vec3(st.position[0], st.position[1], st.position[2]), st.head_a, st.head_b, 0};
+  const Eigen::Isometry3d machine_from_camera = head.pose() * (camera == 0 ? truth_.head_from_left : truth_.head_from_right);
+  CameraSensor sensor = options_.world.camera_sensor;
+  sensor.bits = request.bytes_per_pixel == 2 ? 16 : 8;
+  const GrayImage image = renderer.render(*scene_, sensor, machine_from_camera,
+                                          options_.world.seed * 1000003ull + request.index * 2 + static_cast<std::uint64_t>(camera));
+  const std::vector<std::uint8_t> bytes = image.bytes();
+  if (bytes.size() != out.size()) return false;
+  std::copy(bytes.begin(), bytes.end(), out.begin());
+  return true;
 }
 
 VirtualCell::~VirtualCell() { stop(); }
@@ -60,9 +82,15 @@ VirtualCell::~VirtualCell() { stop(); }
 void VirtualCell::start() {
   cmm_->start();
   plc_->start();
+  for (auto& camera : cameras_) {
+    const LoopbackStatus lo = VirtualCamera::ensureLoopbackAddress(camera->options().address);
+    if (!lo.ok) throw std::runtime_error("virtual camera " + camera->options().serial + ": " + lo.reason);
+    camera->start();
+  }
 }
 
 void VirtualCell::stop() noexcept {
+  for (auto& camera : cameras_) camera->stop();
   plc_->stop();
   cmm_->stop();
 }

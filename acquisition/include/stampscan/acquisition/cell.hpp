@@ -5,6 +5,7 @@
 
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/scan_runner.hpp"
+#include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
@@ -26,13 +27,16 @@ class Cell {
   drivers::cmm::IppCmm& cmm() { return *cmm_; }
   drivers::plc::ModbusPlc& plc() { return *plc_; }
   drivers::digitizer::UsbDigitizer& digitizer() { return *digitizer_; }
-  CellDevices devices() { return {*cmm_, *plc_, *digitizer_}; }
+  drivers::camera::GigECamera& leftCamera() { return *left_camera_; }
+  drivers::camera::GigECamera& rightCamera() { return *right_camera_; }
+  CellDevices devices() { return {*cmm_, *plc_, *digitizer_, left_camera_.get(), right_camera_.get()}; }
 
  private:
   CellConfig config_;
   std::unique_ptr<drivers::cmm::IppCmm> cmm_;
   std::unique_ptr<drivers::plc::ModbusPlc> plc_;
   std::unique_ptr<drivers::digitizer::UsbDigitizer> digitizer_;
+  std::unique_ptr<drivers::camera::GigECamera> left_camera_, right_camera_;
 };
 
 }  // namespace stampscan::acquisition

@@ -18,8 +18,10 @@
 // operator abort (abort(), e.g. from Ctrl-C) or a device error end the run as Aborted: the shutter
 // is closed, the digitizer stopped, an "abort" CmmEvent records why, and the trace stays readable.
 //
-// Stereo steps are not driven yet (the cameras' triggering is not part of the runner): a plan with
-// stereo steps is refused in step 1, naming them.
+// Stereo steps: the head travels to the pose, settles, and both cameras are triggered in software
+// (drivers::camera::StereoPair); the pair of frames goes to the trace with the trigger id, each
+// camera's clock pair beside it. A pair that does not arrive within frame_timeout (a camera lost:
+// the driver reconnects by itself) is marked with a "view_missing" CmmEvent and the scan goes on.
 //
 // Thread safety: run() blocks; abort() may be called from any thread (a signal handler must not:
 // set a flag and call it from a thread). The sink is written from the devices' threads, one message
@@ -30,6 +32,7 @@
 #include "stampscan/acquisition/station_clock.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_sink.hpp"
+#include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
@@ -43,11 +46,14 @@
 
 namespace stampscan::acquisition {
 
-// The devices a scan uses, connected or not; owned by the caller, alive for the run.
+// The devices a scan uses, connected or not; owned by the caller, alive for the run. The cameras
+// are needed only by plans with stereo steps.
 struct CellDevices {
   drivers::cmm::IppCmm& cmm;
   drivers::plc::ModbusPlc& plc;
   drivers::digitizer::UsbDigitizer& digitizer;
+  drivers::camera::GigECamera* left_camera = nullptr;
+  drivers::camera::GigECamera* right_camera = nullptr;
 };
 
 // Thrown when a check before motion fails; nothing has moved. The text is one line for the operator.
@@ -81,12 +87,14 @@ struct ScanRunParams {
   double report_interval_s = 0.1;  // the CMM's move reports (I++ DME allows 0.1 s at the fastest)
   std::chrono::milliseconds clamp_timeout{3000};
   std::chrono::milliseconds plc_state_period{100};
+  // A stereo view whose pair of frames has not arrived by then is marked missing.
+  std::chrono::milliseconds frame_timeout{10000};
 };
 
 struct ScanRunResult {
   bool completed = false;
   std::string abort_reason;  // when not completed
-  std::size_t steps_done = 0, sweeps_done = 0;
+  std::size_t steps_done = 0, sweeps_done = 0, views_done = 0, views_missing = 0;
   std::uint64_t profiles = 0, lost_profiles = 0, positions = 0, plc_states = 0;
   double wall_seconds = 0;    // from the first motion to parked
   double motion_seconds = 0;  // what the plan needs (motionSeconds), for comparison

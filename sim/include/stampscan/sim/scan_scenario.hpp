@@ -6,6 +6,7 @@
 #pragma once
 
 #include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_sink.hpp"
 #include "stampscan/sim/camera_model.hpp"
 #include "stampscan/sim/cmm_motion.hpp"
@@ -70,6 +71,15 @@ struct CellTruth {
   std::vector<Eigen::Isometry3d> plate_poses;  // machine_from_plate per calibration view (the plate stays put)
   ReferenceSphere sphere;
 };
+
+// The cell's true geometry and clocks for the parameters' seed (cameras' intrinsics and mounts, the
+// digitizer's mount, latency and clock offsets). The simulated session and the virtual cell of the
+// same seed share them.
+CellTruth drawCellTruth(const ScanParams& params);
+
+// The session description of a cell with these sensors, as drawn (nominal values): what a trace of
+// it records, whichever executor plays the plan.
+trace::SessionDescription describeSession(const ScanParams& params);
 
 struct ScanSummary {
   double scan_seconds = 0;  // simulated duration of the session

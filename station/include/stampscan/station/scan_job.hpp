@@ -59,6 +59,8 @@ struct ScanJobResult {
 class ScanJobObserver : public acquisition::ScanObserver, public registration::MeasureObserver {
  public:
   virtual void runFolder(const std::filesystem::path& /*dir*/) {}
+  // The scan is over (completed or not); measuring begins if it completed.
+  virtual void scanDone(const acquisition::ScanRunResult& /*run*/) {}
   void stageDone(std::string_view /*stage*/, const std::string& /*text*/) override {}
 };
 

@@ -3,6 +3,9 @@
 // the virtual PLC holds the door, the clamp and the laser shutter. The virtual digitizer's profiles
 // are rendered from the head pose the CMM has at the instant of each exposure, through the true
 // (not the nominal) mount of the digitizer on the head; with the shutter closed it sees nothing.
+// The virtual cameras (when asked for) render the world from the head pose at each frame, through
+// their true intrinsics and mounts. The truth is sim::drawCellTruth of the world's seed: the same
+// cell as a simulated session of that seed.
 //
 // The station reaches these devices only through its drivers on their wire protocols (I++ DME on
 // TCP, Modbus TCP, USB under umockdev), exactly as it reaches a real cell. The virtual digitizer is
@@ -14,6 +17,7 @@
 #pragma once
 
 #include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/sim/virtual_camera.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
 #include "stampscan/sim/virtual_digitizer.hpp"
 #include "stampscan/sim/virtual_plc.hpp"
@@ -22,6 +26,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace stampscan::sim {
 
@@ -33,13 +38,11 @@ struct VirtualCellOptions {
   std::uint16_t cmm_port = 1294;  // 0: any free port (read it from cmm().port())
   std::string plc_address = "127.0.0.1";
   int plc_port = 1502;            // 0: any free port
-};
-
-// What the station must find out by calibrating: the simulator knows it, tests compare with it.
-struct VirtualCellTruth {
-  Eigen::Isometry3d head_from_digitizer = Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d head_from_digitizer_nominal = Eigen::Isometry3d::Identity();  // the drawing's
-  std::int64_t digitizer_latency_ns = 0;
+  // The stereo pair: Aravis fake GigE Vision cameras (GVCP on UDP 3956 of each address, so one
+  // cell per machine at a time), rendering the world at the world's image scale.
+  bool cameras = false;
+  std::string left_address = "127.0.0.1", left_serial = "STAMPSCAN-LEFT";
+  std::string right_address = "127.0.0.2", right_serial = "STAMPSCAN-RIGHT";
 };
 
 class VirtualCell {
@@ -49,9 +52,15 @@ class VirtualCell {
   VirtualCell(const VirtualCell&) = delete;
   VirtualCell& operator=(const VirtualCell&) = delete;
 
-  // Starts the CMM's and the PLC's servers; throws std::runtime_error naming the address.
+  // Starts the CMM's and the PLC's servers (and the cameras); throws std::runtime_error naming the
+  // address.
   void start();
   void stop() noexcept;
+
+  // Fault injection: the right camera goes away (as if unplugged).
+  void stopRightCamera() {
+    if (cameras_.size() > 1) cameras_[1]->stop();
+  }
 
   VirtualCmm& cmm() { return *cmm_; }
   VirtualPlc& plc() { return *plc_; }
@@ -62,18 +71,22 @@ class VirtualCell {
   VirtualDigitizer::TimedProfileSource profileSource();
 
   const VirtualCellOptions& options() const { return options_; }
-  const VirtualCellTruth& truth() const { return truth_; }
+  // What the station must find out by calibrating: tests compare with it.
+  const CellTruth& truth() const { return truth_; }
   const FormedPart& part() const { return *part_; }
 
  private:
   class WorldScene;
+  bool renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
 
   VirtualCellOptions options_;
-  VirtualCellTruth truth_;
+  CellTruth truth_;
   std::unique_ptr<FormedPart> part_;
   std::unique_ptr<WorldScene> scene_;
   std::unique_ptr<VirtualCmm> cmm_;
   std::unique_ptr<VirtualPlc> plc_;
+  std::vector<std::unique_ptr<VirtualCamera>> cameras_;
+  std::unique_ptr<CameraRenderer> renderers_[2];
 };
 
 }  // namespace stampscan::sim
