@@ -48,69 +48,6 @@ std::vector<Profile> profilesIn(const ScanTrace& t, const HeadTrack& track, cons
   return out;
 }
 
-void tell(MeasureObserver* observer, std::string_view stage, const std::string& text) {
-  if (observer) observer->stageDone(stage, text);
-}
-
-// The stereo views: rings (or square cells) matched on the laser's surface, each view's pose
-// refined by ICP of its triangulated elements against the laser's.
-void measureStereo(const ScanTrace& trace, const trace::SessionDescription& session, const HeadTrack& track,
-                   std::int64_t camera_offset, const RingDetectionParams& rings, const SquareDetectionParams& squares,
-                   ScanMeasurement& out) {
-  const StereoRig& rig = *out.rig;
-  std::vector<Vec3> laser_positions, laser_normals;
-  for (const auto& g : out.elements) {
-    laser_positions.push_back(g.position);
-    laser_normals.push_back(g.normal);
-  }
-  const PointToPlaneIcp icp(laser_positions, laser_normals);
-  const bool circles = session.grid == "circle";
-  for (std::size_t v = 0; v < trace.part_left.size(); ++v) {
-    const std::int64_t t = trace.part_left[v].device_time_ns - camera_offset;
-    if (!track.covers(t)) continue;
-    ++out.stereo_views;
-    const auto view_id = static_cast<std::uint32_t>(1000 + v);
-    auto view = circles ? measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
-                                            laser_positions, rings, view_id)
-                        : measureStereoSquares(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
-                                               laser_positions, squares, view_id);
-    if (view.size() < 10) continue;
-    std::vector<Vec3> source;
-    for (const auto& g : view) source.push_back(g.position);
-    IcpParams ip;
-    ip.max_correspondence_distance = 1.0;
-    // Stereo and laser measure the same grid elements: each pairs with its own, so the offset
-    // along the sheet counts as much as across it. Point-to-plane alone let errors across the
-    // sheet on the radii slide a view sideways along the walls (0.064 mm position RMS on a full
-    // square-grid pan session, 0.039 with this).
-    ip.tangential_weight = 1.0;
-    const IcpResult fit = icp.align(source, Eigen::Isometry3d::Identity(), ip);
-    if (fit.converged && fit.fitness > 0.5) {
-      out.worst_icp_correction_mm = std::max(out.worst_icp_correction_mm, fit.transform.translation().norm());
-      for (auto& g : view) {
-        g.position = fit.transform * g.position;
-        g.normal = fit.transform.linear() * g.normal;
-        g.major_direction = fit.transform.linear() * g.major_direction;
-      }
-    }
-    out.stereo_elements += view.size();
-    out.elements.insert(out.elements.end(), view.begin(), view.end());
-  }
-  if (out.stereo_elements == 0 && !trace.part_left.empty()) {
-    // Say why when it is the images' scale: the line's centre needs the line to span pixels.
-    const std::int64_t t = trace.part_left.front().device_time_ns - camera_offset;
-    if (!track.covers(t)) return;
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (const auto& q : laser_positions) centroid += q;
-    centroid /= static_cast<double>(laser_positions.size());
-    const double depth = ((track.poseAt(t) * rig.head_from_left).inverse() * centroid).z();
-    const double line_px = (circles ? rings.line_width : squares.line_width) * rig.left.matrix(0, 0) / depth;
-    if (depth > 0 && line_px < 1.5)
-      out.stereo_note = format("the printed line is %.1f px wide in these images; the stereo path needs about 1.5 px or "
-                               "more (quick sessions render at a quarter of the resolution)",
-                               line_px);
-  }
-}
 
 }  // namespace
 
@@ -132,21 +69,30 @@ trace::RigidPose toRigidPose(const Eigen::Isometry3d& T) {
   return p;
 }
 
-ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params, MeasureObserver* observer) {
+ScanMeasurer::ScanMeasurer(MeasureParams params, MeasureObserver* observer) : params_(params), observer_(observer) {}
+
+ScanMeasurer::~ScanMeasurer() = default;
+
+void ScanMeasurer::tell(std::string_view stage, const std::string& text) {
+  if (observer_) observer_->stageDone(stage, text);
+}
+
+void ScanMeasurer::calibrateDigitizer(const ScanTrace& trace) {
   if (!trace.session) throw std::runtime_error("the trace has no session description (metadata 'cell')");
   const trace::SessionDescription& session = *trace.session;
+  grid_ = session.grid;
+  rings_.printed_radius = 0.5 * session.grid_circle_diameter_mm;
+  squares_.pitch = session.grid_pitch_mm;
+  rings_.line_width = squares_.line_width = session.grid_line_width_mm;
   const auto pairs = trace.clock_pairs.find("digitizer");
   if (pairs == trace.clock_pairs.end()) throw std::runtime_error("the trace has no clock-sync pairs for the digitizer");
   const std::int64_t digitizer_offset = clockOffset(pairs->second);
   const HeadTrack track(trace.head);
-  ScanMeasurement out;
   StageClock clock;
-
-  // 1. The digitizer's calibration: from the sphere sweeps, or the one given.
   std::vector<Profile> sphere;
   for (const auto& w : trace.sweeps)
     if (w.is("reference_sphere")) {
-      auto p = profilesIn(trace, track, w, digitizer_offset, 0, params.max_track_error_mm);
+      auto p = profilesIn(trace, track, w, digitizer_offset, 0, params_.max_track_error_mm);
       sphere.insert(sphere.end(), p.begin(), p.end());
     }
   if (!sphere.empty()) {
@@ -156,99 +102,189 @@ ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params,
     sp.sphere_radius = *session.reference_sphere_radius_mm;
     sp.nominal.head_from_digitizer = toIsometry(session.head_from_digitizer_nominal);
     sp.nominal.clock_offset_ns = digitizer_offset;
-    out.sphere = calibrateDigitizer(sphere, track, sp);
-    out.digitizer = out.sphere->calibration;
-    tell(observer, "digitizer",
+    out_.sphere = ::stampscan::registration::calibrateDigitizer(sphere, track, sp);
+    out_.digitizer = out_.sphere->calibration;
+    tell("digitizer",
          format("calibrated on the reference sphere: latency %.3f ms, residual %.4f mm RMS over %zu points (%.2f s)",
-                static_cast<double>(out.digitizer.latency_ns) * 1e-6, out.sphere->rms_mm, out.sphere->inliers, clock.lap()));
+                static_cast<double>(out_.digitizer.latency_ns) * 1e-6, out_.sphere->rms_mm, out_.sphere->inliers, clock.lap()));
   } else {
-    if (!params.digitizer)
+    if (!params_.digitizer)
       throw std::runtime_error("the trace has no reference-sphere sweeps to calibrate the digitizer, and no stored "
                                "calibration was given");
-    out.digitizer = *params.digitizer;
-    tell(observer, "digitizer", "the stored calibration (the trace has no reference-sphere sweeps)");
+    out_.digitizer = *params_.digitizer;
+    tell("digitizer", "the stored calibration (the trace has no reference-sphere sweeps)");
   }
-  out.digitizer.clock_offset_ns = digitizer_offset;
+  out_.digitizer.clock_offset_ns = digitizer_offset;
+  digitizer_ready_ = true;
+}
 
-  // 2. The cameras, when the trace shows the plate.
-  std::int64_t camera_offset = 0;
-  if (trace.plate_left.size() >= params.min_plate_views && session.plate) {
-    const CirclePlateSpec spec{session.plate->columns, session.plate->rows, session.plate->pitch_mm};
-    std::vector<cv::Mat> left, right;
-    for (std::size_t i = 0; i < trace.plate_left.size(); ++i) {
-      left.push_back(trace.plate_left[i].image);
-      right.push_back(trace.plate_right[i].image);
-    }
-    out.stereo = calibrateStereo(left, right, spec);
-    const StereoCalibration& stereo = *out.stereo;
-    std::string text = format("calibrated on %zu plate views: reprojection %.3f / %.3f px, baseline %.3f mm",
-                              stereo.pairs_used, stereo.left.rms_px, stereo.right.rms_px, stereo.baseline_mm);
-    const auto camera_pairs = trace.clock_pairs.find("camera_left");
-    if (camera_pairs != trace.clock_pairs.end()) {
-      camera_offset = clockOffset(camera_pairs->second);
-      std::vector<Eigen::Isometry3d> heads, plates;
-      for (std::size_t v = 0; v < left.size(); ++v) {
-        const std::int64_t t = trace.plate_left[v].device_time_ns - camera_offset;
-        if (stereo.left.plate_poses[v] && track.covers(t)) {
-          heads.push_back(track.poseAt(t));
-          plates.push_back(*stereo.left.plate_poses[v]);
-        }
-      }
-      if (heads.size() >= 3) {
-        out.head_from_left = calibrateHeadToCamera(heads, plates);
-        text += format(", head mount residual %.3f mm", out.head_from_left->residual_mm);
-        out.rig = StereoRig{stereo.left.model, stereo.right.model, out.head_from_left->head_from_camera,
-                            stereo.right_from_left};
+void ScanMeasurer::calibrateCameras(const ScanTrace& trace) {
+  if (trace.plate_left.size() < params_.min_plate_views || !trace.session || !trace.session->plate) return;
+  StageClock clock;
+  const trace::PlateRecord& plate = *trace.session->plate;
+  const CirclePlateSpec spec{plate.columns, plate.rows, plate.pitch_mm};
+  std::vector<cv::Mat> left, right;
+  for (std::size_t i = 0; i < trace.plate_left.size(); ++i) {
+    left.push_back(trace.plate_left[i].image);
+    right.push_back(trace.plate_right[i].image);
+  }
+  out_.stereo = ::stampscan::registration::calibrateStereo(left, right, spec);
+  const StereoCalibration& stereo = *out_.stereo;
+  std::string text = format("calibrated on %zu plate views: reprojection %.3f / %.3f px, baseline %.3f mm",
+                            stereo.pairs_used, stereo.left.rms_px, stereo.right.rms_px, stereo.baseline_mm);
+  const auto camera_pairs = trace.clock_pairs.find("camera_left");
+  if (camera_pairs != trace.clock_pairs.end() && trace.head.size() >= 2) {
+    camera_offset_ = clockOffset(camera_pairs->second);
+    const HeadTrack track(trace.head);
+    std::vector<Eigen::Isometry3d> heads, plates;
+    for (std::size_t v = 0; v < left.size(); ++v) {
+      const std::int64_t t = trace.plate_left[v].device_time_ns - camera_offset_;
+      if (stereo.left.plate_poses[v] && track.covers(t)) {
+        heads.push_back(track.poseAt(t));
+        plates.push_back(*stereo.left.plate_poses[v]);
       }
     }
-    tell(observer, "cameras", text + format(" (%.2f s)", clock.lap()));
+    if (heads.size() >= 3) {
+      out_.head_from_left = calibrateHeadToCamera(heads, plates);
+      text += format(", head mount residual %.3f mm", out_.head_from_left->residual_mm);
+      out_.rig = StereoRig{stereo.left.model, stereo.right.model, out_.head_from_left->head_from_camera, stereo.right_from_left};
+    }
   }
+  tell("cameras", text + format(" (%.2f s)", clock.lap()));
+}
 
-  // 3. The laser path: rings (or square cells) in every part sweep, the sweeps in parallel.
-  RingDetectionParams rings;
-  SquareDetectionParams squares;
-  rings.printed_radius = 0.5 * session.grid_circle_diameter_mm;
-  squares.pitch = session.grid_pitch_mm;
-  rings.line_width = squares.line_width = session.grid_line_width_mm;
+void ScanMeasurer::measureSweep(const ScanTrace& trace, const SweepWindow& sweep, std::uint32_t sweep_id) {
+  if (!digitizer_ready_) throw std::logic_error("ScanMeasurer: measureSweep before calibrateDigitizer");
+  StageClock clock;
+  const HeadTrack track(trace.head);
+  const auto profiles = profilesIn(trace, track, sweep, out_.digitizer.clock_offset_ns, out_.digitizer.latency_ns,
+                                   params_.max_track_error_mm);
+  RingDetectionStats stats;
+  const std::vector<GridElement> found =
+      grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, sweep_id, &stats)
+                        : detectLaserSquares(profiles, track, out_.digitizer, squares_, sweep_id, &stats);
+  laser_.insert(laser_.end(), found.begin(), found.end());
+  out_.laser_stats.candidates += stats.candidates;
+  out_.laser_stats.rejected_size += stats.rejected_size;
+  out_.laser_stats.rejected_gap += stats.rejected_gap;
+  out_.laser_stats.rejected_fit += stats.rejected_fit;
+  out_.laser_stats.found += stats.found;
+  ++out_.laser_sweeps;
+  laser_seconds_ += clock.lap();
+}
+
+void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
+  if (!digitizer_ready_) throw std::logic_error("ScanMeasurer: measureSweeps before calibrateDigitizer");
+  StageClock clock;
   std::vector<SweepWindow> part;
   for (const auto& w : trace.sweeps)
     if (w.is("part")) part.push_back(w);
+  const HeadTrack track(trace.head);
   std::vector<std::vector<GridElement>> per_sweep(part.size());
   std::vector<RingDetectionStats> stats(part.size());
-  const bool circles = session.grid == "circle";
   tbb::parallel_for(std::size_t{0}, part.size(), [&](std::size_t k) {
-    const auto profiles =
-        profilesIn(trace, track, part[k], out.digitizer.clock_offset_ns, out.digitizer.latency_ns, params.max_track_error_mm);
+    const auto profiles = profilesIn(trace, track, part[k], out_.digitizer.clock_offset_ns, out_.digitizer.latency_ns,
+                                     params_.max_track_error_mm);
     const auto id = static_cast<std::uint32_t>(k);
-    per_sweep[k] = circles ? detectLaserRings(profiles, track, out.digitizer, rings, id, &stats[k])
-                           : detectLaserSquares(profiles, track, out.digitizer, squares, id, &stats[k]);
+    per_sweep[k] = grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, id, &stats[k])
+                                     : detectLaserSquares(profiles, track, out_.digitizer, squares_, id, &stats[k]);
   });
   for (std::size_t k = 0; k < part.size(); ++k) {
-    out.elements.insert(out.elements.end(), per_sweep[k].begin(), per_sweep[k].end());
-    out.laser_stats.candidates += stats[k].candidates;
-    out.laser_stats.rejected_size += stats[k].rejected_size;
-    out.laser_stats.rejected_gap += stats[k].rejected_gap;
-    out.laser_stats.rejected_fit += stats[k].rejected_fit;
-    out.laser_stats.found += stats[k].found;
+    laser_.insert(laser_.end(), per_sweep[k].begin(), per_sweep[k].end());
+    out_.laser_stats.candidates += stats[k].candidates;
+    out_.laser_stats.rejected_size += stats[k].rejected_size;
+    out_.laser_stats.rejected_gap += stats[k].rejected_gap;
+    out_.laser_stats.rejected_fit += stats[k].rejected_fit;
+    out_.laser_stats.found += stats[k].found;
   }
-  out.laser_sweeps = part.size();
-  out.laser_elements = out.elements.size();
-  tell(observer, "laser",
-       format("%zu sweeps, %s grid: %zu grid elements (%zu incomplete and %zu poor fits left out) (%.2f s)", part.size(),
-              session.grid.c_str(), out.laser_elements, out.laser_stats.rejected_gap, out.laser_stats.rejected_fit,
-              clock.lap()));
-  if (out.elements.empty()) throw std::runtime_error("no grid element was found in the laser sweeps");
+  out_.laser_sweeps += part.size();
+  laser_seconds_ += clock.lap();
+}
 
-  // 4. The stereo views.
-  if (params.with_stereo) {
-    if (!out.rig) throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
-    measureStereo(trace, session, track, camera_offset, rings, squares, out);
-    tell(observer, "stereo",
-         format("%zu views: %zu grid elements, ICP corrections up to %.3f mm (%.2f s)", trace.part_left.size(),
-                out.stereo_elements, out.worst_icp_correction_mm, clock.lap()));
-    if (!out.stereo_note.empty()) tell(observer, "stereo", out.stereo_note);
+bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint32_t view_id) {
+  if (!out_.rig) throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
+  if (trace.head.size() < 2) return false;
+  const HeadTrack track(trace.head);
+  const std::int64_t t = trace.part_left[v].device_time_ns - camera_offset_;
+  if (!track.covers(t)) return false;
+  StageClock clock;
+  ++out_.stereo_views;
+  std::vector<Vec3> laser_positions, laser_normals;
+  for (const auto& g : laser_) {
+    laser_positions.push_back(g.position);
+    laser_normals.push_back(g.normal);
   }
-  return out;
+  if (!icp_) icp_ = std::make_unique<PointToPlaneIcp>(laser_positions, laser_normals);
+  const StereoRig& rig = *out_.rig;
+  const bool circles = grid_ == "circle";
+  auto view = circles ? measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
+                                          laser_positions, rings_, view_id)
+                      : measureStereoSquares(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
+                                             laser_positions, squares_, view_id);
+  if (view.size() >= 10) {
+    std::vector<Vec3> source;
+    for (const auto& g : view) source.push_back(g.position);
+    IcpParams ip;
+    ip.max_correspondence_distance = 1.0;
+    // Stereo and laser measure the same grid elements: each pairs with its own, so the offset
+    // along the sheet counts as much as across it. Point-to-plane alone let errors across the
+    // sheet on the radii slide a view sideways along the walls (0.064 mm position RMS on a full
+    // square-grid pan session, 0.039 with this).
+    ip.tangential_weight = 1.0;
+    const IcpResult fit = icp_->align(source, Eigen::Isometry3d::Identity(), ip);
+    if (fit.converged && fit.fitness > 0.5) {
+      out_.worst_icp_correction_mm = std::max(out_.worst_icp_correction_mm, fit.transform.translation().norm());
+      for (auto& g : view) {
+        g.position = fit.transform * g.position;
+        g.normal = fit.transform.linear() * g.normal;
+        g.major_direction = fit.transform.linear() * g.major_direction;
+      }
+    }
+    stereo_.insert(stereo_.end(), view.begin(), view.end());
+  } else if (stereo_.empty() && out_.stereo_note.empty() && !laser_positions.empty()) {
+    // Say why when it is the images' scale: the line's centre needs the line to span pixels.
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& q : laser_positions) centroid += q;
+    centroid /= static_cast<double>(laser_positions.size());
+    const double depth = ((track.poseAt(t) * rig.head_from_left).inverse() * centroid).z();
+    const double line_px = (circles ? rings_.line_width : squares_.line_width) * rig.left.matrix(0, 0) / depth;
+    if (depth > 0 && line_px < 1.5)
+      out_.stereo_note = format("the printed line is %.1f px wide in these images; the stereo path needs about 1.5 px "
+                                "or more (quick sessions render at a quarter of the resolution)",
+                                line_px);
+  }
+  stereo_seconds_ += clock.lap();
+  return true;
+}
+
+ScanMeasurement ScanMeasurer::finish() {
+  out_.elements = laser_;
+  out_.laser_elements = laser_.size();
+  tell("laser", format("%zu sweeps, %s grid: %zu grid elements (%zu incomplete and %zu poor fits left out) (%.2f s)",
+                       out_.laser_sweeps, grid_.c_str(), out_.laser_elements, out_.laser_stats.rejected_gap,
+                       out_.laser_stats.rejected_fit, laser_seconds_));
+  if (out_.elements.empty()) throw std::runtime_error("no grid element was found in the laser sweeps");
+  if (out_.stereo_views > 0) {
+    out_.stereo_elements = stereo_.size();
+    out_.elements.insert(out_.elements.end(), stereo_.begin(), stereo_.end());
+    tell("stereo", format("%zu views: %zu grid elements, ICP corrections up to %.3f mm (%.2f s)", out_.stereo_views,
+                          out_.stereo_elements, out_.worst_icp_correction_mm, stereo_seconds_));
+    if (!out_.stereo_note.empty()) tell("stereo", out_.stereo_note);
+  }
+  return std::move(out_);
+}
+
+ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params, MeasureObserver* observer) {
+  ScanMeasurer m(params, observer);
+  m.calibrateDigitizer(trace);
+  m.calibrateCameras(trace);
+  m.measureSweeps(trace);
+  if (params.with_stereo) {
+    if (!m.camerasCalibrated())
+      throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
+    for (std::size_t v = 0; v < trace.part_left.size(); ++v) m.measureView(trace, v, static_cast<std::uint32_t>(1000 + v));
+  }
+  return m.finish();
 }
 
 }  // namespace stampscan::registration

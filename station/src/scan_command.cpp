@@ -157,7 +157,7 @@ CommandRunner addScanCommand(CLI::App& app) {
       throw;
     }
     stop_watcher();
-    std::printf("  measured    %zu grid elements; cloud4d.ply, fitted.ply, mesh.ply (%.1f s after the scan)\n", r.elements,
+    std::printf("  measured    %zu grid elements; cloud4d.ply, fitted.ply, mesh.ply (%.2f s after the scan)\n", r.elements,
                 r.measure_seconds);
     if (r.accuracy && hosted)
       std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "

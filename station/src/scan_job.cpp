@@ -5,6 +5,7 @@
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/station/fit_runner.hpp"
+#include "live_measurement.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -73,6 +74,54 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
   return run;
 }
 
+// The runner's messages to the recorder (the file) and to the live trace (the measuring thread).
+class TeeSink final : public trace::TraceSink {
+ public:
+  TeeSink(trace::TraceSink& a, trace::TraceSink& b) : a_(a), b_(b) {}
+  void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) override {
+    b_.message(topic, log_time_ns, bytes);
+    a_.message(topic, log_time_ns, std::move(bytes));
+  }
+  void metadata(const std::string& name, const std::map<std::string, std::string>& values) override {
+    a_.metadata(name, values);
+    b_.metadata(name, values);
+  }
+
+ private:
+  trace::TraceSink& a_;
+  trace::TraceSink& b_;
+};
+
+// The job's observer as the runner (its thread) and the live measurement (its own) see it: calls
+// are forwarded one at a time, and the runner's progress tells the measurement which steps are done.
+class SerialObserver final : public ScanJobObserver {
+ public:
+  explicit SerialObserver(ScanJobObserver* to) : to_(to) {}
+  void measuring(LiveMeasurement* live) { live_ = live; }
+  void checkPassed(const std::string& what) override {
+    std::lock_guard lock(mutex_);
+    if (to_) to_->checkPassed(what);
+  }
+  void progress(const acquisition::ScanProgress& p) override {
+    if (live_) live_->stepsDone(p.step);
+    std::lock_guard lock(mutex_);
+    if (to_) to_->progress(p);
+  }
+  void safetyEvent(const std::string& what) override {
+    std::lock_guard lock(mutex_);
+    if (to_) to_->safetyEvent(what);
+  }
+  void stageDone(std::string_view stage, const std::string& text) override {
+    std::lock_guard lock(mutex_);
+    if (to_) to_->stageDone(stage, text);
+  }
+
+ private:
+  ScanJobObserver* to_;
+  LiveMeasurement* live_ = nullptr;
+  std::mutex mutex_;
+};
+
 }  // namespace
 
 ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
@@ -114,11 +163,22 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   result.run_dir = newRunFolder(o.runs_dir, o.part_id);
   if (observer_) observer_->runFolder(result.run_dir);
   const fs::path trace_file = result.run_dir / "trace.mcap";
+  // The stereo views are measured when the plan has views of the part and enough of the plate to
+  // calibrate the cameras on.
+  registration::MeasureParams measure;
+  measure.with_stereo = o.plan.stereoCount(acquisition::kScenePart) > 0 &&
+                        o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views;
+  SerialObserver observer(observer_);
+  registration::LiveScanTrace live(measure.with_stereo);
+  std::optional<LiveMeasurement> measuring;
+  measuring.emplace(live, o.plan, measure, &observer);
+  observer.measuring(&*measuring);
   {
     trace::McapWriter writer(trace_file);
     trace::TraceRecorder recorder(writer);
+    TeeSink tee(recorder, live);
     const acquisition::StationClock clock;
-    acquisition::ScanRunner runner(cell_.devices(), recorder, clock, observer_);
+    acquisition::ScanRunner runner(cell_.devices(), tee, clock, &observer);
     {
       std::lock_guard lock(mutex_);
       runner_ = &runner;
@@ -131,6 +191,8 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
         std::lock_guard lock(mutex_);
         runner_ = nullptr;
       }
+      observer.measuring(nullptr);
+      measuring.reset();
       writer.close();
       std::error_code ignored;
       fs::remove_all(result.run_dir, ignored);  // nothing moved: no run to keep
@@ -146,24 +208,20 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     }
     writer.close();
   }
+  observer.measuring(nullptr);
   if (observer_) observer_->scanDone(result.run);
   nlohmann::json record = runRecord(o, cell_, result.run);
   if (!result.run.completed) {
+    measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);
     throw std::runtime_error("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
                              trace_file.string() + ")");
   }
 
-  // Measure, fit, write.
+  // What the live measurement has not done yet, then the fit.
   const auto t0 = std::chrono::steady_clock::now();
-  // The stereo views are measured when the plan has views of the part and enough of the plate to
-  // calibrate the cameras on.
-  registration::MeasureParams measure;
-  measure.with_stereo = o.plan.stereoCount(acquisition::kScenePart) > 0 &&
-                        o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views &&
-                        result.run.views_missing == 0;
-  const registration::ScanTrace trace = registration::loadScanTrace(trace_file, {}, measure.with_stereo);
-  const registration::ScanMeasurement m = registration::measureScan(trace, measure, observer_);
+  const registration::ScanMeasurement m = measuring->finish();
+  measuring.reset();
   fitting::Cloud cloud = registration::toCloud(m.elements);
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;

@@ -16,6 +16,7 @@
 #include "stampscan/registration/scan_trace.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -59,9 +60,62 @@ struct ScanMeasurement {
   std::string stereo_note;  // why the stereo path found nothing, when it can tell
 };
 
-// Throws std::runtime_error naming what is missing: no session description, no clock pairs for the
-// digitizer, no sphere sweeps and no stored calibration, no grid element found, stereo asked for
-// without plate views.
+// The measuring workflow stage by stage, so that a scan being recorded is measured as it goes: each
+// stage runs as soon as its data is complete (the digitizer's calibration after the sphere sweeps,
+// each part sweep after it ends, ...), and the Cloud4D is ready soon after the last sweep.
+// measureScan() runs the same stages on a whole trace. Each stage reads what it needs from the
+// trace it is given, which may be the whole trace or the part of it that stage needs (the head
+// track, the clock pairs, the sweep's profiles or the view's frames). Not thread-safe; the stages
+// run one at a time (a sweep's rings are found on TBB's threads).
+class PointToPlaneIcp;
+
+class ScanMeasurer {
+ public:
+  explicit ScanMeasurer(MeasureParams params = {}, MeasureObserver* observer = nullptr);
+  ~ScanMeasurer();
+  ScanMeasurer(const ScanMeasurer&) = delete;
+  ScanMeasurer& operator=(const ScanMeasurer&) = delete;
+
+  // From the trace's sphere sweeps, or the stored calibration of the params. Throws
+  // std::runtime_error when there is neither, or no session description, or no clock pairs.
+  void calibrateDigitizer(const ScanTrace& trace);
+  // From the trace's plate views, when there are enough of them; otherwise the cameras stay
+  // uncalibrated and the stereo views cannot be measured.
+  void calibrateCameras(const ScanTrace& trace);
+  // The grid elements of one part sweep (after calibrateDigitizer).
+  void measureSweep(const ScanTrace& trace, const SweepWindow& sweep, std::uint32_t sweep_id);
+  // Every part sweep of the trace, in parallel.
+  void measureSweeps(const ScanTrace& trace);
+  // The stereo view part_left[view] / part_right[view] of the trace (after calibrateCameras and every
+  // part sweep: its rings are matched on the laser's surface and registered to its elements).
+  // False (and nothing done) when the trace's head track does not reach the view's time yet.
+  bool measureView(const ScanTrace& trace, std::size_t view, std::uint32_t view_id);
+
+  bool digitizerCalibrated() const { return digitizer_ready_; }
+  const DigitizerCalibration& digitizer() const { return out_.digitizer; }
+  bool camerasCalibrated() const { return out_.rig.has_value(); }
+  // The laser's elements, then the views'. Throws std::runtime_error when no element was found.
+  ScanMeasurement finish();
+
+ private:
+  void tell(std::string_view stage, const std::string& text);
+
+  MeasureParams params_;
+  MeasureObserver* observer_;
+  ScanMeasurement out_;
+  bool digitizer_ready_ = false;
+  std::string grid_ = "circle";
+  RingDetectionParams rings_;
+  SquareDetectionParams squares_;
+  std::int64_t camera_offset_ = 0;
+  std::vector<GridElement> laser_, stereo_;
+  std::unique_ptr<PointToPlaneIcp> icp_;  // on the laser's elements, made at the first view
+  double laser_seconds_ = 0, stereo_seconds_ = 0;
+};
+
+// The stages above on a whole trace. Throws std::runtime_error naming what is missing: no session
+// description, no clock pairs for the digitizer, no sphere sweeps and no stored calibration, no
+// grid element found, stereo asked for without plate views.
 ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params = {}, MeasureObserver* observer = nullptr);
 
 // Rigid transforms between the trace's record and Eigen.

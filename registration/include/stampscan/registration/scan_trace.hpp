@@ -6,6 +6,8 @@
 
 #include "stampscan/acquisition/trace/mcap_reader.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
+#include "stampscan/acquisition/trace/trace_messages.hpp"
+#include "stampscan/acquisition/trace/trace_sink.hpp"
 #include "stampscan/registration/laser_geometry.hpp"
 
 #include <opencv2/core.hpp>
@@ -14,6 +16,9 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <mutex>
+#include <span>
+#include <string_view>
 #include <optional>
 #include <string>
 #include <vector>
@@ -45,6 +50,53 @@ struct ScanTrace {
   std::vector<CameraImage> part_left, part_right;
   double scan_seconds = 0;      // first to last CMM report
   trace::TraceHealth health;
+};
+
+// Decodes a trace's messages one at a time into a ScanTrace: loadScanTrace() feeds it from a file,
+// LiveScanTrace from a scan as its messages arrive. Not thread-safe.
+class ScanTraceBuilder {
+ public:
+  explicit ScanTraceBuilder(bool keep_part_frames = false) : keep_part_frames_(keep_part_frames) {}
+  // One message on a standard topic; one that does not decode is counted and skipped.
+  void add(std::string_view topic, std::span<const std::byte> bytes);
+  // The session description ("cell"); throws trace::SessionDescriptionError when it does not decode.
+  void metadata(const std::string& name, const std::map<std::string, std::string>& values);
+  const ScanTrace& trace() const { return out_; }
+  // The trace as it stands. A sweep still open is kept up to the last position when `cut` (the
+  // trace ended mid-sweep: a crash or a power cut).
+  ScanTrace finish(bool cut);
+  std::size_t decodeErrors() const { return decode_errors_; }
+  const std::string& firstDecodeError() const { return first_decode_error_; }
+
+ private:
+  bool keep_part_frames_;
+  ScanTrace out_;
+  std::string scene_;  // the scene the frames belong to, from the scene markers
+  std::map<std::uint64_t, std::pair<trace::CameraFrame, trace::CameraFrame>> pending_pairs_;  // by trigger
+  std::int64_t sweep_begin_ = -1;
+  std::string sweep_label_;
+  std::size_t decode_errors_ = 0;
+  std::string first_decode_error_;
+};
+
+// A scan's trace decoded as it is recorded: the ScanRunner's sink is tee'd to it, and the measuring
+// thread reads what has arrived so far under its lock (with()). Thread-safe.
+class LiveScanTrace final : public trace::TraceSink {
+ public:
+  explicit LiveScanTrace(bool keep_part_frames) : builder_(keep_part_frames) {}
+  void message(std::string_view topic, std::int64_t log_time_ns, std::vector<std::byte> bytes) override;
+  void metadata(const std::string& name, const std::map<std::string, std::string>& values) override;
+  // Runs f(const ScanTrace&) under the lock; keep it short (the devices' threads wait).
+  template <typename F>
+  auto with(F&& f) const {
+    std::lock_guard lock(mutex_);
+    return f(builder_.trace());
+  }
+  ScanTrace finish();
+
+ private:
+  mutable std::mutex mutex_;
+  ScanTraceBuilder builder_;
 };
 
 using LoadProgress = std::function<void(double fraction)>;

@@ -1,7 +1,8 @@
 // A scan job: what `station scan` does, and what the operator's panel will start. A plan on a cell
-// into a run folder: the trace recorded live by the ScanRunner, then measured (measureScan), fitted
-// and written, with a run.json summary. The command and the panel differ only in how they show
-// progress (the observer) and how they abort (abort()).
+// into a run folder: the trace recorded live by the ScanRunner and, at the same time, measured as
+// its steps complete (live_measurement.hpp: the calibrations after their scenes, each sweep while
+// the next is scanned), then fitted and written with a run.json summary. The command and the panel
+// differ only in how they show progress (the observer) and how they abort (abort()).
 //
 //   RUNS/<UTC time>-<part id>/trace.mcap   every device message as it arrived
 //                            cloud4d.ply   the grid elements with their strains

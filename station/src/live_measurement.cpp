@@ -1,0 +1,157 @@
+#include "live_measurement.hpp"
+
+#include <algorithm>
+
+namespace stampscan::station {
+
+namespace {
+
+template <typename T>
+void appendFrom(std::vector<T>& to, const std::vector<T>& from, std::size_t& taken) {
+  for (; taken < from.size(); ++taken) to.push_back(from[taken]);
+}
+
+}  // namespace
+
+LiveMeasurement::LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
+                                 const registration::MeasureParams& params, registration::MeasureObserver* observer)
+    : live_(live), plan_(plan), params_(params), measurer_(params, observer), thread_([this] { loop(); }) {}
+
+LiveMeasurement::~LiveMeasurement() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void LiveMeasurement::stepsDone(std::size_t steps) {
+  {
+    std::lock_guard lock(mutex_);
+    steps_done_ = std::max(steps_done_, std::min(steps, plan_.steps.size()));
+  }
+  wake_.notify_all();
+}
+
+void LiveMeasurement::loop() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    wake_.wait(lock, [&] { return stop_ || run_over_ || steps_advanced_ < steps_done_; });
+    if (stop_) return;
+    if (steps_advanced_ < steps_done_) {
+      const std::size_t step = steps_advanced_++;
+      lock.unlock();
+      try {
+        if (!failure_) advance(step);
+      } catch (...) {
+        failure_ = std::current_exception();
+      }
+      lock.lock();
+      continue;
+    }
+    if (run_over_) return;
+  }
+}
+
+void LiveMeasurement::pull() {
+  live_.with([&](const registration::ScanTrace& t) {
+    if (!mine_.session && t.session) mine_.session = t.session;
+    appendFrom(mine_.head, t.head, taken_head_);
+    appendFrom(mine_.profiles, t.profiles, taken_profiles_);
+    appendFrom(mine_.sweeps, t.sweeps, taken_sweeps_);
+    for (const auto& [device, pairs] : t.clock_pairs) appendFrom(mine_.clock_pairs[device], pairs, taken_pairs_[device]);
+    std::size_t plate = taken_plate_, part = taken_part_;
+    appendFrom(mine_.plate_left, t.plate_left, plate);
+    appendFrom(mine_.plate_right, t.plate_right, taken_plate_);
+    appendFrom(mine_.part_left, t.part_left, part);
+    appendFrom(mine_.part_right, t.part_right, taken_part_);
+    return 0;
+  });
+}
+
+void LiveMeasurement::advance(std::size_t step) {
+  pull();
+  // The sweeps that ended since the last look.
+  for (; sweeps_seen_ < mine_.sweeps.size(); ++sweeps_seen_)
+    if (mine_.sweeps[sweeps_seen_].is(acquisition::kScenePart)) pending_sweeps_.push_back(mine_.sweeps[sweeps_seen_]);
+
+  const acquisition::PlanStep& s = plan_.steps[step];
+  if (const auto* sweep = std::get_if<acquisition::SweepStep>(&s)) {
+    if (sweep->scene == acquisition::kSceneSphere && ++sphere_done_ == plan_.sweepCount(acquisition::kSceneSphere)) {
+      measurer_.calibrateDigitizer(mine_);
+      // The sphere's profiles are done with (those of a sweep already under way stay).
+      std::int64_t last_end = 0;
+      for (const auto& w : mine_.sweeps)
+        if (w.is(acquisition::kSceneSphere)) last_end = std::max(last_end, w.end_ns);
+      const registration::DigitizerCalibration& d = measurer_.digitizer();
+      std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
+    }
+  } else {
+    const auto& view = std::get<acquisition::StereoStep>(s);
+    if (view.scene == acquisition::kScenePlate && ++plate_done_ == plan_.stereoCount(acquisition::kScenePlate)) {
+      measurer_.calibrateCameras(mine_);
+      mine_.plate_left.clear();
+      mine_.plate_right.clear();
+    }
+  }
+  // Part sweeps can be measured once the digitizer is calibrated (a plan without sphere sweeps uses
+  // the stored calibration: the first part sweep then calibrates).
+  if (!pending_sweeps_.empty() && !measurer_.digitizerCalibrated() && plan_.sweepCount(acquisition::kSceneSphere) == 0)
+    measurer_.calibrateDigitizer(mine_);
+  if (measurer_.digitizerCalibrated() && !pending_sweeps_.empty()) {
+    std::int64_t last_end = 0;
+    for (const registration::SweepWindow& w : pending_sweeps_) {
+      measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));
+      last_end = std::max(last_end, w.end_ns);
+    }
+    pending_sweeps_.clear();
+    const registration::DigitizerCalibration& d = measurer_.digitizer();
+    std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
+  }
+  measureReadyViews();
+}
+
+void LiveMeasurement::measureReadyViews() {
+  // A view is matched on the laser's surface and registered to all of its elements: only once every
+  // part sweep of the plan is in.
+  if (!params_.with_stereo || !measurer_.camerasCalibrated() ||
+      part_sweeps_measured_ < plan_.sweepCount(acquisition::kScenePart))
+    return;
+  // (A view waits until the head track reaches past it: the CMM reports only while it moves.)
+  while (!mine_.part_left.empty() &&
+         measurer_.measureView(mine_, 0, static_cast<std::uint32_t>(1000 + part_views_measured_))) {
+    ++part_views_measured_;
+    mine_.part_left.erase(mine_.part_left.begin());
+    mine_.part_right.erase(mine_.part_right.begin());
+  }
+}
+
+registration::ScanMeasurement LiveMeasurement::finish() {
+  {
+    std::lock_guard lock(mutex_);
+    run_over_ = true;
+    steps_done_ = plan_.steps.size();
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  if (failure_) std::rethrow_exception(failure_);
+  // Whatever the steps did not trigger (a plan that ended early, views after the last sweep).
+  pull();
+  for (; sweeps_seen_ < mine_.sweeps.size(); ++sweeps_seen_)
+    if (mine_.sweeps[sweeps_seen_].is(acquisition::kScenePart)) pending_sweeps_.push_back(mine_.sweeps[sweeps_seen_]);
+  if (!measurer_.digitizerCalibrated()) measurer_.calibrateDigitizer(mine_);
+  for (const registration::SweepWindow& w : pending_sweeps_)
+    measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));
+  pending_sweeps_.clear();
+  if (params_.with_stereo && !measurer_.camerasCalibrated()) {
+    measurer_.calibrateCameras(mine_);
+    if (!measurer_.camerasCalibrated())
+      throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
+  }
+  part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::kScenePart));
+  measureReadyViews();
+  return measurer_.finish();
+}
+
+}  // namespace stampscan::station

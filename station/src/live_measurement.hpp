@@ -1,0 +1,63 @@
+// Measuring a scan while it is recorded: the ScanJob tees the runner's messages into a
+// LiveScanTrace, and this measures each stage on a thread of its own as soon as the plan's steps
+// that feed it are done: the digitizer's calibration after the last sphere sweep, the cameras'
+// after the last plate view, each part sweep after it ends, each part view once every part sweep
+// is in (its rings are matched on the laser's surface). So the Cloud4D is ready soon after the last
+// sweep instead of a whole measurement after it.
+//
+// The thread keeps its own copy of what it still needs (new messages are copied once, under the
+// live trace's lock, and dropped once measured), so the devices' threads never wait for it.
+#pragma once
+
+#include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/registration/measure_scan.hpp"
+
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+namespace stampscan::station {
+
+class LiveMeasurement {
+ public:
+  LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
+                  const registration::MeasureParams& params, registration::MeasureObserver* observer);
+  ~LiveMeasurement();  // stops the thread (what it measured is dropped unless finish() was called)
+  LiveMeasurement(const LiveMeasurement&) = delete;
+  LiveMeasurement& operator=(const LiveMeasurement&) = delete;
+
+  // The first `steps` steps of the plan are done (called from the run's thread as it goes).
+  void stepsDone(std::size_t steps);
+  // The run is over and completed: measures what is left and returns the whole. Rethrows what a
+  // stage threw.
+  registration::ScanMeasurement finish();
+
+ private:
+  void loop();
+  void pull();                          // new messages of the live trace into mine_
+  void advance(std::size_t step);       // what became measurable with step `step` done
+  void measureReadyViews();
+
+  const registration::LiveScanTrace& live_;
+  const acquisition::ScanPlan& plan_;
+  registration::MeasureParams params_;
+  registration::ScanMeasurer measurer_;
+
+  // The thread's copy of the trace and how far into the live one it has copied.
+  registration::ScanTrace mine_;
+  std::size_t taken_profiles_ = 0, taken_head_ = 0, taken_sweeps_ = 0, taken_plate_ = 0, taken_part_ = 0;
+  std::map<std::string, std::size_t> taken_pairs_;
+  std::size_t part_sweeps_measured_ = 0, part_views_measured_ = 0, sweeps_seen_ = 0;
+  std::size_t sphere_done_ = 0, plate_done_ = 0, part_sweeps_done_ = 0, part_views_done_ = 0;
+  std::vector<registration::SweepWindow> pending_sweeps_;  // ended, not measured yet
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::size_t steps_done_ = 0, steps_advanced_ = 0;
+  bool run_over_ = false, stop_ = false, idle_ = true;
+  std::exception_ptr failure_;
+  std::thread thread_;
+};
+
+}  // namespace stampscan::station
