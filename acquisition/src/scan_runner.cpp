@@ -97,21 +97,29 @@ struct ScanRunner::Impl {
   }
 
   // A pair of readings of the station clock and the digitizer's, the device's between two station
-  // readings: the pair's error is at most half the request's round trip.
+  // readings: the pair's error is at most half the request's round trip, so the tightest of a few
+  // brackets is kept (a loaded host or bus delays some requests by milliseconds).
   void clockSync() {
-    const std::int64_t before = clock.now();
-    drivers::digitizer::DeviceStatus status;
-    try {
-      status = dev.digitizer.readStatus();
-    } catch (const drivers::DeviceError&) {
-      return;  // one pair missing is no harm; the trace has many
+    std::int64_t best_rtt = std::numeric_limits<std::int64_t>::max();
+    msg::ClockSync best;
+    for (int i = 0; i < 5; ++i) {
+      const std::int64_t before = clock.now();
+      drivers::digitizer::DeviceStatus status;
+      try {
+        status = dev.digitizer.readStatus();
+      } catch (const drivers::DeviceError&) {
+        continue;  // one bracket missing is no harm
+      }
+      const std::int64_t after = clock.now();
+      if (after - before < best_rtt) {
+        best_rtt = after - before;
+        best.station_time_ns = before + (after - before) / 2;
+        best.device_time_ns = static_cast<std::int64_t>(status.device_time_ns);
+      }
     }
-    const std::int64_t after = clock.now();
-    msg::ClockSync c;
-    c.device = "digitizer";
-    c.station_time_ns = before + (after - before) / 2;
-    c.device_time_ns = static_cast<std::int64_t>(status.device_time_ns);
-    write(msg::topics::kClockSync, c.station_time_ns, msg::encode(c));
+    if (best_rtt == std::numeric_limits<std::int64_t>::max()) return;
+    best.device = "digitizer";
+    write(msg::topics::kClockSync, best.station_time_ns, msg::encode(best));
   }
 
   void plcState(const drivers::plc::PlcInputs& in, const drivers::plc::PlcOutputs& out) {
@@ -256,7 +264,7 @@ struct ScanRunner::Impl {
   // The digitizer delivers a profile some time after its exposure (processing, USB): wait until the
   // profiles up to now have arrived before stopping it, or the end of the sweep is lost. Bounded:
   // a device that has fallen far behind loses the rest, and the trace shows where it stopped.
-  void drainDigitizer(std::chrono::milliseconds limit = std::chrono::milliseconds(3000)) {
+  void drainDigitizer(std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
     std::uint64_t device_now = 0;
     try {
       device_now = dev.digitizer.readStatus().device_time_ns;
@@ -425,48 +433,58 @@ struct ScanRunner::Impl {
           continue;
         }
         const auto& sweep = std::get<SweepStep>(plan.steps[k]);
-        report(k, "travel to " + label);
-        event("move_begin", "travel");
-        move(safety, sweep.start, plan.travel_speed);
-        event("move_end", "travel");
-        samplePose();
-        motion_done += moveSeconds(at, sweep.start, plan.travel_speed, params.limits);
         if (first) marker(sweep.scene, "begin", sweep.index);
-        clockSync();
-        shutter(true);
-        dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
-                                drivers::digitizer::Profile&& p) {
-          msg::LaserProfile m;
-          m.sequence = p.sequence;
-          m.device_time_ns = static_cast<std::int64_t>(p.device_time_ns);
-          m.status = p.status;
-          m.angle_min = angle_min;
-          m.angle_increment = increment;
-          m.range = std::move(p.range);
-          m.intensity = std::move(p.intensity);
-          ++profiles;
-          last_profile_device_ns = p.device_time_ns;
-          write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
-        });
-        report(k, label);
         const std::string sweep_label = sweep.scene + " sweep " + std::to_string(sweep.index);
-        event("sweep_begin", sweep_label);
-        try {
-          move(safety, sweep.end, sweep.speed);
-        } catch (...) {
+        // A sweep that lost more profiles on the way than the limit is run again, once; the trace
+        // says the first run is not to be used ("sweep_discarded").
+        for (int attempt = 0;; ++attempt) {
+          report(k, "travel to " + label);
+          event("move_begin", "travel");
+          move(safety, sweep.start, plan.travel_speed);
+          event("move_end", "travel");
+          samplePose();
+          motion_done += moveSeconds(at, sweep.start, plan.travel_speed, params.limits);
+          clockSync();
+          const std::uint64_t lost_at_start = dev.digitizer.counters().lost_profiles;
+          shutter(true);
+          dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
+                                  drivers::digitizer::Profile&& p) {
+            msg::LaserProfile m;
+            m.sequence = p.sequence;
+            m.device_time_ns = static_cast<std::int64_t>(p.device_time_ns);
+            m.status = p.status;
+            m.angle_min = angle_min;
+            m.angle_increment = increment;
+            m.range = std::move(p.range);
+            m.intensity = std::move(p.intensity);
+            ++profiles;
+            last_profile_device_ns = p.device_time_ns;
+            write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
+          });
+          report(k, label);
+          event("sweep_begin", sweep_label);
+          try {
+            move(safety, sweep.end, sweep.speed);
+          } catch (...) {
+            dev.digitizer.stop();
+            shutter(false);
+            throw;
+          }
+          event("sweep_end", sweep_label);
+          samplePose();
+          drainDigitizer();
           dev.digitizer.stop();
           shutter(false);
-          throw;
+          clockSync();
+          motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
+          at = sweep.end;
+          const std::uint64_t lost = dev.digitizer.counters().lost_profiles - lost_at_start;
+          if (lost <= params.max_lost_profiles_per_sweep || attempt > 0) break;
+          event("sweep_discarded", sweep_label);
+          if (observer) observer->safetyEvent(sweep_label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
+          ++result.sweeps_repeated;
         }
-        event("sweep_end", sweep_label);
-        samplePose();
-        drainDigitizer();
-        dev.digitizer.stop();
-        shutter(false);
-        clockSync();
         if (last) marker(sweep.scene, "end", sweep.index);
-        motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
-        at = sweep.end;
         ++result.steps_done;
         ++result.sweeps_done;
       }

@@ -45,6 +45,8 @@ void ScanTraceBuilder::add(std::string_view topic, std::span<const std::byte> by
       } else if (e.kind == "sweep_end" && sweep_begin_ >= 0 && e.detail == sweep_label_) {
         out_.sweeps.push_back({sweep_label_, sweep_begin_, e.station_time_ns});
         sweep_begin_ = -1;
+      } else if (e.kind == "sweep_discarded" && !out_.sweeps.empty() && out_.sweeps.back().label == e.detail) {
+        out_.sweeps.pop_back();  // it lost profiles and was run again
       }
     } else if (topic == msg::topics::kScene) {
       const auto s = msg::decode<msg::SceneMarker>(bytes);

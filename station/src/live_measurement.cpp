@@ -59,7 +59,7 @@ void LiveMeasurement::pull() {
     if (!mine_.session && t.session) mine_.session = t.session;
     appendFrom(mine_.head, t.head, taken_head_);
     appendFrom(mine_.profiles, t.profiles, taken_profiles_);
-    appendFrom(mine_.sweeps, t.sweeps, taken_sweeps_);
+    mine_.sweeps = t.sweeps;  // few; and a sweep run again replaces its discarded first run
     for (const auto& [device, pairs] : t.clock_pairs) appendFrom(mine_.clock_pairs[device], pairs, taken_pairs_[device]);
     std::size_t plate = taken_plate_, part = taken_part_;
     appendFrom(mine_.plate_left, t.plate_left, plate);
@@ -72,12 +72,17 @@ void LiveMeasurement::pull() {
 
 void LiveMeasurement::advance(std::size_t step) {
   pull();
-  // The sweeps that ended since the last look.
-  for (; sweeps_seen_ < mine_.sweeps.size(); ++sweeps_seen_)
-    if (mine_.sweeps[sweeps_seen_].is(acquisition::kScenePart)) pending_sweeps_.push_back(mine_.sweeps[sweeps_seen_]);
-
   const acquisition::PlanStep& s = plan_.steps[step];
   if (const auto* sweep = std::get_if<acquisition::SweepStep>(&s)) {
+    // The step's sweep window: the last of its label (a sweep run again after losing profiles has
+    // its first run discarded).
+    const std::string label = sweep->scene + " sweep " + std::to_string(sweep->index);
+    if (sweep->scene == acquisition::kScenePart)
+      for (auto w = mine_.sweeps.rbegin(); w != mine_.sweeps.rend(); ++w)
+        if (w->label == label) {
+          pending_sweeps_.push_back(*w);
+          break;
+        }
     if (sweep->scene == acquisition::kSceneSphere && ++sphere_done_ == plan_.sweepCount(acquisition::kSceneSphere)) {
       measurer_.calibrateDigitizer(mine_);
       // The sphere's profiles are done with (those of a sweep already under way stay).
@@ -138,8 +143,6 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   if (failure_) std::rethrow_exception(failure_);
   // Whatever the steps did not trigger (a plan that ended early, views after the last sweep).
   pull();
-  for (; sweeps_seen_ < mine_.sweeps.size(); ++sweeps_seen_)
-    if (mine_.sweeps[sweeps_seen_].is(acquisition::kScenePart)) pending_sweeps_.push_back(mine_.sweeps[sweeps_seen_]);
   if (!measurer_.digitizerCalibrated()) measurer_.calibrateDigitizer(mine_);
   for (const registration::SweepWindow& w : pending_sweeps_)
     measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));

@@ -64,6 +64,7 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
                                   {"motion_seconds", r.motion_seconds},
                                   {"profiles", r.profiles},
                                   {"lost_profiles", r.lost_profiles},
+                                  {"sweeps_repeated", r.sweeps_repeated},
                                   {"stereo_views", r.views_done},
                                   {"stereo_views_missing", r.views_missing},
                                   {"positions", r.positions}}}};

@@ -223,6 +223,23 @@ TEST_F(ScanRunnerTest, AnOperatorAbortStopsTheScan) {
   EXPECT_FALSE(shutterOpen());
 }
 
+TEST_F(ScanRunnerTest, ASweepThatLostProfilesIsRunAgain) {
+  ScanRunner runner(devices(), sink_, clock_);
+  auto running = std::async(std::launch::async, [&] { return runner.run(shortPlan(), params()); });
+  // Lose 50 profiles on the wire in the middle of the sweep (the digitizer's sequence numbers jump).
+  for (int i = 0; i < 1000 && sink_.profiles() < 200; ++i) std::this_thread::sleep_for(10ms);
+  digitizer_device_->dropSequence(50);
+  ASSERT_EQ(running.wait_for(30s), std::future_status::ready);
+  const ScanRunResult r = running.get();
+  ASSERT_TRUE(r.completed) << r.abort_reason;
+  EXPECT_EQ(r.sweeps_done, 1u);
+  EXPECT_EQ(r.sweeps_repeated, 1u);
+  EXPECT_GE(r.lost_profiles, 50u);
+  const auto events = sink_.events();
+  EXPECT_TRUE(hasEvent(events, "sweep_discarded"));
+  EXPECT_EQ(std::count_if(events.begin(), events.end(), [](const msg::CmmEvent& e) { return e.kind == "sweep_end"; }), 2);
+}
+
 TEST_F(ScanRunnerTest, StereoViewsNeedTheCameras) {
   ScanPlan plan = shortPlan();
   StereoStep v;

@@ -14,6 +14,8 @@
 //     shutter closes. Each sweep is bracketed by CmmEvents sweep_begin/sweep_end ("part sweep 3")
 //     and each scene by SceneMarkers, as the measuring path (registration::measureScan) expects.
 //  4. The head parks and the clamp opens.
+// Digitizer sequence gaps are counted; a sweep that lost more than max_lost_profiles_per_sweep is
+// run again once, the first run marked "sweep_discarded" (the measuring path leaves it out).
 // Faults mid-scan: the PLC's door, e-stop or curtain (SafetyInterlock aborts the move at once), an
 // operator abort (abort(), e.g. from Ctrl-C) or a device error end the run as Aborted: the shutter
 // is closed, the digitizer stopped, an "abort" CmmEvent records why, and the trace stays readable.
@@ -87,6 +89,8 @@ struct ScanRunParams {
   double report_interval_s = 0.1;  // the CMM's move reports (I++ DME allows 0.1 s at the fastest)
   std::chrono::milliseconds clamp_timeout{3000};
   std::chrono::milliseconds plc_state_period{100};
+  // A sweep that loses more profiles than this (digitizer sequence gaps) is run again, once.
+  std::uint64_t max_lost_profiles_per_sweep = 10;
   // A stereo view whose pair of frames has not arrived by then is marked missing.
   std::chrono::milliseconds frame_timeout{10000};
 };
@@ -95,6 +99,7 @@ struct ScanRunResult {
   bool completed = false;
   std::string abort_reason;  // when not completed
   std::size_t steps_done = 0, sweeps_done = 0, views_done = 0, views_missing = 0;
+  std::size_t sweeps_repeated = 0;  // run again after losing profiles
   std::uint64_t profiles = 0, lost_profiles = 0, positions = 0, plc_states = 0;
   double wall_seconds = 0;    // from the first motion to parked
   double motion_seconds = 0;  // what the plan needs (motionSeconds), for comparison
