@@ -21,7 +21,7 @@ namespace {
 
 struct ScanOptions {
   std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs";
-  bool dry_run = false, whole_part = false, quiet = false;
+  bool dry_run = false, whole_part = false, laser_only = false, quiet = false;
   std::uint64_t seed = 1;
 };
 
@@ -88,7 +88,8 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_option("--grid", opt->grid, "The virtual part's printed grid")->check(CLI::IsMember({"circle", "square"}));
   cmd->add_option("--part-id", opt->part_id, "The part's id, for the run folder and the record");
   cmd->add_option("-o,--runs", opt->runs, "Folder of run folders (created when missing)");
-  cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 25 s)");
+  cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
+  cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
   cmd->add_flag("--dry-run", opt->dry_run, "Check the plan against the cell and print it; nothing moves");
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
@@ -103,7 +104,11 @@ CommandRunner addScanCommand(CLI::App& app) {
     world.seed = opt->seed;
     ScanJobOptions job;
     job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
-    if (opt->plan.empty()) job.plan.name = job.plan.part.kind + ", laser and stereo, with calibration scenes";
+    if (opt->plan.empty()) {
+      if (opt->laser_only)
+        std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
+      job.plan.name = job.plan.part.kind + (opt->laser_only ? ", laser" : ", laser and stereo") + ", with calibration scenes";
+    }
     if (opt->dry_run) {
       const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
       printDryRun(job.plan, config, job.run.limits, problems);
