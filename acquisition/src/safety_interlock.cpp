@@ -4,11 +4,26 @@ namespace stampscan::acquisition {
 
 using drivers::plc::PlcEventKind;
 
-SafetyInterlock::SafetyInterlock(drivers::plc::ModbusPlc& plc, drivers::cmm::IppCmm& cmm) : cmm_(cmm) {
-  plc.setEventCallback([this](const drivers::plc::PlcEvent& e) { onPlcEvent(e); });
+struct SafetyInterlock::State {
+  explicit State(drivers::cmm::IppCmm& c) : cmm(c) {}
+  void onPlcEvent(const drivers::plc::PlcEvent& event);
+
+  drivers::cmm::IppCmm& cmm;
+  mutable std::mutex mutex;
+  std::vector<SafetyEvent> events;
+  bool tripped = false;
+};
+
+SafetyInterlock::SafetyInterlock(drivers::plc::ModbusPlc& plc, drivers::cmm::IppCmm& cmm)
+    : plc_(plc), state_(std::make_shared<State>(cmm)) {
+  // The callback holds the state: the PLC's watchdog may still be delivering an event (it calls a
+  // copy of the callback outside its lock) when this object goes away.
+  plc.setEventCallback([state = state_](const drivers::plc::PlcEvent& e) { state->onPlcEvent(e); });
 }
 
-void SafetyInterlock::onPlcEvent(const drivers::plc::PlcEvent& event) {
+SafetyInterlock::~SafetyInterlock() { plc_.setEventCallback({}); }
+
+void SafetyInterlock::State::onPlcEvent(const drivers::plc::PlcEvent& event) {
   const bool stop = event.kind == PlcEventKind::DoorOpened || event.kind == PlcEventKind::EStopBroken ||
                     event.kind == PlcEventKind::LightCurtainInterrupted || event.kind == PlcEventKind::InterlockTripped ||
                     event.kind == PlcEventKind::PlcSilent;
@@ -17,30 +32,30 @@ void SafetyInterlock::onPlcEvent(const drivers::plc::PlcEvent& event) {
   if (stop) {
     // abort() is safe from another thread and returns at once; a CMM that is not moving ignores it.
     try {
-      cmm_.abort();
+      cmm.abort();
       what += ": motion aborted";
     } catch (const std::exception& e) {
       what += std::string(": abort failed: ") + e.what();
     }
   }
-  std::lock_guard lock(mutex_);
-  if (stop) tripped_ = true;
-  events_.push_back({event.when, what});
+  std::lock_guard lock(mutex);
+  if (stop) tripped = true;
+  events.push_back({event.when, what});
 }
 
 std::vector<SafetyEvent> SafetyInterlock::events() const {
-  std::lock_guard lock(mutex_);
-  return events_;
+  std::lock_guard lock(state_->mutex);
+  return state_->events;
 }
 
 bool SafetyInterlock::tripped() const {
-  std::lock_guard lock(mutex_);
-  return tripped_;
+  std::lock_guard lock(state_->mutex);
+  return state_->tripped;
 }
 
 void SafetyInterlock::reset() {
-  std::lock_guard lock(mutex_);
-  tripped_ = false;
+  std::lock_guard lock(state_->mutex);
+  state_->tripped = false;
 }
 
 }  // namespace stampscan::acquisition

@@ -47,6 +47,7 @@ struct ScanRunner::Impl {
   std::mutex sink_mutex;  // the devices' threads write one message at a time
   std::atomic<std::uint64_t> positions{0}, profiles{0}, plc_states{0};
   std::atomic<std::uint64_t> last_profile_device_ns{0};
+  std::int64_t cmm_offset = 0;  // CMM clock to station clock; the CMM driver's reader thread's alone
   std::mutex pair_mutex;  // the stereo pairs that arrived, by trigger id
   std::condition_variable pair_arrived;
   std::uint64_t last_pair_trigger = 0;
@@ -330,7 +331,17 @@ struct ScanRunner::Impl {
     const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
     std::atomic<bool> stop_polling{false};
     // The PLC's state into the trace, at a steady rate (the driver's watchdog thread reads it).
-    std::thread plc_poller([&] {
+    // Joined on every way out of run(), an exception included.
+    std::thread plc_poller;
+    struct Joiner {
+      std::atomic<bool>& stop;
+      std::thread& thread;
+      ~Joiner() {
+        stop = true;
+        if (thread.joinable()) thread.join();
+      }
+    } joiner{stop_polling, plc_poller};
+    plc_poller = std::thread([&] {
       while (!stop_polling) {
         if (const auto in = dev.plc.lastInputs()) {
           try {
@@ -342,32 +353,7 @@ struct ScanRunner::Impl {
       }
     });
 
-    // A report's position was sampled by the CMM some time before the line arrived, and how long
-    // before varies with the load on both sides (a millisecond is 25 um along a sweep at 25 mm/s).
-    // When the CMM stamps its reports with its own clock, that stamp is put on the station clock
-    // by the smallest arrival delay seen so far: the delay's floor, which the jitter only adds to.
-    std::int64_t cmm_offset = std::numeric_limits<std::int64_t>::max();  // the reader thread's alone
-    dev.cmm.startMoveReports(params.report_interval_s, [this, &cmm_offset](const drivers::cmm::MoveReport& r) {
-      std::int64_t t = clock.fromSteady(r.station_time_ns);
-      if (r.device_time_s) {
-        const auto device_ns = static_cast<std::int64_t>(std::llround(*r.device_time_s * 1e9));
-        cmm_offset = std::min(cmm_offset, t - device_ns);
-        t = device_ns + cmm_offset;
-      }
-      position(t, r.position, r.orientation.value_or(ToolOrientation{}));
-    }, drivers::cmm::MoveReportContent::PositionAndOrientation);
-
     std::unique_ptr<drivers::camera::StereoPair> pair;
-    if (stereo) {
-      // The trigger id pairs the frames; the head stands still through a view, so how far apart
-      // the two exposures are stamped does not move the geometry. A wide tolerance keeps cameras
-      // whose clock offsets are only estimated from frame arrivals (no timestamp latch) paired.
-      drivers::camera::StereoPairOptions pairing;
-      pairing.tolerance = std::chrono::seconds(1);
-      pair = std::make_unique<drivers::camera::StereoPair>(
-          *dev.left_camera, *dev.right_camera, [this](const drivers::camera::StereoFrame& f) { onStereoPair(f); }, pairing);
-      pair->start();
-    }
     std::uint64_t lost_before = dev.digitizer.counters().lost_profiles;
     double motion_done = 0;
     HeadPose at = plan.park;
@@ -388,6 +374,31 @@ struct ScanRunner::Impl {
       return k < plan.steps.size() ? std::visit([](const auto& s) { return s.scene; }, plan.steps[k]) : std::string();
     };
     try {
+      // A report's position was sampled by the CMM some time before the line arrived, and how long
+      // before varies with the load on both sides (a millisecond is 25 um along a sweep at 25 mm/s).
+      // When the CMM stamps its reports with its own clock, that stamp is put on the station clock
+      // by the smallest arrival delay seen so far: the delay's floor, which the jitter only adds to.
+      cmm_offset = std::numeric_limits<std::int64_t>::max();
+      dev.cmm.startMoveReports(params.report_interval_s, [this](const drivers::cmm::MoveReport& r) {
+        std::int64_t t = clock.fromSteady(r.station_time_ns);
+        if (r.device_time_s) {
+          const auto device_ns = static_cast<std::int64_t>(std::llround(*r.device_time_s * 1e9));
+          cmm_offset = std::min(cmm_offset, t - device_ns);
+          t = device_ns + cmm_offset;
+        }
+        position(t, r.position, r.orientation.value_or(ToolOrientation{}));
+      }, drivers::cmm::MoveReportContent::PositionAndOrientation);
+
+      if (stereo) {
+        // The trigger id pairs the frames; the head stands still through a view, so how far apart
+        // the two exposures are stamped does not move the geometry. A wide tolerance keeps cameras
+        // whose clock offsets are only estimated from frame arrivals (no timestamp latch) paired.
+        drivers::camera::StereoPairOptions pairing;
+        pairing.tolerance = std::chrono::seconds(1);
+        pair = std::make_unique<drivers::camera::StereoPair>(
+            *dev.left_camera, *dev.right_camera, [this](const drivers::camera::StereoFrame& f) { onStereoPair(f); }, pairing);
+        pair->start();
+      }
       if (!dev.cmm.isHomed()) {
         report(0, "homing");
         event("move_begin", "home");
@@ -520,7 +531,7 @@ struct ScanRunner::Impl {
     } catch (const std::exception&) {
     }
     stop_polling = true;
-    plc_poller.join();
+    if (plc_poller.joinable()) plc_poller.join();
     for (const SafetyEvent& e : safety.events()) {
       result.safety_events.push_back(e.what);
       if (observer) observer->safetyEvent(e.what);

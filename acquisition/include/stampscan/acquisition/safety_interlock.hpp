@@ -8,6 +8,7 @@
 #include "stampscan/drivers/plc/modbus_plc.hpp"
 
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -21,21 +22,21 @@ struct SafetyEvent {
 
 class SafetyInterlock {
  public:
-  // Registers itself as the PLC driver's event callback. Both devices must outlive it, and the PLC
-  // must be disconnected (its callbacks ended) before the interlock is destroyed.
+  // Registers itself as the PLC driver's event callback, and removes it when destroyed. Both
+  // devices must outlive it (an event already under way may still abort the CMM just after).
   SafetyInterlock(drivers::plc::ModbusPlc& plc, drivers::cmm::IppCmm& cmm);
+  ~SafetyInterlock();
+  SafetyInterlock(const SafetyInterlock&) = delete;
+  SafetyInterlock& operator=(const SafetyInterlock&) = delete;
 
   std::vector<SafetyEvent> events() const;
   bool tripped() const;  // since construction or the last reset()
   void reset();
 
  private:
-  void onPlcEvent(const drivers::plc::PlcEvent& event);
-
-  drivers::cmm::IppCmm& cmm_;
-  mutable std::mutex mutex_;
-  std::vector<SafetyEvent> events_;
-  bool tripped_ = false;
+  struct State;
+  drivers::plc::ModbusPlc& plc_;
+  std::shared_ptr<State> state_;
 };
 
 }  // namespace stampscan::acquisition
