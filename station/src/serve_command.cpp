@@ -1,10 +1,9 @@
-// `station sim serve [--cell CELL.toml] [--for SECONDS]`: runs the virtual cell's devices on their
-// real protocols until interrupted, so that the station and independent tools (mbpoll, arv-tool, a
-// plain TCP client speaking I++ DME) can talk to them. Loopback only unless the cell file says
+// `station sim serve [--cell CELL.toml] [--part pan|dome] [--for SECONDS]`: runs the virtual cell
+// (one simulated world, sim/virtual_cell) with its devices on their real protocols until
+// interrupted, so that the station and independent tools (mbpoll, arv-tool, a plain TCP client
+// speaking I++ DME) can talk to them. Loopback only unless the cell file says
 // otherwise. The virtual digitizer is not among them: see virtual_digitizer_host.hpp.
-#include "stampscan/sim/virtual_camera.hpp"
-#include "stampscan/sim/virtual_cmm.hpp"
-#include "stampscan/sim/virtual_plc.hpp"
+#include "stampscan/sim/virtual_cell.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
 
@@ -23,12 +22,13 @@ using acquisition::virtualCell;
 
 CommandRunner addServeSubcommand(CLI::App* sim) {
   struct Options {
-    std::string cell;
+    std::string cell, part = "pan";
     double seconds = 0;
   };
   auto opt = std::make_shared<Options>();
   CLI::App* cmd = sim->add_subcommand("serve", "Run the virtual cell (CMM over I++ DME, PLC over Modbus TCP, GigE Vision cameras) until interrupted");
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell");
+  cmd->add_option("--part", opt->part, "The part on the fixture of the simulated world")->check(CLI::IsMember({"pan", "dome"}));
   cmd->add_option("--for", opt->seconds, "Stop after this many seconds (default: run until Ctrl-C)")->check(CLI::PositiveNumber);
   return [opt]() {
     const CellConfig cell = opt->cell.empty() ? virtualCell() : loadCellConfig(opt->cell);
@@ -39,28 +39,25 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     sigaddset(&stop, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop, nullptr);
 
-    sim::VirtualCmmConfig cmm_config;
-    cmm_config.address = cell.cmm.host;
-    cmm_config.port = static_cast<std::uint16_t>(cell.cmm.port);
-    sim::VirtualCmm cmm(cmm_config);
-    cmm.start();
-    sim::VirtualPlcOptions plc_options;
-    plc_options.address = cell.plc.host;
-    plc_options.port = cell.plc.port;
-    sim::VirtualPlc plc(plc_options);
-    plc.start();
-    // The cameras: Aravis fake GigE Vision cameras, one per loopback address (the second address
-    // is added to lo when missing, which needs root).
-    std::vector<std::unique_ptr<sim::VirtualCamera>> cameras;
-    for (const CellConfig::Camera& c : {cell.left_camera, cell.right_camera}) {
-      const sim::LoopbackStatus lo = sim::VirtualCamera::ensureLoopbackAddress(c.address);
-      if (!lo.ok) throw std::runtime_error("camera " + c.serial + " on " + c.address + ": " + lo.reason);
-      sim::VirtualCameraOptions o;
-      o.address = c.address;
-      o.serial = c.serial;
-      cameras.push_back(std::make_unique<sim::VirtualCamera>(o));
-      cameras.back()->start();
-    }
+    // The virtual cell as one world (sim/virtual_cell): the cameras render the part, sphere and
+    // plate from the head pose the CMM has, whoever moves it. The second camera address is added
+    // to lo when missing, which needs root.
+    sim::VirtualCellOptions world;
+    world.world = sim::ScanParams::quick();
+    world.world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+    world.cmm_address = cell.cmm.host;
+    world.cmm_port = static_cast<std::uint16_t>(cell.cmm.port);
+    world.plc_address = cell.plc.host;
+    world.plc_port = cell.plc.port;
+    world.cameras = true;
+    world.left_address = cell.left_camera.address;
+    world.left_serial = cell.left_camera.serial;
+    world.right_address = cell.right_camera.address;
+    world.right_serial = cell.right_camera.serial;
+    sim::VirtualCell virtual_cell(world);
+    virtual_cell.start();
+    sim::VirtualCmm& cmm = virtual_cell.cmm();
+    sim::VirtualPlc& plc = virtual_cell.plc();
     std::printf("station sim serve: %s\n", cell.name.c_str());
     std::printf("  cmm         I++ DME on %s:%u   (try: printf '00001 StartSession()\\r\\n' | nc %s %u)\n",
                 cell.cmm.host.c_str(), cmm.port(), cell.cmm.host.c_str(), cmm.port());
@@ -84,9 +81,7 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     wait.tv_nsec = opt->seconds > 0 ? static_cast<long>((opt->seconds - static_cast<double>(wait.tv_sec)) * 1e9) : 0;
     const int sig = sigtimedwait(&stop, nullptr, &wait);
     std::printf("  stopping (%s)\n", sig > 0 ? "signal" : "time up");
-    for (auto& c : cameras) c->stop();
-    plc.stop();
-    cmm.stop();
+    virtual_cell.stop();
     return 0;
   };
 }
