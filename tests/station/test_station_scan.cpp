@@ -92,6 +92,36 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   }
 }
 
+TEST_F(StationTest, TheLiveTraceOpensInTheReferenceReader) {
+  const fs::path interop = fs::path(STAMPSCAN_MCAP_INTEROP_DIR);
+  if (std::system("node --version >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "node is not installed: run scripts/setup.sh (it installs nodejs and npm)";
+  if (!fs::exists(interop / "node_modules" / "@mcap" / "core" / "package.json"))
+    GTEST_SKIP() << "@mcap/core is not in " << interop.string() << "/node_modules: run scripts/setup.sh";
+  const fs::path runs = work() / "runs";
+  const RunResult r = run("scan -q --laser-only -o " + quote(runs));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const fs::path trace_file = onlyRunFolder(runs) / "trace.mcap";
+  // @mcap/core's indexed and streaming readers both read the trace recorded as the scan ran, and
+  // find the profiles our reader finds.
+  const RunResult node{std::system(("node " + quote(interop / "mcap_interop.mjs") + " read " + quote(trace_file) + " >" +
+                                    quote(work() / "node.out") + " 2>&1")
+                                       .c_str()),
+                       readFile(work() / "node.out"), ""};
+  ASSERT_EQ(node.exit_code, 0) << node.out;
+  EXPECT_NE(node.out.find("datacrc ok"), std::string::npos) << node.out;
+  EXPECT_NE(node.out.find("stream done=true"), std::string::npos) << node.out;
+  trace::McapReader reader(trace_file);
+  std::size_t profiles = 0;
+  reader.readMessages([&](const trace::TraceMessage& m) {
+    profiles += m.channel && m.channel->topic == trace::topics::kLaserProfile;
+    return true;
+  });
+  EXPECT_NE(node.out.find("topic=/digitizer/profile schema=stampscan_msgs/msg/LaserProfile count=" + std::to_string(profiles) + " "),
+            std::string::npos)
+      << node.out;
+}
+
 TEST_F(StationTest, CtrlCEndsAScanCleanly) {
   const fs::path runs = work() / "runs", code = work() / "code.txt";
   // Start a scan, wait until it records, interrupt it as an operator's Ctrl-C would.
