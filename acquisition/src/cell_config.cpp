@@ -4,7 +4,10 @@
 
 #include <toml++/toml.h>
 
+#include <array>
+#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -43,6 +46,45 @@ T get(const toml::table& t, const std::string& section, const std::string& key, 
 
 void checkPort(int port, const std::string& file, const std::string& section) {
   if (port < 1 || port > 65535) throw std::runtime_error(file + ": [" + section + "] port " + std::to_string(port) + " is not 1-65535");
+}
+
+// A [machine] number, or the default; must be finite (and positive where asked).
+double number(const toml::table& t, const char* key, double fallback, const std::string& file, bool positive = false) {
+  const toml::node_view<const toml::node> node = t["machine"][key];
+  if (!node) return fallback;
+  const std::optional<double> v = node.value<double>();
+  if (!v || !std::isfinite(*v) || (positive && !(*v > 0)))
+    throw std::runtime_error(file + ": [machine] " + key + (positive ? " must be a positive number" : " must be a number"));
+  return *v;
+}
+
+std::array<double, 3> triple(const toml::table& t, const char* key, std::array<double, 3> fallback, const std::string& file) {
+  const toml::node_view<const toml::node> node = t["machine"][key];
+  if (!node) return fallback;
+  const toml::array* a = node.as_array();
+  std::array<double, 3> out{};
+  if (a == nullptr || a->size() != 3)
+    throw std::runtime_error(file + ": [machine] " + key + " must be a list of 3 numbers (x, y, z in mm)");
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::optional<double> v = (*a)[i].value<double>();
+    if (!v || !std::isfinite(*v)) throw std::runtime_error(file + ": [machine] " + key + " must be a list of 3 numbers (x, y, z in mm)");
+    out[i] = *v;
+  }
+  return out;
+}
+
+void readLimits(const toml::table& t, const std::string& file, MachineLimits& l) {
+  constexpr double kDeg = 3.14159265358979323846 / 180;
+  l.travel_min = triple(t, "travel_min", l.travel_min, file);
+  l.travel_max = triple(t, "travel_max", l.travel_max, file);
+  for (std::size_t i = 0; i < 3; ++i)
+    if (!(l.travel_min[i] < l.travel_max[i])) throw std::runtime_error(file + ": [machine] travel_min must be below travel_max on every axis");
+  l.min_speed = number(t, "min_speed", l.min_speed, file, true);
+  l.max_speed = number(t, "max_speed", l.max_speed, file, true);
+  if (!(l.min_speed <= l.max_speed)) throw std::runtime_error(file + ": [machine] min_speed is above max_speed");
+  l.acceleration = number(t, "acceleration", l.acceleration, file, true);
+  l.max_tilt = number(t, "max_tilt_deg", l.max_tilt / kDeg, file, true) * kDeg;
+  l.max_turn = number(t, "max_turn_deg", l.max_turn / kDeg, file, true) * kDeg;
 }
 
 }  // namespace
@@ -88,6 +130,7 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
     throw std::runtime_error(file + ": [digitizer] virtual = true, but vendor_id:product_id " + ids);
   }
   c.digitizer_required = get<bool>(t, "digitizer", "required", true, file);
+  readLimits(t, file, c.limits);
   return c;
 }
 

@@ -14,9 +14,17 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180;
 
+// Numbers in a plan file: enough digits to read back what was written.
 std::string fmt(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.15g", v);
+  return buf;
+}
+
+// Numbers in a message for the operator.
+std::string shown(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
   return buf;
 }
 
@@ -137,17 +145,17 @@ std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& li
   auto checkPose = [&](const std::string& what, const HeadPose& p) {
     for (std::size_t i = 0; i < 3; ++i)
       if (p.position[i] < limits.travel_min[i] || p.position[i] > limits.travel_max[i])
-        problems.push_back(what + " " + axes[i] + " = " + fmt(p.position[i]) + " mm is outside the travel " +
-                           fmt(limits.travel_min[i]) + ".." + fmt(limits.travel_max[i]));
+        problems.push_back(what + " " + axes[i] + " = " + shown(p.position[i]) + " mm is outside the travel " +
+                           shown(limits.travel_min[i]) + ".." + shown(limits.travel_max[i]));
     if (std::fabs(p.a) > limits.max_tilt + 1e-12)
-      problems.push_back(what + " head tilt " + fmt(p.a / kDeg) + " deg is beyond the head's +-" + fmt(limits.max_tilt / kDeg));
+      problems.push_back(what + " head tilt " + shown(p.a / kDeg) + " deg is beyond the head's +-" + shown(limits.max_tilt / kDeg));
     if (std::fabs(p.b) > limits.max_turn + 1e-12)
-      problems.push_back(what + " head turn " + fmt(p.b / kDeg) + " deg is beyond the head's +-" + fmt(limits.max_turn / kDeg));
+      problems.push_back(what + " head turn " + shown(p.b / kDeg) + " deg is beyond the head's +-" + shown(limits.max_turn / kDeg));
   };
   auto checkSpeed = [&](const std::string& what, double v) {
     if (!(v >= limits.min_speed && v <= limits.max_speed))
-      problems.push_back(what + " speed " + fmt(v) + " mm/s is outside the machine's " + fmt(limits.min_speed) + ".." +
-                         fmt(limits.max_speed));
+      problems.push_back(what + " speed " + shown(v) + " mm/s is outside the machine's " + shown(limits.min_speed) + ".." +
+                         shown(limits.max_speed));
   };
   if (plan.steps.empty()) problems.push_back("the plan has no steps");
   checkSpeed("travel", plan.travel_speed);

@@ -103,6 +103,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     world.grid.kind = sim::gridKindFromString(opt->grid);
     world.seed = opt->seed;
     ScanJobOptions job;
+    job.run.limits = config.limits;
     job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
     if (opt->plan.empty()) {
       if (opt->laser_only)

@@ -344,6 +344,14 @@ TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
   EXPECT_TRUE(built_in.digitizer_virtual);
   EXPECT_TRUE(file.digitizer_required);
   EXPECT_TRUE(built_in.digitizer_required);
+  EXPECT_EQ(file.cmm_device_time, built_in.cmm_device_time);
+  EXPECT_EQ(file.limits.travel_min, built_in.limits.travel_min);
+  EXPECT_EQ(file.limits.travel_max, built_in.limits.travel_max);
+  EXPECT_EQ(file.limits.min_speed, built_in.limits.min_speed);
+  EXPECT_EQ(file.limits.max_speed, built_in.limits.max_speed);
+  EXPECT_EQ(file.limits.acceleration, built_in.limits.acceleration);
+  EXPECT_NEAR(file.limits.max_tilt, built_in.limits.max_tilt, 1e-12);
+  EXPECT_NEAR(file.limits.max_turn, built_in.limits.max_turn, 1e-12);
 }
 
 }  // namespace

@@ -175,6 +175,22 @@ TEST_F(StationTest, ScanRefusesAPlanBeforeAnythingMoves) {
   EXPECT_NE(r.err.find(plan.string() + ":5: step[1].start must be a list of 3 numbers"), std::string::npos) << r.err;
 }
 
+TEST_F(StationTest, TheCellsMachineLimitsBoundThePlan) {
+  // A cell whose machine is smaller than the built-in plan needs: refused, naming the axis.
+  const fs::path cell = work() / "small.toml";
+  writeFile(cell, "name = \"small cell\"\n[machine]\ntravel_min = [-100, -100, -100]\ntravel_max = [100, 100, 600]\n");
+  RunResult r = run("scan --dry-run --cell " + quote(cell));
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  // The plate stands at x = -250 beside the part.
+  EXPECT_NE(r.out.find("problem     step 1 (stereo calibration_plate 0): pose x = -2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" mm is outside the travel -100..100"), std::string::npos) << r.out;
+  // A malformed [machine] names the file and the key.
+  writeFile(cell, "[machine]\nmax_speed = -5\n");
+  r = run("scan --dry-run --cell " + quote(cell));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("small.toml: [machine] max_speed must be a positive number"), std::string::npos) << r.err;
+}
+
 TEST_F(StationTest, DryRunPrintsTheBuiltInPlan) {
   const RunResult r = run("scan --dry-run --part dome");
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -1,7 +1,9 @@
-// The cell configuration: where each device of the cell is. A TOML file (station/cells/virtual.toml
-// describes the virtual cell and is the default), read with toml++; errors name the file, the key
-// and what is wrong.
+// The cell configuration: where each device of the cell is, and what its machine can do. A TOML
+// file (station/cells/virtual.toml describes the virtual cell and is the default), read with toml++;
+// errors name the file, the key and what is wrong.
 #pragma once
+
+#include "stampscan/acquisition/scan_plan.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -17,6 +19,9 @@ struct CellConfig {
     int port = 0;
   };
   Endpoint cmm{"127.0.0.1", 1294};
+  // The machine's travel, speeds and head angles ([machine]): a plan outside them is refused
+  // before anything moves. The defaults are the virtual CMM's.
+  MachineLimits limits;
   // The CMM stamps its move reports with its own clock (the SS.Time() extension of
   // drivers/cmm/PROTOCOL.md): positions are then timed by the CMM, not by their arrival.
   bool cmm_device_time = false;
