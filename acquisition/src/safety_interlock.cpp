@@ -28,19 +28,25 @@ void SafetyInterlock::State::onPlcEvent(const drivers::plc::PlcEvent& event) {
                     event.kind == PlcEventKind::LightCurtainInterrupted || event.kind == PlcEventKind::InterlockTripped ||
                     event.kind == PlcEventKind::PlcSilent;
   // The driver's words for the operator ("door opened"), its code when it has none.
-  std::string what = event.text.empty() ? drivers::plc::toString(event.kind) : event.text;
-  if (stop) {
-    // abort() is safe from another thread and returns at once; a CMM that is not moving ignores it.
-    try {
-      cmm.abort();
-      what += ": motion aborted";
-    } catch (const std::exception& e) {
-      what += std::string(": abort failed: ") + e.what();
-    }
+  const std::string what = event.text.empty() ? drivers::plc::toString(event.kind) : event.text;
+  std::size_t index = 0;
+  {
+    // Recorded before the CMM is told: a move that ends aborted must find its cause here.
+    std::lock_guard lock(mutex);
+    if (stop) tripped = true;
+    index = events.size();
+    events.push_back({event.when, what});
+  }
+  if (!stop) return;
+  // abort() is safe from another thread and returns at once; a CMM that is not moving ignores it.
+  std::string outcome = ": motion aborted";
+  try {
+    cmm.abort();
+  } catch (const std::exception& e) {
+    outcome = std::string(": abort failed: ") + e.what();
   }
   std::lock_guard lock(mutex);
-  if (stop) tripped = true;
-  events.push_back({event.when, what});
+  events[index].what += outcome;
 }
 
 std::vector<SafetyEvent> SafetyInterlock::events() const {

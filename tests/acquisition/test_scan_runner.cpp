@@ -279,7 +279,7 @@ class ScanRunnerStereoTest : public ScanRunnerTest {
   ScanRunParams stereoParams() const {
     ScanRunParams p = params();
     p.session = sim::describeSession(cell_->options().world);
-    p.frame_timeout = std::chrono::milliseconds(3000);
+    p.frame_timeout = std::chrono::milliseconds(10000);  // rendering is slow under the sanitizers
     return p;
   }
   std::size_t frames() { return sink_.frames(); }
