@@ -292,7 +292,7 @@ TEST_F(ScanRunnerStereoTest, EachViewIsAPairOfFramesOfTheWorld) {
   EXPECT_EQ(r.views_done, 2u);
   EXPECT_EQ(r.views_missing, 0u);
   EXPECT_EQ(r.sweeps_done, 1u);
-  EXPECT_EQ(sink_.frames(), 4u);
+  ASSERT_EQ(sink_.frames(), 4u);
   EXPECT_EQ(sink_.cameraClockPairs(), 4u);
   // The frames are the world's, rendered at the camera's size, not the fake camera's test pattern:
   // the part under a ring light is bright in the middle of the image.
