@@ -94,10 +94,22 @@ void LiveMeasurement::advance(std::size_t step) {
     }
   } else {
     const auto& view = std::get<acquisition::StereoStep>(s);
-    if (view.scene == acquisition::kScenePlate && ++plate_done_ == plan_.stereoCount(acquisition::kScenePlate)) {
+    if (view.scene == acquisition::kScenePlate) ++plate_done_;
+  }
+  // The cameras once every plate view is in and the head has moved on from the last one (the hand-
+  // eye calibration needs the head track to reach past each view); the views are dropped only
+  // once they have given a rig, else finish() tries again with the whole trace.
+  const std::size_t plates = plan_.stereoCount(acquisition::kScenePlate);
+  if (plates > 0 && plate_done_ == plates && !plate_step_passed_) {
+    if (std::holds_alternative<acquisition::StereoStep>(s) && std::get<acquisition::StereoStep>(s).scene == acquisition::kScenePlate) {
+      // this step is the last plate view: wait for the next one
+    } else {
+      plate_step_passed_ = true;
       measurer_.calibrateCameras(mine_);
-      mine_.plate_left.clear();
-      mine_.plate_right.clear();
+      if (measurer_.camerasCalibrated()) {
+        mine_.plate_left.clear();
+        mine_.plate_right.clear();
+      }
     }
   }
   // Part sweeps can be measured once the digitizer is calibrated (a plan without sphere sweeps uses
@@ -147,11 +159,8 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   for (const registration::SweepWindow& w : pending_sweeps_)
     measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));
   pending_sweeps_.clear();
-  if (params_.with_stereo && !measurer_.camerasCalibrated()) {
-    measurer_.calibrateCameras(mine_);
-    if (!measurer_.camerasCalibrated())
-      throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
-  }
+  // Cameras that did not calibrate leave the stereo views out; the laser's elements stand.
+  if (params_.with_stereo && !measurer_.camerasCalibrated()) measurer_.calibrateCameras(mine_);
   part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::kScenePart));
   measureReadyViews();
   return measurer_.finish();

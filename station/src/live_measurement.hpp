@@ -51,6 +51,7 @@ class LiveMeasurement {
   std::size_t part_sweeps_measured_ = 0, part_views_measured_ = 0;
   std::size_t sphere_done_ = 0, plate_done_ = 0, part_sweeps_done_ = 0, part_views_done_ = 0;
   std::vector<registration::SweepWindow> pending_sweeps_;  // ended, not measured yet
+  bool plate_step_passed_ = false;  // the cameras' calibration was tried after the last plate view
 
   std::mutex mutex_;
   std::condition_variable wake_;
