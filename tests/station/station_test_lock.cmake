@@ -5,5 +5,6 @@ set(_served_cell_tests
   StationTest.DevicesFindsTheServedVirtualCell StationTest.ArvToolTalksToTheServedCameras
   StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm
   # `station scan` hosts the virtual cell with its cameras
-  StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly)
+  StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly
+  StationTest.TheLiveTraceOpensInTheReferenceReader StationTest.ScanRefusesAPlanBeforeAnythingMoves)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)
