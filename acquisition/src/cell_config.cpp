@@ -91,6 +91,11 @@ void readLimits(const toml::table& t, const std::string& file, MachineLimits& l)
 
 CellConfig loadCellConfig(const std::filesystem::path& path) {
   const std::string file = path.string();
+  std::error_code error;
+  // Only regular files: a FIFO would block the read forever.
+  if (!std::filesystem::exists(path, error)) throw std::runtime_error(file + ": the cell file does not exist");
+  if (!std::filesystem::is_regular_file(path, error))
+    throw std::runtime_error(file + ": not a regular file (a folder, FIFO or device), not a cell file");
   toml::table t;
   try {
     t = toml::parse_file(file);

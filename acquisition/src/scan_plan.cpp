@@ -269,7 +269,10 @@ ScanPlan parseScanPlan(const std::string& text, const std::string& source) {
 
 ScanPlan loadScanPlan(const std::filesystem::path& file) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw PlanError(file.string() + ": not a readable plan file");
+  if (!std::filesystem::exists(file, ec)) throw PlanError(file.string() + ": the plan file does not exist");
+  // Only regular files: a FIFO would block the read forever.
+  if (!std::filesystem::is_regular_file(file, ec))
+    throw PlanError(file.string() + ": not a regular file (a folder, FIFO or device), not a plan file");
   std::ifstream in(file, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();

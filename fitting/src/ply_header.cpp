@@ -75,7 +75,11 @@ std::string formatNumber(double value) {
 
 std::string readWholeFile(const std::filesystem::path& file) {
   std::error_code error;
-  if (std::filesystem::is_directory(file, error)) throw InputError(file.string(), "", "is a directory, not a file");
+  // Only regular files: a FIFO or a device would block the read or never end.
+  const std::filesystem::file_type type = std::filesystem::status(file, error).type();
+  if (type == std::filesystem::file_type::directory) throw InputError(file.string(), "", "is a directory, not a file");
+  if (type != std::filesystem::file_type::regular && type != std::filesystem::file_type::not_found)
+    throw InputError(file.string(), "", "is not a regular file (a FIFO, socket or device)");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file.string(), "", "cannot open file");
   in.seekg(0, std::ios::end);

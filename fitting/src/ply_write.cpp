@@ -2,18 +2,17 @@
 // temporary file beside the destination, which replaces the destination only once complete.
 #include "stampscan/fitting/ply_io.hpp"
 
+#include "stampscan/fitting/atomic_file.hpp"
+
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <bit>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <chrono>
 #include <cstring>
 #include <fstream>
 #include <limits>
-#include <random>
 #include <string_view>
 #include <system_error>
 #include <vector>
@@ -197,25 +196,6 @@ void writeBody(std::ofstream& out, const Cloud& cloud, const std::vector<Triangl
   encoder.flush();
 }
 
-// A name beside `file` that no other writer, in this process or another, picks at the same time.
-fs::path temporaryPathFor(const fs::path& file) {
-  static std::atomic<std::uint64_t> counter{0};
-  static const std::uint64_t processSalt = [] {
-    std::random_device device;
-    return (std::uint64_t{device()} << 32) ^ device();
-  }();
-  for (int attempt = 0;; ++attempt) {
-    const std::uint64_t tick = static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
-    std::uint64_t mixed = processSalt ^ (tick * 0x9E3779B97F4A7C15ull) ^ (++counter << 48);
-    std::string suffix = ".tmp-";
-    for (int digit = 0; digit < 12; ++digit, mixed >>= 4) suffix += "0123456789abcdef"[mixed & 0xf];
-    fs::path candidate = file;
-    candidate += suffix;
-    std::error_code error;
-    if (!fs::exists(candidate, error) || attempt >= 16) return candidate;
-  }
-}
-
 void writeAtomically(const fs::path& file, const Cloud& cloud, const std::vector<Triangle>& triangles,
                      const PlyWriteOptions& options) {
   // Bad input is refused before any file is touched.
@@ -227,7 +207,8 @@ void writeAtomically(const fs::path& file, const Cloud& cloud, const std::vector
   for (const auto& entry : cloud.scalars) checkScalarName(file, entry.first);
   checkTriangles(file, cloud.size(), triangles);
 
-  const fs::path temporary = temporaryPathFor(file);
+  AtomicFile output(file);
+  const fs::path& temporary = output.temporaryPath();
   try {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) {
@@ -241,14 +222,9 @@ void writeAtomically(const fs::path& file, const Cloud& cloud, const std::vector
     if (!out) throw std::runtime_error("write to " + temporary.string() + " failed (disk full?)");
     out.close();
     if (out.fail()) throw std::runtime_error("closing " + temporary.string() + " failed");
-    std::error_code error;
-    // Atomic on POSIX file systems: readers see the old file or the complete new one, never a part.
     // (Surviving a power cut would also need fsync, which iostreams do not offer.)
-    fs::rename(temporary, file, error);
-    if (error) throw std::runtime_error("renaming the temporary file over it failed: " + error.message());
+    output.commit();
   } catch (const std::exception& e) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
     throw writeError(file, e.what());
   }
 }

@@ -1,5 +1,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 
+#include "stampscan/fitting/atomic_file.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <chrono>
@@ -37,16 +39,7 @@ Eigen::Isometry3d poseFrom(const json& j, const std::string& where) {
   return T;
 }
 
-void writeAtomically(const std::filesystem::path& file, const json& j) {
-  const std::filesystem::path tmp = file.string() + ".partial";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw std::runtime_error(file.string() + ": cannot write");
-    out << j.dump(2) << '\n';
-    if (!out.flush()) throw std::runtime_error(file.string() + ": write failed");
-  }
-  std::filesystem::rename(tmp, file);
-}
+std::string jsonText(const json& j) { return j.dump(2) + "\n"; }
 
 json header(const char* kind, const std::string& created, const std::string& source) {
   return {{"format", kFormat}, {"version", kVersion}, {"kind", kind}, {"created", created}, {"source", source}};
@@ -74,16 +67,18 @@ std::string utcNow() {
   return buf;
 }
 
-void saveDigitizerCalibration(const std::filesystem::path& file, const DigitizerCalibrationFile& c) {
+namespace {
+
+json digitizerJson(const DigitizerCalibrationFile& c) {
   json j = header("digitizer", c.created, c.source);
   j["head_from_digitizer"] = poseJson(c.calibration.head_from_digitizer);
   j["latency_ns"] = c.calibration.latency_ns;
   j["residual_rms_mm"] = c.residual_rms_mm;
   j["points"] = c.points;
-  writeAtomically(file, j);
+  return j;
 }
 
-void saveCameraCalibration(const std::filesystem::path& file, const CameraCalibrationFile& c) {
+json camerasJson(const CameraCalibrationFile& c) {
   json j = header("cameras", c.created, c.source);
   j["left"] = cameraJson(c.stereo.left);
   j["right"] = cameraJson(c.stereo.right);
@@ -93,10 +88,47 @@ void saveCameraCalibration(const std::filesystem::path& file, const CameraCalibr
   j["head_from_left"] = poseJson(c.head_from_left.head_from_camera);
   j["head_from_left_residual_mm"] = c.head_from_left.residual_mm;
   j["head_from_left_residual_deg"] = c.head_from_left.residual_deg;
-  writeAtomically(file, j);
+  return j;
+}
+
+}  // namespace
+
+void saveDigitizerCalibration(const std::filesystem::path& file, const DigitizerCalibrationFile& c) {
+  fitting::writeFileAtomically(file, jsonText(digitizerJson(c)));
+}
+
+void saveCameraCalibration(const std::filesystem::path& file, const CameraCalibrationFile& c) {
+  fitting::writeFileAtomically(file, jsonText(camerasJson(c)));
+}
+
+void saveCalibrationSet(const std::filesystem::path& dir, const DigitizerCalibrationFile* digitizer,
+                        const CameraCalibrationFile* cameras) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (error) throw std::runtime_error(dir.string() + ": cannot create the calibration folder (" + error.message() + ")");
+  const std::filesystem::path digitizer_file = dir / "digitizer.json", cameras_file = dir / "cameras.json";
+  fitting::AtomicFile new_digitizer(digitizer_file), new_cameras(cameras_file);
+  std::vector<fitting::AtomicFile*> written;
+  std::vector<std::filesystem::path> stale;
+  const auto stage = [&](fitting::AtomicFile& file, const json& j) {
+    std::ofstream out(file.temporaryPath(), std::ios::trunc);
+    out << jsonText(j);
+    out.close();
+    if (!out) throw std::runtime_error(file.target().string() + ": cannot be written");
+    written.push_back(&file);
+  };
+  if (digitizer != nullptr) stage(new_digitizer, digitizerJson(*digitizer));
+  else stale.push_back(digitizer_file);
+  if (cameras != nullptr) stage(new_cameras, camerasJson(*cameras));
+  else stale.push_back(cameras_file);
+  fitting::commitTogether(written, stale);
 }
 
 DigitizerCalibrationFile loadDigitizerCalibration(const std::filesystem::path& file) {
+  std::error_code error;
+  // Only regular files: a FIFO would block the read forever.
+  if (std::filesystem::exists(file, error) && !std::filesystem::is_regular_file(file, error))
+    throw std::runtime_error(file.string() + ": not a regular file (a folder, FIFO or device)");
   std::ifstream in(file);
   if (!in) throw std::runtime_error(file.string() + ": cannot open the digitizer calibration");
   const std::string where = file.string();

@@ -1,5 +1,6 @@
 // station: the StampScan command-line program. Every command registers itself from the table in
 // commands.cpp; main only parses and runs the one that was asked for.
+#include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <cstdio>
@@ -7,6 +8,8 @@
 #include <vector>
 
 int main(int argc, char** argv) {
+  // Ctrl-C or a kill during any command leaves no temporary output files behind.
+  stampscan::fitting::removeTemporariesOnSignals();
   CLI::App app{"StampScan: sheet-metal forming inspection: scan, fit, strain map"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "station 0.1.0");

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 
 namespace stampscan::station {
@@ -23,7 +24,7 @@ namespace {
 
 struct ProcessOptions {
   std::string input, output, fit, calibration_dir, save_calibration;
-  bool ascii = false, quiet = false, with_stereo = false;
+  bool ascii = false, quiet = false, with_stereo = false, accept_damaged = false;
 };
 
 void checkFolder(const std::string& file, const char* what) {
@@ -65,6 +66,8 @@ CommandRunner addProcessCommand(CLI::App& app) {
   cmd->add_option("--save-calibration", opt->save_calibration, "Write the calibrations made from the trace to this folder");
   cmd->add_flag("--with-stereo", opt->with_stereo,
                 "Also measure the stereo views (matched on the laser's surface, registered to it by ICP)");
+  cmd->add_flag("--accept-damaged", opt->accept_damaged,
+                "Measure what remains of a damaged or cut trace (without it such a trace is refused, exit 1)");
   cmd->add_flag("--ascii", opt->ascii, "Write ASCII PLY");
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
@@ -87,6 +90,13 @@ CommandRunner addProcessCommand(CLI::App& app) {
           opt->with_stereo);
     }
     printTraceSummary(trace, since());
+    // A result from a trace that lost data would silently miss elements: it takes an explicit choice.
+    if (const std::optional<std::string> loss = stampscan::trace::describeDataLoss(trace.health)) {
+      if (!opt->accept_damaged)
+        throw std::runtime_error(opt->input + " is damaged: " + *loss +
+                                 ". Its result would miss what was lost; pass --accept-damaged to measure what remains");
+      std::printf("  accepted    a damaged trace (--accept-damaged): %s\n", loss->c_str());
+    }
 
     registration::MeasureParams params;
     params.with_stereo = opt->with_stereo;
@@ -108,15 +118,16 @@ CommandRunner addProcessCommand(CLI::App& app) {
       throw std::runtime_error(opt->input + ": " + e.what());
     }
     if (!opt->save_calibration.empty()) {
-      const fs::path dir(opt->save_calibration);
+      std::optional<registration::DigitizerCalibrationFile> digitizer;
+      std::optional<registration::CameraCalibrationFile> cameras;
       if (m.sphere)
-        registration::saveDigitizerCalibration(dir / "digitizer.json", {m.sphere->calibration, m.sphere->rms_mm, m.sphere->inliers,
-                                                                        registration::utcNow(),
-                                                                        opt->input + " (reference-sphere sweeps)"});
+        digitizer = registration::DigitizerCalibrationFile{m.sphere->calibration, m.sphere->rms_mm, m.sphere->inliers,
+                                                           registration::utcNow(), opt->input + " (reference-sphere sweeps)"};
       if (m.stereo)
-        registration::saveCameraCalibration(dir / "cameras.json", {*m.stereo, m.head_from_left.value_or(registration::HandEyeResult{}),
-                                                                   registration::utcNow(),
-                                                                   opt->input + " (calibration-plate views)"});
+        cameras = registration::CameraCalibrationFile{*m.stereo, m.head_from_left.value_or(registration::HandEyeResult{}),
+                                                      registration::utcNow(), opt->input + " (calibration-plate views)"};
+      registration::saveCalibrationSet(opt->save_calibration, digitizer ? &*digitizer : nullptr,
+                                       cameras ? &*cameras : nullptr);
     }
 
     fitting::Cloud cloud = registration::toCloud(m.elements);

@@ -137,8 +137,9 @@ CommandRunner addScanCommand(CLI::App& app) {
     TerminalObserver observer(opt->quiet);
     ScanJob scan(cell, &observer);
     g_stop_signal = 0;
-    std::signal(SIGINT, onStopSignal);
-    std::signal(SIGTERM, onStopSignal);
+    // The scan's own handlers for as long as it runs: an operator abort ends it cleanly.
+    const auto previous_int = std::signal(SIGINT, onStopSignal);
+    const auto previous_term = std::signal(SIGTERM, onStopSignal);
     std::atomic<bool> done{false};
     std::thread watcher([&] {
       while (!done) {
@@ -152,8 +153,8 @@ CommandRunner addScanCommand(CLI::App& app) {
     const auto stop_watcher = [&] {
       done = true;
       watcher.join();
-      std::signal(SIGINT, SIG_DFL);
-      std::signal(SIGTERM, SIG_DFL);
+      std::signal(SIGINT, previous_int);
+      std::signal(SIGTERM, previous_term);
     };
     ScanJobResult r;
     try {

@@ -2,6 +2,7 @@
 
 #include "stampscan/acquisition/trace/mcap_writer.hpp"
 #include "stampscan/acquisition/trace/trace_recorder.hpp"
+#include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/station/fit_runner.hpp"
@@ -44,13 +45,7 @@ fs::path newRunFolder(const fs::path& runs, const std::string& part_id) {
 }
 
 void writeJsonAtomically(const fs::path& file, const nlohmann::json& j) {
-  const fs::path tmp = file.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp);
-    out << j.dump(2) << "\n";
-    if (!out) throw std::runtime_error(file.string() + ": cannot be written");
-  }
-  fs::rename(tmp, file);
+  fitting::writeFileAtomically(file, j.dump(2) + "\n");
 }
 
 nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell, const acquisition::ScanRunResult& r) {

@@ -3,6 +3,7 @@
 // it; optionally write the ground truth of every grid element.
 #include "stampscan/acquisition/trace/mcap_writer.hpp"
 #include "stampscan/acquisition/trace/trace_recorder.hpp"
+#include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/commands.hpp"
@@ -111,30 +112,25 @@ CommandRunner addSimCommand(CLI::App& app) {
     const sim::ScanParams params = paramsFrom(*opt);
     checkOutputFolder(opt->output, "output");
     if (!opt->truth.empty()) checkOutputFolder(opt->truth, "truth");
-    // Written under a temporary name and renamed when complete: a failed run leaves no trace file
-    // that looks whole.
-    const fs::path final_path(opt->output);
-    const fs::path partial = fs::path(opt->output + ".partial");
+    // Written under a temporary name of its own and renamed when complete: a failed or interrupted
+    // run leaves no trace file that looks whole, and two runs to one output never share a file.
+    fitting::AtomicFile output(opt->output);
     const auto start = std::chrono::steady_clock::now();
     sim::ScanSummary summary;
     std::uintmax_t size = 0;
-    try {
+    {
       trace::McapWriterOptions w;
       w.compression = opt->compression == "zstd" ? trace::Compression::Zstd
                       : opt->compression == "lz4" ? trace::Compression::Lz4
                                                   : trace::Compression::None;
-      trace::McapWriter writer(partial, w);
+      trace::McapWriter writer(output.temporaryPath(), w);
       trace::TraceRecorder recorder(writer);
       ProgressBar bar;
       summary = sim::generateScan(params, recorder, [&](double f, std::string_view stage) { bar.update(std::string(stage), f); });
       bar.finish();
       writer.close();
-      size = fs::file_size(partial);
-      fs::rename(partial, final_path);
-    } catch (...) {
-      std::error_code ignored;
-      fs::remove(partial, ignored);
-      throw;
+      size = fs::file_size(output.temporaryPath());
+      output.commit();
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("station sim generate: %s part, %s grid, seed %llu\n", opt->part.c_str(), opt->grid.c_str(),

@@ -81,10 +81,12 @@ class StationTest : public ::testing::Test {
   }
 
   // Runs `station ARGS` (ARGS already quoted as needed) with stdout and stderr captured outside work().
-  RunResult run(const std::string& args) const {
+  // With `timeout_seconds`, the run is killed after that long (exit code 137), so that a hang fails.
+  RunResult run(const std::string& args, int timeout_seconds = 0) const {
     const fs::path out = root_ / "stdout.txt", err = root_ / "stderr.txt";
+    const std::string limit = timeout_seconds > 0 ? "timeout -s KILL " + std::to_string(timeout_seconds) + " " : "";
     const std::string command =
-        quote(std::string(STATION_EXE)) + " " + args + " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
+        limit + quote(std::string(STATION_EXE)) + " " + args + " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
     const int status = std::system(command.c_str());
     RunResult r;
     if (status != -1 && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);

@@ -2,6 +2,8 @@
 // errors of `station fit` (bad input files, bad options, unwritable output) and `station demo`.
 #include "station_test_support.hpp"
 
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -206,6 +208,27 @@ INSTANTIATE_TEST_SUITE_P(Inputs, StationMalformedTest,
                                            MalformedCase{"AsciiNotANumber", asciiNotANumber},
                                            MalformedCase{"HugeVertexCount", hugeVertexCount}),
                          [](const ::testing::TestParamInfo<MalformedCase>& c) { return std::string(c.param.name); });
+
+// A FIFO, a folder or a device given as input is refused at once, naming the file: opening a FIFO
+// for reading would otherwise wait for a writer forever.
+TEST_F(StationTest, InputsThatAreNotRegularFilesAreRefused) {
+  const fs::path fifo = work() / "input.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string f = quote(fifo), out = quote(work() / "out.ply");
+  for (const std::string& args : {"fit " + f + " -o " + out, "fit " + quote(work()) + " -o " + out + " --mesh " + quote(work() / "mesh.ply"),
+                                  "process " + f + " -o " + out, "trace info " + f, "scan --dry-run --cell " + f,
+                                  std::string("scan --dry-run --cell /dev/null"), "scan --dry-run --plan " + f,
+                                  "process " + quote(work() / "missing.mcap") + " -o " + out + " --calibration " + quote(work())}) {
+    // `timeout` guards the test itself: a regression would hang rather than fail.
+    const RunResult r = run(args, 20);
+    EXPECT_TRUE(r.exit_code != 0 && r.exit_code != 137) << args << ": exit " << r.exit_code << ": " << r.out << r.err;
+    const bool named = r.err.find("not a regular file") != std::string::npos || r.err.find("FIFO") != std::string::npos ||
+                       r.err.find("directory") != std::string::npos || r.err.find("folder") != std::string::npos ||
+                       r.err.find("does not exist") != std::string::npos || r.err.find("cannot open") != std::string::npos;
+    EXPECT_TRUE(named) << args << ": " << r.err;
+  }
+  EXPECT_FALSE(fs::exists(work() / "out.ply"));
+}
 
 TEST_F(StationTest, BadBandwidthFails) {
   const fs::path in_file = sample(5000);

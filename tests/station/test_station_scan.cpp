@@ -76,9 +76,17 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
     const auto cut = static_cast<std::size_t>(where(rng) * static_cast<double>(bytes.size()));
     const fs::path cut_trace = work() / "cut.mcap", out = work() / "cut.ply";
     writeFile(cut_trace, bytes.substr(0, cut));
-    const RunResult p = run("process " + quote(cut_trace) + " -o " + quote(out) + " -q");
+    // Without --accept-damaged the cut trace is refused, naming the cut; nothing is written.
+    const RunResult refused = run("process " + quote(cut_trace) + " -o " + quote(out) + " -q");
+    EXPECT_EQ(refused.exit_code, 1) << refused.out << refused.err;
+    EXPECT_NE(refused.err.find("is damaged: the trace is cut at byte " + std::to_string(cut)), std::string::npos)
+        << refused.err;
+    EXPECT_NE(refused.err.find("--accept-damaged"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(out));
+    const RunResult p = run("process " + quote(cut_trace) + " -o " + quote(out) + " -q --accept-damaged");
     ASSERT_EQ(p.exit_code, 0) << "cut at byte " << cut << ": " << p.out << p.err;
     EXPECT_NE(p.out.find("the trace is cut at byte"), std::string::npos) << p.out;
+    EXPECT_NE(p.out.find("accepted    a damaged trace"), std::string::npos) << p.out;
     const Cloud part = fitting::readPly(out);
     EXPECT_GT(part.size(), 0u);
     EXPECT_LE(part.size(), full.size() + 5);

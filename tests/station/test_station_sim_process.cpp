@@ -36,6 +36,53 @@ TEST_F(StationTest, SimGenerateRefusesBadOptionsAndLeavesNothing) {
   EXPECT_TRUE(workEntries().empty());
 }
 
+// Two runs to one output each write under a temporary name of their own: both succeed and the
+// output is one whole trace, never a mixture of the two.
+TEST_F(StationTest, SimGenerateRunsToOneOutputLeaveOneWholeTrace) {
+  const fs::path trace = work() / "shared.mcap";
+  const std::string exe = quote(std::string(STATION_EXE));
+  const std::string one = exe + " sim generate --quick --seed 1 -o " + quote(trace) + " >/dev/null 2>&1; echo $? >";
+  const std::string command = "(" + one + quote(work() / "rc1") + ") & (" + one + quote(work() / "rc2") + ") & wait";
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  EXPECT_EQ(readFile(work() / "rc1"), "0\n");
+  EXPECT_EQ(readFile(work() / "rc2"), "0\n");
+  const RunResult info = run("trace info " + quote(trace));
+  EXPECT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_EQ(workEntries(), (std::vector<std::string>{"rc1", "rc2", "shared.mcap"}));
+}
+
+// Ctrl-C or a kill in the middle of writing leaves neither the output nor a temporary file.
+TEST_F(StationTest, SimGenerateInterruptedLeavesNoFiles) {
+  for (const char* signal_name : {"INT", "TERM"}) {
+    const std::string command = "timeout -s " + std::string(signal_name) + " 1.5 " + quote(std::string(STATION_EXE)) +
+                                " sim generate --seed 3 -o " + quote(work() / "long.mcap") + " >/dev/null 2>&1";
+    const int status = std::system(command.c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    ASSERT_EQ(WEXITSTATUS(status), 124) << "the generator must still be running after 1.5 s for this test";
+    EXPECT_TRUE(workEntries().empty()) << "SIG" << signal_name << " left " << workEntries().front();
+  }
+}
+
+// A trace with a damaged chunk lost messages: its result would miss elements without saying so.
+TEST_F(StationTest, ProcessRefusesADamagedTraceUnlessAccepted) {
+  const fs::path trace = work() / "scan.mcap", out = work() / "cloud4d.ply";
+  ASSERT_EQ(run("sim generate --quick --seed 5 -o " + quote(trace)).exit_code, 0);
+  std::string bytes = readFile(trace);
+  for (std::size_t at = bytes.size() * 6 / 10; at < bytes.size() * 6 / 10 + 64; ++at) bytes[at] = static_cast<char>(bytes[at] ^ 0x5a);
+  const fs::path damaged = work() / "damaged.mcap";
+  writeFile(damaged, bytes);
+  const RunResult refused = run("process " + quote(damaged) + " -o " + quote(out) + " -q");
+  EXPECT_EQ(refused.exit_code, 1) << refused.out << refused.err;
+  EXPECT_NE(refused.err.find("is damaged: "), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("lost (damage at byte"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("--accept-damaged"), std::string::npos) << refused.err;
+  EXPECT_FALSE(fs::exists(out));
+  const RunResult accepted = run("process " + quote(damaged) + " -o " + quote(out) + " -q --accept-damaged");
+  EXPECT_EQ(accepted.exit_code, 0) << accepted.out << accepted.err;
+  EXPECT_NE(accepted.out.find("accepted    a damaged trace"), std::string::npos) << accepted.out;
+  EXPECT_GT(fitting::readPly(out).size(), 0u);
+}
+
 TEST_F(StationTest, ProcessMeasuresASimulatedTraceAgainstItsTruth) {
   const fs::path trace = work() / "dome.mcap", truth = work() / "truth.ply", out = work() / "cloud4d.ply";
   const fs::path calibration = work() / "calibration", fitted = work() / "fitted.ply";

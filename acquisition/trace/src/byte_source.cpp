@@ -12,11 +12,16 @@
 namespace stampscan::trace::detail {
 
 ByteSource::ByteSource(const std::filesystem::path& path) : name_(path.string()) {
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer, forever.
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd_ < 0) throw std::runtime_error(name_ + ": cannot open: " + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
-    const std::string why = S_ISDIR(st.st_mode) ? "is a folder" : std::strerror(errno);
+    const std::string why = S_ISDIR(st.st_mode)    ? "is a folder, not a file"
+                            : S_ISFIFO(st.st_mode) ? "is a FIFO, not a regular file"
+                            : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "is a device, not a regular file"
+                            : S_ISSOCK(st.st_mode) ? "is a socket, not a regular file"
+                                                   : std::strerror(errno);
     ::close(fd_);
     fd_ = -1;
     throw std::runtime_error(name_ + ": cannot read: " + why);

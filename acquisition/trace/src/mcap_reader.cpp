@@ -32,6 +32,45 @@ std::string toString(DamageKind kind) {
   return "damage";
 }
 
+std::optional<std::string> describeDataLoss(const TraceHealth& health) {
+  std::vector<std::string> parts;
+  std::string at;
+  std::size_t data_damage = 0;
+  for (const Damage& d : health.damage) {
+    switch (d.kind) {
+      // Damage to the summary, the footer or an attachment's CRC costs no recorded message.
+      case DamageKind::SummaryCrcMismatch:
+      case DamageKind::BadFooter:
+      case DamageKind::BadSummary:
+      case DamageKind::AttachmentCrcMismatch:
+      case DamageKind::MissingDataEnd:
+      case DamageKind::DataSectionCrcMismatch:
+        continue;
+      default:
+        break;
+    }
+    if (++data_damage <= 4) at += (at.empty() ? "" : ", ") + std::to_string(d.offset);
+  }
+  if (data_damage > 4) at += ", ...";
+  if (health.messages_lost > 0 || health.chunks_damaged > 0 || data_damage > 0) {
+    std::string text;
+    if (health.messages_lost > 0) text = std::to_string(health.messages_lost) + " messages";
+    else text = "an unknown number of messages";
+    if (health.chunks_damaged > 0) text += " in " + std::to_string(health.chunks_damaged) + " damaged chunks";
+    text += " lost (damage at byte" + std::string(data_damage > 1 ? "s " : " ") + at + ")";
+    parts.push_back(text);
+  }
+  if (health.not_mcap) parts.push_back("the file is not an MCAP trace");
+  if (health.truncated && !health.data_end_found) {
+    parts.push_back("the trace is cut at byte " + std::to_string(health.truncated->file_size) +
+                    ", before its data section ends: whatever was recorded after the cut is missing");
+  }
+  if (parts.empty()) return std::nullopt;
+  std::string line = parts.front();
+  for (std::size_t i = 1; i < parts.size(); ++i) line += "; " + parts[i];
+  return line;
+}
+
 struct McapReader::Impl {
   explicit Impl(const std::filesystem::path& path) : source(path) {}
   Impl(std::span<const std::byte> bytes, std::string name) : source(bytes, std::move(name)) {}

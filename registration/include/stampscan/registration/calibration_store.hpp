@@ -36,6 +36,12 @@ std::string utcNow();  // ISO 8601, seconds
 // Writes atomically (temporary file, then rename). Throws naming the file on failure.
 void saveDigitizerCalibration(const std::filesystem::path& file, const DigitizerCalibrationFile& c);
 void saveCameraCalibration(const std::filesystem::path& file, const CameraCalibrationFile& c);
+// The calibrations one source gave, written into `dir` as one set: digitizer.json and/or
+// cameras.json replace the set that was there as a whole (a file the new set lacks is removed, so
+// no new digitizer.json ends up beside an old cameras.json), and an interrupted write leaves the
+// old set. Creates `dir` when missing. Throws naming the file on failure.
+void saveCalibrationSet(const std::filesystem::path& dir, const DigitizerCalibrationFile* digitizer,
+                        const CameraCalibrationFile* cameras);
 // Throws std::runtime_error naming the file and the field that is missing or malformed.
 DigitizerCalibrationFile loadDigitizerCalibration(const std::filesystem::path& file);
 

@@ -141,6 +141,13 @@ struct TraceHealth {
   }
 };
 
+// What a damaged or cut trace cost in recorded data, in one line ("412 messages in 2 damaged chunks
+// (bytes 1048576, 3145728); the trace is cut at byte 5000000, before its data section ends"), or
+// nothing when every recorded message was read: damage confined to the summary, or a cut after the
+// data section, loses no data. Commands refuse to report a result from a trace that lost data
+// unless told to accept it.
+std::optional<std::string> describeDataLoss(const TraceHealth& health);
+
 struct Summary {
   Header header;
   Footer footer;
