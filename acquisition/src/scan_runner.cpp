@@ -490,7 +490,13 @@ struct ScanRunner::Impl {
           motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
           at = sweep.end;
           const std::uint64_t lost = dev.digitizer.counters().lost_profiles - lost_at_start;
-          if (lost <= params.max_lost_profiles_per_sweep || attempt > 0) break;
+          if (lost <= params.max_lost_profiles_per_sweep) break;
+          if (attempt > 0) {
+            // Repeated once and still over the limit: kept, and the loss is reported with the result.
+            ++result.sweeps_over_loss_limit;
+            if (observer) observer->safetyEvent(sweep_label + ": " + std::to_string(lost) + " profiles lost again; kept");
+            break;
+          }
           event("sweep_discarded", sweep_label);
           if (observer) observer->safetyEvent(sweep_label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
           ++result.sweeps_repeated;

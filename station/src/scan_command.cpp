@@ -21,7 +21,7 @@ namespace {
 
 struct ScanOptions {
   std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs";
-  bool dry_run = false, whole_part = false, laser_only = false, quiet = false;
+  bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false;
   std::uint64_t seed = 1;
 };
 
@@ -92,6 +92,8 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
   cmd->add_flag("--dry-run", opt->dry_run, "Check the plan against the cell and print it; nothing moves");
+  cmd->add_flag("--accept-damaged", opt->accept_damaged,
+                "Exit 0 even when the scan lost data (missing stereo views, sweeps over the profile-loss limit)");
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
@@ -173,6 +175,14 @@ CommandRunner addScanCommand(CLI::App& app) {
                   static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                   static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
     std::printf("  results     %s\n", r.run_dir.c_str());
+    if (r.data_loss) {
+      if (!opt->accept_damaged) {
+        std::fprintf(stderr, "station: error: the scan lost data: %s. The results lack those elements (run.json says "
+                             "so); scan again, or pass --accept-damaged to accept such a result\n", r.data_loss->c_str());
+        return 1;
+      }
+      std::printf("  accepted    an incomplete scan (--accept-damaged): %s\n", r.data_loss->c_str());
+    }
     return 0;
   };
 }

@@ -60,6 +60,7 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
                                   {"profiles", r.profiles},
                                   {"lost_profiles", r.lost_profiles},
                                   {"sweeps_repeated", r.sweeps_repeated},
+                                  {"sweeps_over_loss_limit", r.sweeps_over_loss_limit},
                                   {"stereo_views", r.views_done},
                                   {"stereo_views_missing", r.views_missing},
                                   {"positions", r.positions}}}};
@@ -243,8 +244,20 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                           {"strain_rms", result.accuracy->strain_rms},
                           {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
   }
+  result.data_loss = dataLoss(result.run);
+  record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
   writeJsonAtomically(result.run_dir / "run.json", record);
   return result;
+}
+
+std::optional<std::string> dataLoss(const acquisition::ScanRunResult& r) {
+  std::string text;
+  const auto add = [&text](const std::string& part) { text += (text.empty() ? "" : "; ") + part; };
+  if (r.views_missing > 0) add(std::to_string(r.views_missing) + " stereo views missing (no frames from a camera)");
+  if (r.sweeps_over_loss_limit > 0)
+    add(std::to_string(r.sweeps_over_loss_limit) + " sweeps lost more digitizer profiles than allowed even when repeated");
+  if (text.empty()) return std::nullopt;
+  return text;
 }
 
 }  // namespace stampscan::station

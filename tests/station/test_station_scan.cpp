@@ -7,6 +7,7 @@
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/station/scan_job.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -60,6 +61,7 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   EXPECT_EQ(j.at("accuracy").at("matched"), j.at("measurement").at("elements"));
   EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.05);
   EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.005);
+  EXPECT_TRUE(j.at("data_loss").is_null()) << j.dump(2);
   // The latency found on the sphere is the virtual digitizer's own, to within 0.3 ms.
   EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
               j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);
@@ -98,6 +100,21 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
     }
     EXPECT_GE(same, part.size() * 95 / 100) << "cut at byte " << cut;
   }
+}
+
+// A scan that did not record all its plan asked for says what it lacks (run.json and the exit code
+// follow it); a complete one has nothing to say.
+TEST(ScanDataLoss, NamesWhatTheScanDidNotRecord) {
+  acquisition::ScanRunResult r;
+  r.completed = true;
+  r.lost_profiles = 7;  // within the per-sweep limit: the sweeps were kept whole enough
+  EXPECT_FALSE(dataLoss(r).has_value());
+  r.views_missing = 2;
+  r.sweeps_over_loss_limit = 1;
+  const std::optional<std::string> loss = dataLoss(r);
+  ASSERT_TRUE(loss.has_value());
+  EXPECT_NE(loss->find("2 stereo views missing"), std::string::npos) << *loss;
+  EXPECT_NE(loss->find("1 sweeps lost more digitizer profiles"), std::string::npos) << *loss;
 }
 
 TEST_F(StationTest, TheLiveTraceOpensInTheReferenceReader) {

@@ -100,6 +100,7 @@ struct ScanRunResult {
   std::string abort_reason;  // when not completed
   std::size_t steps_done = 0, sweeps_done = 0, views_done = 0, views_missing = 0;
   std::size_t sweeps_repeated = 0;  // run again after losing profiles
+  std::size_t sweeps_over_loss_limit = 0;  // lost too many profiles even when repeated: kept as they are
   std::uint64_t profiles = 0, lost_profiles = 0, positions = 0, plc_states = 0;
   double wall_seconds = 0;    // from the first motion to parked
   double motion_seconds = 0;  // what the plan needs (motionSeconds), for comparison

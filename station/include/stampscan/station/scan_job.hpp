@@ -55,7 +55,13 @@ struct ScanJobResult {
   registration::DigitizerCalibration digitizer;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
+  // What the scan did not record that the plan asked for (missing views, sweeps over the loss
+  // limit): the result lacks elements there. Also in run.json as "data_loss".
+  std::optional<std::string> data_loss;
 };
+
+// The data a finished run lacks, in one line, or nothing when it recorded all the plan asked for.
+std::optional<std::string> dataLoss(const acquisition::ScanRunResult& r);
 
 class ScanJobObserver : public acquisition::ScanObserver, public registration::MeasureObserver {
  public:
