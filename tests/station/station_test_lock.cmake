@@ -3,6 +3,7 @@
 # so they take the same lock (see tests/drivers/camera/camera_test_lock.cmake).
 set(_served_cell_tests
   StationTest.DevicesFindsTheServedVirtualCell StationTest.ArvToolTalksToTheServedCameras
+  StationTest.AFaultInOneServedDeviceLeavesTheOthersRunning
   StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm
   # `station scan` hosts the virtual cell with its cameras
   StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly

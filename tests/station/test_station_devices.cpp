@@ -94,6 +94,7 @@ class ServedCell {
   }
 
   fs::path log() const { return dir_ / "serve.txt"; }
+  pid_t pid() const { return pid_; }
 
  private:
   fs::path cell_, dir_;
@@ -178,6 +179,35 @@ class LineClient {
   int fd_ = -1;
   std::string pending_;
 };
+
+// Each served device runs in a process of its own: one that crashes (here: killed by SIGSEGV, as
+// the fake camera once was by a hostile datagram) leaves the others answering and is started again.
+TEST_F(StationTest, AFaultInOneServedDeviceLeavesTheOthersRunning) {
+  const int port = basePort();
+  const fs::path cell = cellFile(work(), port, port + 1, kVirtualDigitizer);
+  ServedCell served(cell, work());
+  ASSERT_NO_FATAL_FAILURE(served.start());
+  const ToolRun children = runTool("pgrep -P " + std::to_string(served.pid()));
+  std::vector<pid_t> pids;
+  std::istringstream list(children.output);
+  for (long pid = 0; list >> pid;) pids.push_back(static_cast<pid_t>(pid));
+  ASSERT_EQ(pids.size(), 3u) << "one process per device (cmm, plc, cameras): " << children.output;
+  for (std::size_t k = 0; k < pids.size(); ++k) {
+    ASSERT_EQ(::kill(pids[k], SIGSEGV), 0);
+    RunResult r;
+    for (int attempt = 0; attempt < 40; ++attempt) {  // until the device is served again
+      r = run("devices --cell " + quote(cell));
+      if (r.exit_code == 0) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+    EXPECT_EQ(r.exit_code, 0) << "after killing device process " << k << ":\n" << r.out << r.err << readFile(served.log());
+  }
+  const std::string log = readFile(served.log());
+  std::size_t restarts = 0;
+  for (std::size_t at = 0; (at = log.find("serving again", at)) != std::string::npos; ++at) ++restarts;
+  EXPECT_EQ(restarts, 3u) << log;
+  EXPECT_NE(log.find("stopped unexpectedly (killed by signal 11"), std::string::npos) << log;
+}
 
 TEST_F(StationTest, DevicesFindsTheServedVirtualCell) {
   const int port = basePort();

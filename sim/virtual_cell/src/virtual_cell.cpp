@@ -64,7 +64,7 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
   const CameraIntrinsics& in = renderer.intrinsics();
   // The image the camera is set to must be the size its optics are simulated at.
   if (static_cast<int>(request.width) != in.width || static_cast<int>(request.height) != in.height) return false;
-  const VirtualCmmStatus st = cmm_->status();
+  const VirtualCmmStatus st = options_.head_status ? options_.head_status() : cmm_->status();
   const HeadState head{Vec3(st.position[0], st.position[1], st.position[2]), st.head_a, st.head_b, 0};
   const Eigen::Isometry3d machine_from_camera = head.pose() * (camera == 0 ? truth_.head_from_left : truth_.head_from_right);
   CameraSensor sensor = options_.world.camera_sensor;
@@ -80,8 +80,8 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
 VirtualCell::~VirtualCell() { stop(); }
 
 void VirtualCell::start() {
-  cmm_->start();
-  plc_->start();
+  if (options_.serve_cmm) cmm_->start();
+  if (options_.serve_plc) plc_->start();
   for (auto& camera : cameras_) {
     const LoopbackStatus lo = VirtualCamera::ensureLoopbackAddress(camera->options().address);
     if (!lo.ok) throw std::runtime_error("virtual camera " + camera->options().serial + ": " + lo.reason);

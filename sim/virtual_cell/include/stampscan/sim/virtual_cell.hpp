@@ -24,6 +24,7 @@
 
 #include <Eigen/Geometry>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,6 +44,13 @@ struct VirtualCellOptions {
   bool cameras = false;
   std::string left_address = "127.0.0.1", left_serial = "STAMPSCAN-LEFT";
   std::string right_address = "127.0.0.2", right_serial = "STAMPSCAN-RIGHT";
+
+  // Which servers start() starts. `station sim serve` runs each device in a process of its own, so
+  // that a fault in one cannot take the others down; each process builds the same world.
+  bool serve_cmm = true, serve_plc = true;
+  // Where the cameras read the head's pose when the CMM is served by another process (empty: from
+  // this object's CMM). Position in mm, head_a/head_b in radians, as VirtualCmmStatus has them.
+  std::function<VirtualCmmStatus()> head_status;
 };
 
 class VirtualCell {
