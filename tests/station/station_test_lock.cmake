@@ -4,6 +4,11 @@
 set(_served_cell_tests
   StationTest.DevicesFindsTheServedVirtualCell StationTest.ArvToolTalksToTheServedCameras
   StationTest.AFaultInOneServedDeviceLeavesTheOthersRunning
+  # the network probes, when no private network namespace can be made
+  NetworkProbe.HostileAndRandomGvcpDatagramsLeaveTheCellAnswering
+  NetworkProbe.RandomModbusFramesAndIppLinesLeaveTheCellAnswering
+  NetworkProbe.IdleConnectionsAndASlowReaderAreLetGo
+  NetworkProbe.ServersShortOfFileDescriptorsBackOffAndRecover
   StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm
   # `station scan` hosts the virtual cell with its cameras
   StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly

@@ -9,7 +9,6 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
 #include <array>
@@ -62,17 +61,18 @@ int connectSocket(const std::string& host, std::uint16_t port, std::chrono::mill
       }
     }
     if (error != 0) {
-      failure = errnoText(error);
+      failure = error == ETIMEDOUT ? "the CMM does not answer (no connection within " + std::to_string(timeout.count()) + " ms)"
+                                   : errnoText(error);
       ::close(s);
       continue;
     }
-    ::fcntl(s, F_SETFL, flags);
+    ::fcntl(s, F_SETFL, flags);  // blocking for the reader; writeAll() sends with MSG_DONTWAIT
     const int on = 1;  // lines are short and each waits for an answer: no Nagle delay
     ::setsockopt(s, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
     fd = s;
   }
   ::freeaddrinfo(found);
-  if (fd < 0) throw std::runtime_error(where + ": cannot connect: " + failure);
+  if (fd < 0) throw std::runtime_error("cannot connect to the CMM at " + where + ": " + failure);
   return fd;
 }
 
@@ -81,11 +81,6 @@ int connectSocket(const std::string& host, std::uint16_t port, std::chrono::mill
 IppChannel::IppChannel(const std::string& host, std::uint16_t port, std::chrono::milliseconds connect_timeout,
                        std::chrono::milliseconds ack_wait, Callbacks callbacks)
     : fd_(connectSocket(host, port, connect_timeout)), ack_wait_(ack_wait), callbacks_(std::move(callbacks)) {
-  // A server that stops reading must not block a sender for ever.
-  timeval send_timeout{};
-  send_timeout.tv_sec = static_cast<time_t>(ack_wait.count() / 1000);
-  send_timeout.tv_usec = static_cast<suseconds_t>((ack_wait.count() % 1000) * 1000);
-  ::setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof(send_timeout));
   reader_ = std::thread([this] { readLoop(); });
 }
 
@@ -135,12 +130,24 @@ ipp::Tag IppChannel::allocateTag(bool event) {
 }
 
 bool IppChannel::writeAll(const std::string& bytes) {
+  // One deadline for the whole line: a server that stops reading, or reads a byte at a time, must not
+  // hold a sender for ever (a per-call SO_SNDTIMEO would restart with every byte taken).
+  const auto deadline = std::chrono::steady_clock::now() + ack_wait_;
   std::size_t sent = 0;
   while (sent < bytes.size()) {
-    const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+    const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n > 0) {
+      sent += static_cast<std::size_t>(n);
+      continue;
+    }
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return false;
-    sent += static_cast<std::size_t>(n);
+    if (n == 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) return false;
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd_, POLLOUT, 0};
+    if (left.count() <= 0 || ::poll(&p, 1, static_cast<int>(left.count())) == 0) {
+      errno = ETIMEDOUT;
+      return false;
+    }
   }
   return true;
 }
@@ -166,7 +173,10 @@ std::shared_ptr<Transaction> IppChannel::send(const std::string& name, std::vect
     pending_[transaction->tag] = transaction;
     if (daemon) daemons_[transaction->tag] = std::move(daemon);
   }
-  if (!writeAll(ipp::frameLine(transaction->line))) markLost("cannot send to the CMM: " + errnoText(errno));
+  if (!writeAll(ipp::frameLine(transaction->line))) {
+    markLost(errno == ETIMEDOUT ? "the CMM took no command for " + std::to_string(ack_wait_.count()) + " ms"
+                                : "cannot send to the CMM: " + errnoText(errno));
+  }
   return transaction;
 }
 
@@ -212,7 +222,13 @@ void IppChannel::readLoop() {
     const ssize_t n = ::recv(fd_, buffer.data(), buffer.size(), 0);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      markLost(n == 0 ? "the CMM closed the connection" : "connection to the CMM failed: " + errnoText(errno));
+      std::string why = n == 0 ? "the CMM closed the connection" : "connection to the CMM failed: " + errnoText(errno);
+      {
+        // A server that refuses or drops a client says why on E0000 just before (§6.2.4.1).
+        std::lock_guard lock(mutex_);
+        if (!last_server_error_.empty()) why += " after reporting " + last_server_error_;
+      }
+      markLost(why);
       return;
     }
     framer.append(std::string_view(buffer.data(), static_cast<std::size_t>(n)));
@@ -251,6 +267,7 @@ void IppChannel::dispatch(const ipp::Reply& reply) {
       changed_.notify_all();
     } else if (reply.tag.isServerEvent()) {
       handler = callbacks_.unsolicited;
+      if (reply.kind == ipp::ReplyKind::Error) last_server_error_ = ipp::describe(reply.error);
     } else {
       ++dropped_;  // the answer to a transaction that timed out, or a stopped daemon's last report
     }

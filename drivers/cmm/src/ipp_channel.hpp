@@ -91,6 +91,7 @@ class IppChannel {
   bool closing_ = false;
   std::string lost_reason_;
   std::uint64_t dropped_ = 0;
+  std::string last_server_error_;  // the last error on E0000, for the reason of a lost connection
 
   std::mutex send_mutex_;  // one line at a time on the socket
 };

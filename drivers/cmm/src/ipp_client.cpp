@@ -144,10 +144,13 @@ IppCmm::Result IppCmm::transact(const Request& request) {
     case WaitResult::Complete: break;
     case WaitResult::Timeout:
       markUnresponsive();
-      throw fault("timeout", "no answer to \"" + transaction->line + "\" within " + milliseconds(limit));
+      throw fault("timeout", "no answer from the CMM at " + options_.host + ":" + std::to_string(options_.port) +
+                                 " to \"" + transaction->line + "\" within " + milliseconds(limit));
     case WaitResult::Lost:
       // The reader thread has recorded the "disconnected" fault (unless we closed on purpose).
-      throw DeviceError(name(), "disconnected", "connection lost during \"" + transaction->line + "\": " + link->lostReason());
+      throw DeviceError(name(), "disconnected", "connection to the CMM at " + options_.host + ":" +
+                                                    std::to_string(options_.port) + " lost during \"" +
+                                                    transaction->line + "\": " + link->lostReason());
   }
   Result result;
   result.aborts_before = aborts_before;

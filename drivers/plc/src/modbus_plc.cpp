@@ -125,6 +125,7 @@ const ModbusPlcOptions& validated(const ModbusPlcOptions& options, const std::st
   if (options.unit_id < 0 || options.unit_id > 255)
     refuse("unit id " + std::to_string(options.unit_id) + " outside 0..255");
   if (options.response_timeout < milliseconds(1)) refuse("response_timeout below 1 ms");
+  if (options.connect_timeout < milliseconds(1)) refuse("connect_timeout below 1 ms");
   if (options.poll_period < milliseconds(1)) refuse("poll_period below 1 ms");
   if (options.silence_limit < milliseconds(1)) refuse("silence_limit below 1 ms");
   return options;
@@ -268,13 +269,14 @@ void ModbusPlc::connectDevice() {
   {
     std::lock_guard lock(impl_->api_mutex);
     impl_->api = std::make_unique<detail::ModbusClient>(options_.host, options_.port,
-                                                        options_.unit_id, options_.response_timeout);
+                                                        options_.unit_id, options_.response_timeout,
+                                                        options_.connect_timeout);
     impl_->api_lost = false;
     try {
       impl_->api->ensureConnected();
     } catch (const detail::ModbusFailure& failure) {
       impl_->api.reset();
-      throw fault(failure.code(), "cannot connect to " + endpoint() + ": " + failure.what());
+      throw fault(failure.code(), std::string(failure.what()) + " (unit " + std::to_string(options_.unit_id) + ")");
     }
   }
   if (options_.plc_watchdog_timeout_ms)
@@ -370,7 +372,7 @@ void ModbusPlc::noteInputs(const PlcInputs& in) {
 void ModbusPlc::watchdogLoop() {
   // This thread's own context and connection (see the class comment).
   detail::ModbusClient client(options_.host, options_.port, options_.unit_id,
-                              options_.response_timeout);
+                              options_.response_timeout, options_.connect_timeout);
   Clock::time_point last_answer = Clock::now();
   bool silent = false;
   bool lost = false;
@@ -385,6 +387,9 @@ void ModbusPlc::watchdogLoop() {
       client.setResponseTimeout(std::chrono::duration_cast<std::chrono::microseconds>(
           silent ? Clock::duration(options_.response_timeout)
                  : std::clamp<Clock::duration>(left, milliseconds(1), options_.response_timeout)));
+      client.setConnectTimeout(silent ? options_.connect_timeout
+                                      : std::clamp(std::chrono::ceil<milliseconds>(left), milliseconds(1),
+                                                   options_.connect_timeout));
       if (client.ensureConnected() && lost) {
         lost = false;
         pending.push_back(recordEvent(PlcEventKind::Reconnected,

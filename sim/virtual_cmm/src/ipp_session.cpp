@@ -18,6 +18,15 @@ constexpr auto kDistancePollStep = 20ms;   // how often a Dis(d) daemon looks at
 constexpr std::size_t kMaxQueued = 64;    // commands acknowledged but not yet started
 constexpr const char* kLineMethod = "CommandLine";  // F3 for errors found before a command was known
 constexpr const char* kDeviceTimeItem = "SS.Time";   // our extension of §9.1 (PROTOCOL.md)
+// The particulars kept for GetErrorInfo: enough to name the culprit. A detail may quote a client's
+// line of up to 64 KiB, and the answer must stay within the line limit of §6.2 (kMaxLineLength).
+constexpr std::size_t kMaxErrorDetail = 1000;
+
+std::string shortened(std::string text, std::size_t limit) {
+  if (text.size() <= limit) return text;
+  text.resize(limit - 3);
+  return text + "...";
+}
 
 // What OnMoveReportE can report (§6.3.2.7): the six axes (§6.3.8 for the head's) and our clock.
 bool isReportItem(const ipp::Argument& a) {
@@ -87,6 +96,12 @@ bool IppSession::errorState() const {
   return error_state_;
 }
 
+std::optional<Clock::time_point> IppSession::idleSince() const {
+  std::lock_guard lock(mutex_);
+  if (executing_ || !queue_.empty()) return std::nullopt;
+  return last_done_;
+}
+
 void IppSession::send(const ipp::Reply& reply) {
   std::string line;
   try {
@@ -94,12 +109,23 @@ void IppSession::send(const ipp::Reply& reply) {
   } catch (const std::invalid_argument& e) {  // a server bug, but the client must still hear something
     line = ipp::formatReply(ipp::Reply::errorLine(reply.tag, ipp::makeError(error::kErrorProcessingMethod, kLineMethod)));
   }
+  if (line.size() > ipp::kMaxLineLength) {
+    // §6.2 limits every line, ours too: a data response that would be longer (a Get naming one axis
+    // thousands of times) is answered with an error instead.
+    const ipp::ErrorReport report = ipp::makeError(error::kErrorProcessingMethod, kLineMethod);
+    {
+      std::lock_guard lock(mutex_);
+      recordError(report, "the response would be " + std::to_string(line.size()) + " characters, over the limit of " +
+                              std::to_string(ipp::kMaxLineLength) + " (6.2)");
+    }
+    line = ipp::formatReply(ipp::Reply::errorLine(reply.tag, report));
+  }
   sink_(line);
 }
 
 void IppSession::recordError(const ipp::ErrorReport& report, const std::string& detail) {
   errors_.push_back(report);
-  error_info_[report.number] = ipp::sanitizeText(detail);
+  error_info_[report.number] = shortened(ipp::sanitizeText(detail), kMaxErrorDetail);
   if (!ipp::needsClearAllErrors(report.severity)) return;
   // §6.2.5: class 2 and above abort all pending transactions.
   error_state_ = true;
@@ -316,6 +342,7 @@ void IppSession::executorLoop() {
     execute(pending);
     std::lock_guard lock(mutex_);
     executing_ = false;
+    last_done_ = Clock::now();
     idle_.notify_all();
   }
 }

@@ -71,6 +71,9 @@ class IppSession {
 
   bool sessionActive() const;
   bool errorState() const;
+  // When the last command finished (or the session began); nothing while a command is queued or
+  // runs. The server's idle timeout counts from here, so a long move is never taken for idleness.
+  std::optional<Clock::time_point> idleSince() const;
 
  private:
   struct Pending {
@@ -152,6 +155,7 @@ class IppSession {
   std::deque<Pending> queue_;
   std::set<ipp::Tag> in_flight_;    // queued or executing (§6.2.1: unique while processed)
   bool executing_ = false;
+  Clock::time_point last_done_ = Clock::now();  // idleSince()
   bool abort_requested_ = false;
   bool closing_ = false;
 

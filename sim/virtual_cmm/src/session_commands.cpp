@@ -149,6 +149,9 @@ void IppSession::getErrorInfo(const ipp::Command& c, Responder& out) {
     std::lock_guard lock(mutex_);
     if (const auto it = error_info_.find(number); it != error_info_.end()) text += ": " + it->second;
   }
+  // Within the line limit of §6.2 whatever was recorded: `TAG # "text"` adds 10 characters.
+  constexpr std::size_t kMaxText = ipp::kMaxLineLength - 10;
+  if (text.size() > kMaxText) text = text.substr(0, kMaxText - 3) + "...";
   out.data({ipp::Argument::str(ipp::sanitizeText(text))});
 }
 

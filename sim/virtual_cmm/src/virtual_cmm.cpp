@@ -1,9 +1,11 @@
-// The virtual CMM's TCP side: listen, serve one connection at a time (§9.2, §9.3), frame lines, and
-// the fault injection hooks. What the lines mean is IppSession's business.
+// The virtual CMM's TCP side: listen, serve one connection at a time (§9.2, §9.3) with an idle
+// timeout, hold or refuse a second client, frame lines, send each whole or close, and the fault
+// injection hooks. What the lines mean is IppSession's business.
 #include "stampscan/sim/virtual_cmm.hpp"
 
 #include "cmm_machine.hpp"
 #include "ipp_session.hpp"
+#include "stampscan/drivers/cmm/ipp_errors.hpp"
 
 #include <netdb.h>
 #include <netinet/in.h>
@@ -11,9 +13,9 @@
 #include <poll.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -21,6 +23,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 
 namespace stampscan::sim {
 
@@ -31,7 +34,14 @@ struct VirtualCmm::Impl {
 
   void run();
   void serve(int fd);
-  bool waitReadable(int fd);  // false when stop() was called
+  // accept4() on the listening socket; -1 when nothing was accepted. Out of descriptors it pauses
+  // the listening socket for kAcceptBackoff rather than let poll() wake it again at once.
+  int acceptOne();
+  bool listenPaused() const { return detail::Clock::now() < listen_paused_until; }
+  // Tells a second client why it is not served, then closes it.
+  void refuse(int fd);
+  // Sends one framed line whole before `deadline`; false when it could not (the caller closes).
+  static bool sendWhole(int fd, const std::string& framed, detail::Clock::time_point deadline);
 
   detail::CmmMachine machine;
   detail::FaultInjection faults;
@@ -43,12 +53,37 @@ struct VirtualCmm::Impl {
   std::uint16_t port = 0;
   int connection_fd = -1;
   std::size_t connections = 0;
+  std::size_t refused = 0;
+  std::size_t idle_disconnects = 0;
+  std::size_t slow_reader_disconnects = 0;
   const detail::IppSession* active_session = nullptr;  // while a connection is served, for status()
   std::thread thread;
+
+  // Serving thread only.
+  int waiting_fd = -1;  // a second client, accepted while another is served
+  detail::Clock::time_point waiting_deadline;
+  detail::Clock::time_point listen_paused_until;
 };
 
 namespace {
 std::string errnoText() { return std::strerror(errno); }
+
+using detail::Clock;
+
+// Out of descriptors (EMFILE, ENFILE) or kernel memory, accept() fails while the connection stays
+// queued, so poll() reports the listening socket readable again at once: without a pause the loop
+// would spin at full CPU until a descriptor is freed.
+constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);
+
+bool outOfResources(int error) { return error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM; }
+
+// poll() timeout in milliseconds until `deadline`, rounded up so that the wake-up is not early;
+// -1 (no timeout) for time_point::max().
+int pollTimeout(Clock::time_point deadline) {
+  if (deadline == Clock::time_point::max()) return -1;
+  const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
+  return static_cast<int>(std::clamp<long long>(left, 0, 60'000));
+}
 }  // namespace
 
 VirtualCmm::VirtualCmm(VirtualCmmConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {}
@@ -106,6 +141,7 @@ void VirtualCmm::stop() {
   const std::uint64_t one = 1;
   [[maybe_unused]] const ssize_t written = ::write(m.wake_fd, &one, sizeof(one));
   m.thread.join();
+  if (m.waiting_fd >= 0) ::close(std::exchange(m.waiting_fd, -1));
   std::lock_guard lock(m.mutex);
   ::close(m.listen_fd);
   ::close(m.wake_fd);
@@ -131,6 +167,9 @@ VirtualCmmStatus VirtualCmm::statusAt(std::chrono::steady_clock::time_point when
   std::lock_guard lock(m.mutex);
   s.connected = m.connection_fd >= 0;
   s.connections_served = m.connections;
+  s.connections_refused = m.refused;
+  s.idle_disconnects = m.idle_disconnects;
+  s.slow_reader_disconnects = m.slow_reader_disconnects;
   if (m.active_session != nullptr) {
     s.session_active = m.active_session->sessionActive();
     s.error_state = m.active_session->errorState();
@@ -150,45 +189,88 @@ void VirtualCmm::dropConnection() {
 
 void VirtualCmm::setSilent(bool silent) { impl_->silent = silent; }
 
-bool VirtualCmm::Impl::waitReadable(int fd) {
-  for (;;) {
-    std::array<pollfd, 2> fds{{{fd, POLLIN, 0}, {wake_fd, POLLIN, 0}}};
-    if (::poll(fds.data(), fds.size(), -1) < 0) {
-      if (errno == EINTR) continue;
-      return false;
-    }
-    if (fds[1].revents != 0) return false;
-    if (fds[0].revents != 0) return true;
-  }
+int VirtualCmm::Impl::acceptOne() {
+  const int fd = ::accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
+  if (fd < 0 && outOfResources(errno)) listen_paused_until = Clock::now() + kAcceptBackoff;
+  return fd;  // other failures (a client that gave up meanwhile) need no pause
 }
 
 void VirtualCmm::Impl::run() {
-  while (waitReadable(listen_fd)) {
-    const int fd = ::accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
-    if (fd >= 0) serve(fd);  // the next client waits in the listen queue meanwhile (§9.3)
+  for (;;) {
+    int fd = std::exchange(waiting_fd, -1);
+    while (fd < 0) {
+      // Only the wake-up descriptor while the listening socket is paused (acceptOne()).
+      std::array<pollfd, 2> fds{{{wake_fd, POLLIN, 0}, {listen_fd, POLLIN, 0}}};
+      const bool paused = listenPaused();
+      if (::poll(fds.data(), paused ? 1 : 2, paused ? pollTimeout(listen_paused_until) : -1) < 0 && errno != EINTR) {
+        return;
+      }
+      if (fds[0].revents != 0) return;  // stop()
+      if (!paused && fds[1].revents != 0) fd = acceptOne();
+    }
+    serve(fd);
   }
+}
+
+void VirtualCmm::Impl::refuse(int fd) {
+  {
+    std::lock_guard lock(mutex);  // counted first: the client may look at status() once it is told
+    ++refused;
+  }
+  // One line on a fresh socket fits its empty send buffer: MSG_DONTWAIT cannot cut it.
+  const std::string line = ipp::frameLine(ipp::formatReply(ipp::Reply::errorLine(
+      ipp::Tag::serverEvent(), ipp::makeError(ipp::error::kErrorProcessingMethod, "Connect"))));
+  [[maybe_unused]] const ssize_t sent = ::send(fd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  // Read what the client sent meanwhile (a StartSession, typically): closing a socket with unread
+  // data resets the connection, and a reset may discard the refusal before the client reads it.
+  std::array<char, 4096> discard{};
+  while (::recv(fd, discard.data(), discard.size(), MSG_DONTWAIT) > 0) {
+  }
+  ::close(fd);
+}
+
+bool VirtualCmm::Impl::sendWhole(int fd, const std::string& framed, Clock::time_point deadline) {
+  for (std::size_t sent = 0; sent < framed.size();) {
+    const ssize_t n = ::send(fd, framed.data() + sent, framed.size() - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n > 0) {
+      sent += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n == 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) return false;  // the connection broke
+    pollfd p{fd, POLLOUT, 0};
+    const int timeout = pollTimeout(deadline);
+    if (timeout == 0) return false;  // a client that reads this slowly is not served any more
+    if (::poll(&p, 1, timeout) < 0 && errno != EINTR) return false;
+  }
+  return true;
 }
 
 void VirtualCmm::Impl::serve(int fd) {
   const int on = 1;
   ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
-  timeval send_timeout{2, 0};  // a client that stops reading must not wedge the server
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof(send_timeout));
   {
     std::lock_guard lock(mutex);
     connection_fd = fd;
     ++connections;
   }
+  const VirtualCmmConfig& config = machine.config();
   std::mutex write_mutex;
-  const auto sink = [this, fd, &write_mutex](const std::string& line) {
+  bool broken = false;  // a line missed its deadline: nothing more is sent, the connection closes
+  const auto sink = [this, fd, &write_mutex, &broken, &config](const std::string& line) {
     if (silent) return;
     const std::string framed = ipp::frameLine(line);
     std::lock_guard lock(write_mutex);
-    for (std::size_t sent = 0; sent < framed.size();) {
-      const ssize_t n = ::send(fd, framed.data() + sent, framed.size() - sent, MSG_NOSIGNAL);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) return;  // the reader sees the broken connection and ends the session
-      sent += static_cast<std::size_t>(n);
+    if (broken) return;
+    if (!sendWhole(fd, framed, Clock::now() + config.send_timeout)) {
+      // Never a line cut short and run into the next one: at most this line's start, then the end
+      // of the stream. The reader sees end of file and ends the session.
+      broken = true;
+      {
+        std::lock_guard count(mutex);
+        ++slow_reader_disconnects;
+      }
+      ::shutdown(fd, SHUT_RDWR);
     }
   };
   {
@@ -199,10 +281,46 @@ void VirtualCmm::Impl::serve(int fd) {
     }
     ipp::LineFramer framer;
     std::array<char, 4096> buffer{};
-    while (waitReadable(fd)) {
+    Clock::time_point last_received = Clock::now();
+    for (;;) {
+      // Idle: nothing received and no command running since idle_from; a running command defers
+      // the check (the session's idleSince() restarts the count when it finishes).
+      const std::optional<Clock::time_point> done = session.idleSince();
+      const Clock::time_point now = Clock::now();
+      const Clock::time_point idle_deadline =
+          done ? std::max(last_received, *done) + config.idle_timeout : now + config.idle_timeout;
+      if (done && now >= idle_deadline) {
+        std::lock_guard lock(mutex);
+        ++idle_disconnects;
+        break;
+      }
+      if (waiting_fd >= 0 && now >= waiting_deadline) refuse(std::exchange(waiting_fd, -1));
+      Clock::time_point wake = idle_deadline;
+      if (waiting_fd >= 0) wake = std::min(wake, waiting_deadline);
+      const bool paused = listenPaused();
+      if (paused) wake = std::min(wake, listen_paused_until);
+
+      std::array<pollfd, 3> fds{{{fd, POLLIN, 0}, {wake_fd, POLLIN, 0}, {listen_fd, POLLIN, 0}}};
+      if (::poll(fds.data(), paused ? 2 : 3, pollTimeout(wake)) < 0) {
+        if (errno == EINTR) continue;
+        break;
+      }
+      if (fds[1].revents != 0) break;  // stop()
+      if (!paused && fds[2].revents != 0) {
+        if (const int next = acceptOne(); next >= 0) {
+          if (waiting_fd >= 0) {
+            refuse(next);  // one client waits at most; more would only wait to be refused
+          } else {
+            waiting_fd = next;
+            waiting_deadline = Clock::now() + config.second_client_wait;
+          }
+        }
+      }
+      if (fds[0].revents == 0) continue;
       const ssize_t n = ::recv(fd, buffer.data(), buffer.size(), 0);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) break;
+      last_received = Clock::now();
       framer.append(std::string_view(buffer.data(), static_cast<std::size_t>(n)));
       while (std::optional<ipp::LineFramer::Line> line = framer.next()) session.onLine(*line);
     }

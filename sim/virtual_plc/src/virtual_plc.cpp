@@ -5,8 +5,10 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -15,12 +17,14 @@
 #include <list>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <thread>
 #include <vector>
 
 #include <modbus.h>
 
+#include "modbus_frame.hpp"
 #include "plc_logic.hpp"
 
 namespace stampscan::sim {
@@ -54,6 +58,7 @@ struct VirtualPlc::Impl {
   std::atomic<bool> silent{false};
   std::atomic<std::int64_t> reply_delay_ms{0};
   std::atomic<std::uint64_t> requests_answered{0};
+  std::atomic<std::uint64_t> connections_refused{0};
 
   mutable std::mutex lifecycle_mutex;  // start/stop, running, port
   bool running = false;
@@ -84,33 +89,118 @@ struct VirtualPlc::Impl {
 
   void acceptLoop(const VirtualPlcOptions& options);
   void serve(Connection& connection, const VirtualPlcOptions& options);
+  // Answers one framed request; false when the connection must close.
+  bool handle(modbus_t* context, int fd, const std::vector<std::uint8_t>& adu, const VirtualPlcOptions& options);
+  std::size_t openConnections() const;
   void cycleLoop(std::chrono::milliseconds period);
   void reapFinished();
 };
 
-void VirtualPlc::Impl::acceptLoop(const VirtualPlcOptions& options) {
+namespace {
+
+// Out of descriptors (EMFILE, ENFILE) or kernel memory, accept() fails while the connection stays
+// queued, so poll() reports the listening socket readable again at once: without a pause the loop
+// would spin at full CPU until a descriptor is freed.
+constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);
+
+bool outOfResources(int error) { return error == EMFILE || error == ENFILE || error == ENOBUFS || error == ENOMEM; }
+
+// poll() timeout in milliseconds until `deadline`, rounded up so that the wake-up is not early.
+int pollTimeout(Clock::time_point deadline) {
+  const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
+  return static_cast<int>(std::clamp<long long>(left, 0, 60'000));
+}
+
+// Waits until `fd` can take a reply; false when it cannot within `limit` or stop() came.
+bool waitWritable(int fd, int wake_fd, std::chrono::milliseconds limit) {
+  const Clock::time_point deadline = Clock::now() + limit;
   for (;;) {
-    std::array<pollfd, 2> fds{{{listen_fd, POLLIN, 0}, {wake_pipe[0], POLLIN, 0}}};
-    if (::poll(fds.data(), fds.size(), -1) < 0) {
+    std::array<pollfd, 2> fds{{{fd, POLLOUT, 0}, {wake_fd, POLLIN, 0}}};
+    const int ready = ::poll(fds.data(), fds.size(), pollTimeout(deadline));
+    if (ready < 0 && errno == EINTR) continue;
+    if (ready <= 0 || fds[1].revents != 0) return false;
+    return (fds[0].revents & POLLOUT) != 0;
+  }
+}
+
+}  // namespace
+
+std::size_t VirtualPlc::Impl::openConnections() const {
+  std::lock_guard lock(connections_mutex);
+  std::size_t open = 0;
+  for (const Connection& connection : connections) open += connection.finished ? 0 : 1;
+  return open;
+}
+
+void VirtualPlc::Impl::acceptLoop(const VirtualPlcOptions& options) {
+  Clock::time_point paused_until;
+  for (;;) {
+    // While paused (out of descriptors), only the stop signal is watched, with a timeout.
+    const bool paused = Clock::now() < paused_until;
+    std::array<pollfd, 2> fds{{{wake_pipe[0], POLLIN, 0}, {listen_fd, POLLIN, 0}}};
+    if (::poll(fds.data(), paused ? 1 : 2, paused ? pollTimeout(paused_until) : -1) < 0) {
       if (errno == EINTR) continue;
       return;
     }
-    if (fds[1].revents != 0) return;
+    if (fds[0].revents != 0) return;
+    if (paused || fds[1].revents == 0) continue;
     const int fd = ::accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC);
-    if (fd < 0) continue;  // the client gave up meanwhile, or a transient shortage: keep serving
+    if (fd < 0) {
+      if (outOfResources(errno)) paused_until = Clock::now() + kAcceptBackoff;
+      continue;  // otherwise the client gave up meanwhile: keep serving
+    }
+    reapFinished();
+    if (openConnections() >= options.max_connections) {
+      ::close(fd);  // refused at once: the client fails fast rather than waiting unserved
+      ++connections_refused;
+      continue;
+    }
     // Replies are small single writes; without this, Nagle and delayed ACKs add up to 40 ms.
     const int on = 1;
     ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
-    reapFinished();
+    // A backstop for libmodbus's blocking send: handle() waits for room first (waitWritable).
+    timeval send_limit{};
+    send_limit.tv_sec = static_cast<time_t>(options.send_timeout.count() / 1000);
+    send_limit.tv_usec = static_cast<suseconds_t>((options.send_timeout.count() % 1000) * 1000);
+    ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_limit, sizeof send_limit);
     std::lock_guard lock(connections_mutex);
     Connection& connection = connections.emplace_back(Connection{fd, {}, false});
     connection.thread = std::thread([this, &connection, &options] { serve(connection, options); });
   }
 }
 
+bool VirtualPlc::Impl::handle(modbus_t* context, int fd, const std::vector<std::uint8_t>& adu,
+                              const VirtualPlcOptions& options) {
+  const detail::RequestVerdict verdict = detail::checkRequest(adu, options.unit_id);
+  if (verdict.action == detail::RequestAction::Drop) return true;
+  if (silent) return true;
+  const std::chrono::milliseconds delay(reply_delay_ms.load());
+  if (delay.count() > 0 && waitForStop(delay)) return false;
+  // Room for the reply first, without the image's lock: a client that does not read its replies
+  // must not hold up the other connections or the logic cycle.
+  if (!waitWritable(fd, wake_pipe[0], options.send_timeout)) return false;
+  if (verdict.action == detail::RequestAction::Refuse) {
+    const std::vector<std::uint8_t> reply = detail::exceptionResponse(adu, verdict.exception_code);
+    // A reply of 9 bytes into a writable socket goes out whole.
+    if (::send(fd, reply.data(), reply.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(reply.size())) return false;
+    ++requests_answered;
+    return true;
+  }
+  std::lock_guard lock(image_mutex);
+  const Clock::time_point now = Clock::now();
+  logic->evaluate(now);  // the reply shows the state as of now (the watchdog may have expired)
+  const int sent = modbus_reply(context, adu.data(), static_cast<int>(adu.size()), image);
+  logic->evaluate(now);  // a write takes effect before anyone can read it back
+  if (sent < 0) return false;
+  ++requests_answered;
+  return true;
+}
+
 void VirtualPlc::Impl::serve(Connection& connection, const VirtualPlcOptions& options) {
   // One libmodbus context per connection thread: contexts are not thread-safe. The context only
-  // frames requests and replies on the accepted socket; its address is never used to connect.
+  // builds replies on the accepted socket; its address is never used to connect. Requests are read
+  // and framed here rather than by modbus_receive(), which waits for the rest of a begun frame
+  // without a limit and answers any unit id.
   modbus_t* context = modbus_new_tcp(options.address.c_str(), options.port);
   int fd = -1;
   {
@@ -119,26 +209,46 @@ void VirtualPlc::Impl::serve(Connection& connection, const VirtualPlcOptions& op
   }
   if (context != nullptr) {
     modbus_set_socket(context, fd);
-    std::array<std::uint8_t, MODBUS_TCP_MAX_ADU_LENGTH> query{};
-    for (;;) {
+    // Before some exception replies modbus_reply() sleeps for the response timeout (to flush a
+    // serial line), holding the register image: with the default 0.5 s, one bad request would stall
+    // every connection. A microsecond keeps the behaviour without the stall.
+    modbus_set_response_timeout(context, 0, 1);
+    detail::ModbusTcpFramer framer;
+    std::array<std::uint8_t, 1024> buffer{};
+    Clock::time_point last_request = Clock::now();
+    std::optional<Clock::time_point> partial_since;  // a request has begun but not ended
+    bool open = true;
+    while (open) {
+      const Clock::time_point deadline =
+          partial_since ? *partial_since + options.request_timeout : last_request + options.idle_timeout;
       std::array<pollfd, 2> fds{{{fd, POLLIN, 0}, {wake_pipe[0], POLLIN, 0}}};
-      if (::poll(fds.data(), fds.size(), -1) < 0) {
+      const int ready = ::poll(fds.data(), fds.size(), pollTimeout(deadline));
+      if (ready < 0) {
         if (errno == EINTR) continue;
         break;
       }
       if (fds[1].revents != 0) break;
-      const int length = modbus_receive(context, query.data());
-      if (length < 0) break;   // closed by the client or by dropConnections(), or a broken frame
-      if (length == 0) continue;  // a request for another unit
-      if (silent) continue;
-      const std::chrono::milliseconds delay(reply_delay_ms.load());
-      if (delay.count() > 0 && waitForStop(delay)) break;
-      std::lock_guard lock(image_mutex);
-      const Clock::time_point now = Clock::now();
-      logic->evaluate(now);  // the reply shows the state as of now (the watchdog may have expired)
-      const int sent = modbus_reply(context, query.data(), length, image);
-      logic->evaluate(now);  // a write takes effect before anyone can read it back
-      if (sent >= 0) ++requests_answered;
+      if (ready == 0) {
+        if (Clock::now() >= deadline) break;  // idle, or a request that never completed
+        continue;
+      }
+      const ssize_t n = ::recv(fd, buffer.data(), buffer.size(), 0);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;  // closed by the client or by dropConnections()
+      framer.append(std::span<const std::uint8_t>(buffer.data(), static_cast<std::size_t>(n)));
+      while (open) {
+        const std::optional<std::vector<std::uint8_t>> adu = framer.next();
+        if (!adu) break;
+        last_request = Clock::now();
+        partial_since.reset();
+        open = handle(context, fd, *adu, options);
+      }
+      if (framer.broken()) break;  // a length no ADU can have: the stream cannot be framed any more
+      if (framer.pendingBytes() == 0) {
+        partial_since.reset();
+      } else if (!partial_since) {
+        partial_since = Clock::now();
+      }
     }
     modbus_free(context);  // frees the context only; the socket is closed below
   }
@@ -304,13 +414,10 @@ void VirtualPlc::dropConnections() {
     if (connection.fd >= 0) ::shutdown(connection.fd, SHUT_RDWR);
 }
 
-std::size_t VirtualPlc::connectionCount() const {
-  std::lock_guard lock(impl_->connections_mutex);
-  std::size_t open = 0;
-  for (const Connection& connection : impl_->connections) open += connection.finished ? 0 : 1;
-  return open;
-}
+std::size_t VirtualPlc::connectionCount() const { return impl_->openConnections(); }
 
 std::uint64_t VirtualPlc::requestsAnswered() const { return impl_->requests_answered; }
+
+std::uint64_t VirtualPlc::connectionsRefused() const { return impl_->connections_refused; }
 
 }  // namespace stampscan::sim

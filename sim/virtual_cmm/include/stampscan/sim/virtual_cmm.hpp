@@ -2,8 +2,16 @@
 // behind it. The station's CMM driver talks to it exactly as to a real controller
 // (drivers/cmm/PROTOCOL.md lists the subset served).
 //
-// - One connection at a time (§9.3): the next client waits in the listen queue until the current one
-//   disconnects. The machine (position, homed, active tool) outlives connections, as a real one does.
+// - One connection at a time (§9.3). A second client waits up to second_client_wait for the current
+//   one to hang up, then is served; otherwise it is refused with one line, `E0000 ! Error(3, 0511,
+//   "Connect", "Error processing method")`, and closed, rather than left hanging. A client that sends
+//   nothing for idle_timeout while none of its commands runs is disconnected, so that a vanished
+//   station cannot hold the machine for ever. The machine (position, homed, active tool) outlives
+//   connections, as a real one does.
+// - A response line goes out whole within send_timeout or the connection is closed: a client that
+//   does not read never receives a line cut short and run into the next one.
+// - When the process runs out of file descriptors, the server backs off and accepts again later
+//   instead of spinning.
 // - Moves (Home, GoTo) are straight lines with trapezoidal speed profiles (trapezoid_move.hpp) run in
 //   real time, so AbortE during a move stops the machine where it is, and OnMoveReportE daemons
 //   report the position while it moves.
@@ -61,6 +69,17 @@ struct VirtualCmmConfig {
   std::string initial_tool = "RefTool";
   double tool_change_seconds = 0.2;
   std::string machine_class = "CartCMM";  // GetMachineClass() (§6.3.2.8)
+
+  // Connection handling. The spec sets no idle limit (§6.3.1.2 even lets a client idle after
+  // EndSession); a station keeps its session open through a scan, idle for seconds between moves and
+  // for minutes while the operator loads a part, and a running move (however long) is not idleness.
+  // Five minutes frees the machine from a station that vanished without closing its connection.
+  std::chrono::milliseconds idle_timeout{std::chrono::minutes(5)};
+  // How long one response line may take to go out to a client that reads slowly.
+  std::chrono::milliseconds send_timeout{std::chrono::seconds(5)};
+  // How long a second client waits for the current one to hang up before it is refused. Long enough
+  // for a station that reconnects (the old session's teardown takes milliseconds).
+  std::chrono::milliseconds second_client_wait{std::chrono::seconds(2)};
 };
 
 struct VirtualCmmStatus {
@@ -74,7 +93,10 @@ struct VirtualCmmStatus {
   bool session_active = false;
   bool error_state = false;     // waiting for ClearAllErrors()
   std::string active_tool;
-  std::size_t connections_served = 0;  // connections accepted so far
+  std::size_t connections_served = 0;  // connections served so far
+  std::size_t connections_refused = 0;  // second clients refused while another was served
+  std::size_t idle_disconnects = 0;     // connections closed after idle_timeout
+  std::size_t slow_reader_disconnects = 0;  // connections closed because a line missed send_timeout
   std::size_t moves_completed = 0;
   std::size_t moves_aborted = 0;
 };

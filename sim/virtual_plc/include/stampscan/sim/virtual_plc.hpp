@@ -13,6 +13,10 @@
 // Threads: one accepting connections, one per connection (each with its own libmodbus context, since
 // contexts are not thread-safe), one for the logic cycle. All of them share the register image under
 // one mutex. Every public method is thread-safe. The destructor stops and joins them all.
+//
+// Nothing on the network can stop it or hold it: connections are capped (max_connections), idle ones
+// closed (idle_timeout), a request must arrive whole (request_timeout) and its reply leave
+// (send_timeout); out of file descriptors, the acceptor backs off instead of spinning.
 #pragma once
 
 #include <chrono>
@@ -34,6 +38,23 @@ struct VirtualPlcOptions {
   // The logic cycle: heartbeat watchdog, plc_heartbeat counter. Input changes made through this
   // class and requests from clients are acted on at once, not at the next cycle.
   std::chrono::milliseconds cycle{10};
+
+  // The unit id served (the cell config's plc.unit_id); 0xFF, "the device itself" on TCP, is
+  // served too. Other units get exception 0x0B, other protocol ids no answer (src/modbus_frame.hpp).
+  std::uint8_t unit_id = 1;
+  // Connections. The station's watchdog polls every 100 ms; its request connection may rest between
+  // calls and reconnects on its own when it finds itself closed. A minute frees a connection thread
+  // whose client vanished without closing.
+  std::chrono::milliseconds idle_timeout{std::chrono::seconds(60)};
+  // A request that has begun must be complete within this, or the connection is closed (a client
+  // that dribbles bytes cannot hold a connection thread).
+  std::chrono::milliseconds request_timeout{std::chrono::seconds(2)};
+  // A reply must find room in the socket within this, or the connection is closed (a client that
+  // sends requests but never reads the replies).
+  std::chrono::milliseconds send_timeout{std::chrono::seconds(2)};
+  // Open connections at most; one more is accepted and closed at once, so that its client fails
+  // fast instead of waiting in the listen queue. The station uses two.
+  std::size_t max_connections = 16;
 };
 
 class VirtualPlc {
@@ -91,7 +112,8 @@ class VirtualPlc {
   void dropConnections();
 
   std::size_t connectionCount() const;
-  std::uint64_t requestsAnswered() const;
+  std::uint64_t requestsAnswered() const;  // exception responses included
+  std::uint64_t connectionsRefused() const;  // over max_connections
 
  private:
   struct Impl;

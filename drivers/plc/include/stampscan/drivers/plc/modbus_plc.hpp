@@ -31,8 +31,13 @@ struct ModbusPlcOptions {
   std::string host = "127.0.0.1";
   int port = kDefaultTcpPort;
   int unit_id = 1;
-  // How long one Modbus request may wait for its reply before it fails with fault "timeout".
+  // How long one Modbus request may take, from sending it to the last byte of its reply, before it
+  // fails with fault "timeout". A whole-request bound: a device that dribbles its reply byte by byte
+  // cannot stretch it (libmodbus alone bounds each byte, not the reply).
   std::chrono::milliseconds response_timeout{500};
+  // How long establishing the TCP connection may take before it fails with fault "timeout" ("PLC
+  // at ... does not answer").
+  std::chrono::milliseconds connect_timeout{2000};
   // Run the watchdog thread after connect: heartbeat write + state read every poll_period, change
   // events, and "plc-silent" when the PLC has not answered for silence_limit.
   bool watchdog = true;
@@ -99,8 +104,10 @@ class ModbusPlc : public Device {
   ~ModbusPlc() override;
 
   // Reads discrete inputs and input registers (two requests). Throws DeviceError: "timeout" when
-  // the PLC does not reply within response_timeout, "disconnected" when it cannot be reached (one
-  // reconnect is tried first), "protocol" on an exception reply or a malformed frame.
+  // the PLC does not reply within response_timeout (or does not accept a connection within
+  // connect_timeout), "disconnected" when it cannot be reached (one reconnect is tried first),
+  // "protocol" on an exception reply or a malformed frame. Every call is bounded: at most two
+  // connects and two attempts of its requests, each within its timeout.
   PlcInputs readInputs();
   PlcOutputs readOutputs();
   void writeOutputs(const PlcOutputs& outputs);  // all coils in one request
