@@ -93,5 +93,41 @@ TEST(FuzzCorpusReplay, McapReader) {
   RecordProperty("cases", static_cast<int>(cases));
 }
 
+// Network input. The session runs each command (moves take milliseconds), so fewer cases here.
+TEST(FuzzCorpusReplay, IppServerLines) {
+  const std::vector<std::string> seeds = loadSeeds("ipp_server");
+  ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/ipp_server";
+  const std::size_t cases = replay(&fuzzIppServer, seeds, seeds, 300, 20240504);
+  EXPECT_GT(cases, 1000u);
+  RecordProperty("cases", static_cast<int>(cases));
+}
+
+TEST(FuzzCorpusReplay, IppClientReplies) {
+  const std::vector<std::string> seeds = loadSeeds("ipp_client");
+  ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/ipp_client";
+  std::vector<std::string> donors = seeds;
+  for (const std::string& commands : loadSeeds("ipp_server")) donors.push_back(commands);
+  const std::size_t cases = replay(&fuzzIppClient, seeds, donors, 3000, 20240505);
+  EXPECT_GT(cases, 3000u);
+  RecordProperty("cases", static_cast<int>(cases));
+}
+
+TEST(FuzzCorpusReplay, ModbusRequests) {
+  const std::vector<std::string> seeds = loadSeeds("modbus");
+  ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/modbus";
+  const std::size_t cases = replay(&fuzzModbus, seeds, seeds, 1000, 20240506);
+  EXPECT_GT(cases, 9000u);
+  RecordProperty("cases", static_cast<int>(cases));
+}
+
+// Each case builds a fresh camera model (cheap: a few microseconds).
+TEST(FuzzCorpusReplay, GvcpRequests) {
+  const std::vector<std::string> seeds = loadSeeds("gvcp");
+  ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/gvcp";
+  const std::size_t cases = replay(&fuzzGvcp, seeds, seeds, 4000, 20240507);
+  EXPECT_GT(cases, 20000u);
+  RecordProperty("cases", static_cast<int>(cases));
+}
+
 }  // namespace
 }  // namespace stampscan::fuzz

@@ -23,6 +23,11 @@ std::string Error::message() const {
   return error_ != nullptr && error_->message != nullptr ? std::string(error_->message) : std::string();
 }
 
+bool Error::isAccessDenied() const {
+  return error_ != nullptr && error_->domain == ARV_DEVICE_ERROR &&
+         error_->code == ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED;
+}
+
 unsigned long connectControlLost(ArvDevice* device, void (*on_lost)(ArvDevice*, void*), void* user) {
   return g_signal_connect(device, "control-lost", G_CALLBACK(on_lost), user);
 }
@@ -35,6 +40,20 @@ void setPacketResend(ArvStream* stream, bool enabled) {
   if (!ARV_IS_GV_STREAM(stream)) return;
   g_object_set(stream, "packet-resend",
                enabled ? ARV_GV_STREAM_PACKET_RESEND_ALWAYS : ARV_GV_STREAM_PACKET_RESEND_NEVER, NULL);
+}
+
+bool holdsControl(ArvCamera* camera) {
+  ArvDevice* device = arv_camera_get_device(camera);
+  return !ARV_IS_GV_DEVICE(device) || arv_gv_device_is_controller(ARV_GV_DEVICE(device));
+}
+
+bool readControlPrivilege(ArvCamera* camera, std::uint32_t* value) {
+  guint32 ccp = 0;
+  GError* error = nullptr;
+  const bool ok = arv_device_read_register(arv_camera_get_device(camera), 0x0A00, &ccp, &error) && error == nullptr;
+  if (error != nullptr) g_error_free(error);
+  *value = ccp;
+  return ok;
 }
 
 std::string findDeviceIdBySerial(const std::string& serial, std::string* address_out) {

@@ -5,6 +5,7 @@
 
 #include <arv.h>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -26,6 +27,8 @@ class Error {
   GError** out() { return &error_; }
   explicit operator bool() const { return error_ != nullptr; }
   std::string message() const;
+  // The camera answered with GEV_STATUS_ACCESS_DENIED (another application holds control).
+  bool isAccessDenied() const;
   void clear();
 
  private:
@@ -40,6 +43,13 @@ void disconnectSignal(ArvDevice* device, unsigned long handler);
 // Resends make no sense against a device that ignores them (the fake camera) and are the
 // device's business on a real one; the option lets the caller choose.
 void setPacketResend(ArvStream* stream, bool enabled);
+
+// GigE Vision control channel privilege (CCP, bootstrap register 0x0A00). Aravis writes CCP when it
+// opens a GigE Vision camera and carries on without control when the camera refuses.
+// True when Aravis holds control of `camera`, or when the camera is no GigE Vision device.
+bool holdsControl(ArvCamera* camera);
+// Reads CCP (any application may); false when the camera does not answer.
+bool readControlPrivilege(ArvCamera* camera, std::uint32_t* value);
 
 // Runs Aravis' global device discovery under a process-wide lock (the device list is global).
 std::string findDeviceIdBySerial(const std::string& serial, std::string* address_out);

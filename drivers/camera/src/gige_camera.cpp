@@ -102,6 +102,13 @@ void GigECamera::Impl::openLocked() {
     throw fail("identity", "camera at '" + id + "' has serial '" + got_serial + "', expected '" +
                                       want_serial + "'");
   }
+  // Another application holding control (a second station, a vendor tool) would otherwise show as
+  // a string of write timeouts or refusals in configure(); say so at once, naming the camera.
+  if (const std::string problem = controlProblemLocked(cam.get(), got_serial, found_address.empty() ? id : found_address,
+                                                       false);
+      !problem.empty()) {
+    throw fail("controlled", problem);
+  }
   closeLocked();
   camera = std::move(cam);
   serial = got_serial;
@@ -109,6 +116,30 @@ void GigECamera::Impl::openLocked() {
   control_lost = false;
   lost_handler = glue::connectControlLost(arv_camera_get_device(camera.get()), &onControlLost, this);
   if (config) applyConfigLocked(*config);
+}
+
+std::string GigECamera::Impl::controlProblemLocked(ArvCamera* cam, const std::string& serial_text,
+                                                   const std::string& where, bool confirm_by_write) {
+  const std::string who = "camera " + serial_text + " at " + where;
+  if (!glue::holdsControl(cam)) {
+    std::uint32_t ccp = 0;
+    // CCP bits 0 (exclusive) and 1 (control): someone holds the camera.
+    if (glue::readControlPrivilege(cam, &ccp) && (ccp & 0x3) != 0) {
+      return who + " is controlled by another application (CCP held)";
+    }
+    return who + " refused the control channel privilege (CCP write failed)";
+  }
+  if (confirm_by_write && arv_camera_is_gv_device(cam)) {
+    ArvDevice* device = arv_camera_get_device(cam);
+    guint32 timeout = 0;
+    glue::Error e;
+    // Heartbeat timeout (bootstrap 0x0938), written back unchanged: only the controller may write.
+    if (arv_device_read_register(device, 0x0938, &timeout, e.out()) && !e &&
+        !arv_device_write_register(device, 0x0938, timeout, e.out()) && e.isAccessDenied()) {
+      return who + " is controlled by another application (CCP held)";
+    }
+  }
+  return {};
 }
 
 void GigECamera::Impl::closeLocked() noexcept {
@@ -192,6 +223,11 @@ DeviceIdentity GigECamera::identifyDevice() {
 
 void GigECamera::checkDevice() {
   if (impl_->control_lost || !impl_->probeDevice()) throw fault("disconnected", "the camera does not answer GVCP");
+  std::lock_guard lock(impl_->camera_mutex);
+  if (!impl_->camera) return;
+  const std::string problem = impl_->controlProblemLocked(
+      impl_->camera.get(), impl_->serial, impl_->address.empty() ? options_.address : impl_->address, true);
+  if (!problem.empty()) throw fault("controlled", problem);
 }
 
 bool GigECamera::Impl::probeDevice() {

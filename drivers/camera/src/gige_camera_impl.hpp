@@ -31,6 +31,13 @@ struct GigECamera::Impl {
   // DeviceError. Caller holds camera_mutex.
   void openLocked();
   void closeLocked() noexcept;
+  // Empty when this process holds the camera's control channel privilege (CCP); otherwise what to
+  // tell the operator ("camera S at A is controlled by another application (CCP held)"). With
+  // `confirm_by_write`, control is also proven by writing the heartbeat timeout back (as Pylon's
+  // heartbeat does), which a camera refuses once another application has taken control over.
+  // Caller holds camera_mutex.
+  std::string controlProblemLocked(ArvCamera* cam, const std::string& serial_text, const std::string& where,
+                                   bool confirm_by_write);
   void applyConfigLocked(const CameraConfig& c);
   int64_t stationNow() const;
 

@@ -9,5 +9,9 @@ set(_camera_tests
   CameraStream.FullResolutionFrameRate
   CameraFaults.IncompleteFramesAreCountedNotDelivered CameraFaults.DisappearingCameraIsReportedAndReconnected
   CameraFaults.ExplicitReconnectRestoresTheConfiguration
-  StereoCameras.SoftwareTriggeredPairs)
+  StereoCameras.SoftwareTriggeredPairs
+  CameraHardening.HostileRequestsGetTheirErrorStatusAndTheCameraStreamsOn
+  CameraHardening.RandomAndMutatedDatagramsLeaveBothCamerasAnsweringAndStreaming
+  CameraHardening.ListensOnLoopbackOnly CameraHardening.SecondControllerIsReportedQuickly
+  CameraHardening.AnAbandonedControllerLosesTheCameraAfterItsHeartbeatTimeout)
 set_tests_properties(${_camera_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

@@ -1,18 +1,22 @@
-// A virtual GigE Vision camera of the cell: an Aravis fake camera (ArvGvFakeCamera) run in this
-// process, serving GVCP on UDP 3956 and GVSP of one loopback address. The station reaches it
-// through the same GigECamera driver as the real cameras; only the address/serial differ.
-// The virtual cell has "left" on 127.0.0.1 and "right" on 127.0.0.2 (ARCHITECTURE.md).
+// A virtual GigE Vision camera of the cell, run in this process: Aravis' camera model
+// (ArvFakeCamera: registers, GenICam XML, frame timing, trigger, image filling) behind our own
+// GVCP/GVSP server on one loopback address. The station reaches it through the same GigECamera
+// driver as the real cameras; only the address/serial differ. The virtual cell has "left" on
+// 127.0.0.1 and "right" on 127.0.0.2 (ARCHITECTURE.md).
 //
-// Network: Aravis picks the fake camera's interface by address (arv_network_get_interface_by_
-// address, then by name), so both cameras live on `lo`, each bound to its own address; the second
+// Network: GVCP is served on ADDRESS:3956 only, plus broadcast discovery on a socket bound to lo
+// (so arv_update_device_list() finds the camera, but no other interface reaches it); GVSP goes from
+// ADDRESS to the controller's stream channel, only when that is a loopback address. Every request
+// is validated before the camera model sees it and bad ones get the GigE Vision error status;
+// control (CCP) and its heartbeat behave as on a real camera. Both cameras live on `lo`; the second
 // address must exist on lo (`ip addr add 127.0.0.2/32 dev lo`, root): ensureLoopbackAddress().
 // Only 127.0.0.0/8 addresses are accepted, so a virtual camera never listens on a real network.
 //
-// Images: the fake camera's fill-pattern hook calls the frame source, which writes width x height
+// Images: the camera model's fill-pattern hook calls the frame source, which writes width x height
 // pixels of the current pixel format; without a source (or when it returns false) a test pattern
 // is drawn (testPattern()).
 //
-// Thread safety: the frame source runs on the fake camera's thread; setFrameSource() and
+// Thread safety: the frame source runs on the camera's stream thread; setFrameSource() and
 // setLostPacketRatio() may be called at any time from any thread.
 #pragma once
 
@@ -37,8 +41,9 @@ struct VirtualCameraOptions {
   std::string address = "127.0.0.1";  // a loopback address, present on lo
   std::string serial = "STAMPSCAN-LEFT";
   std::string genicam_file;           // empty: Aravis' built-in fake camera description
-  double lost_packet_ratio = 0.0;     // GVSP packets the fake camera drops, 0..1
-  double trigger_poll_hz = 1000.0;    // how often the fake camera looks for a software trigger
+  double lost_packet_ratio = 0.0;     // GVSP packets the camera drops, 0..1
+  double trigger_poll_hz = 1000.0;    // how often the camera looks for a software trigger (a trigger
+                                      // write also wakes it at once)
 };
 
 struct LoopbackStatus {
@@ -53,9 +58,10 @@ class VirtualCamera {
   VirtualCamera(const VirtualCamera&) = delete;
   VirtualCamera& operator=(const VirtualCamera&) = delete;
 
-  // Creates the fake camera and starts serving; throws std::runtime_error naming the address.
+  // Creates the camera model and starts serving; throws std::runtime_error naming the address
+  // (not loopback, not on lo, or UDP 3956 on it taken by another camera or process).
   void start();
-  // Destroys the fake camera (as if unplugged). Idempotent.
+  // Stops serving and destroys the camera model (as if unplugged). Idempotent.
   void stop() noexcept;
   bool running() const;
 
