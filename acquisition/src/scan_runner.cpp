@@ -314,6 +314,7 @@ struct ScanRunner::Impl {
     trace::SessionDescription session = params.session;
     session.part = plan.part.kind;
     session.plan = plan.name;
+    session.plan_toml = toToml(plan);
     session.grid = plan.part.grid;
     session.grid_pitch_mm = plan.part.pitch;
     session.grid_circle_diameter_mm = plan.part.circle_diameter;

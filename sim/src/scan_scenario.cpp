@@ -411,6 +411,10 @@ class SessionGenerator {
   void writeMetadata() {
     trace::SessionDescription cell = describeSession(p_);
     cell.part = part_->name();
+    // The plan this session plays, whole, so that a replay runs it again.
+    const acquisition::ScanPlan plan = planScan(p_);
+    cell.plan = plan.name;
+    cell.plan_toml = acquisition::toToml(plan);
     sink_.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(cell));
     std::map<std::string, std::string> truth = {
         {"seed", std::to_string(p_.seed)},

@@ -4,15 +4,23 @@
 // (the part, sphere and plate in one simulated world) and talks to it only through the drivers on
 // loopback, as to a real cell.
 #include "stampscan/acquisition/cell.hpp"
+#include "stampscan/fitting/atomic_file.hpp"
+#include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/registration/measure_scan.hpp"
+#include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
 #include "virtual_digitizer_host.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 namespace stampscan::station {
@@ -20,10 +28,19 @@ namespace stampscan::station {
 namespace {
 
 struct ScanOptions {
-  std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs";
+  std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false;
   std::uint64_t seed = 1;
 };
+
+namespace fs = std::filesystem;
+
+std::string readText(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
 
 // Ctrl-C and SIGTERM: the handler only sets a flag; a watcher thread turns it into an operator abort.
 std::atomic<int> g_stop_signal{0};
@@ -75,6 +92,38 @@ void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfi
   std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
 }
 
+// A replay's result against `station process` on the recording: the same Cloud4D, up to the
+// resampling of the head track. Printed, and kept in run.json as "replay".
+void compareWithRecording(const sim::CellReplay& replay, const std::string& recording, const acquisition::ScanPlan& plan,
+                          const ScanJobResult& r) {
+  const sim::ReplayStats s = replay.stats();
+  std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "
+              "(%zu ticks without one), %zu frames\n",
+              s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
+  registration::MeasureParams params;
+  params.with_stereo = plan.stereoCount(acquisition::kScenePart) > 0 &&
+                       plan.stereoCount(acquisition::kScenePlate) >= params.min_plate_views;
+  const registration::ScanTrace trace = registration::loadScanTrace(recording, {}, params.with_stereo);
+  const fitting::Cloud reference = registration::toCloud(registration::measureScan(trace, params, nullptr).elements);
+  const fitting::Cloud replayed = fitting::readPly(r.run_dir / "cloud4d.ply");
+  const ScanAccuracy a = accuracyAgainst(replayed, reference);
+  std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
+              "thickness strain RMS %.5f\n",
+              reference.size(), a.matched, replayed.size(), a.position_rms_mm, a.strain_rms);
+  const fs::path run_json = r.run_dir / "run.json";
+  nlohmann::json record = nlohmann::json::parse(readText(run_json));
+  record["replay"] = {{"recording", recording},
+                      {"moves_followed", s.moves_followed},
+                      {"moves_not_recorded", s.moves_not_recorded},
+                      {"profiles_served", s.profiles_served},
+                      {"frames_served", s.frames_served},
+                      {"reference_elements", reference.size()},
+                      {"matched", a.matched},
+                      {"position_rms_mm", a.position_rms_mm},
+                      {"strain_rms", a.strain_rms}};
+  fitting::writeFileAtomically(run_json, record.dump(2) + "\n");
+}
+
 }  // namespace
 
 CommandRunner addScanCommand(CLI::App& app) {
@@ -91,6 +140,9 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
   cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
+  cmd->add_option("--replay", opt->replay,
+                  "Run a recorded trace again on the virtual cell (the CMM follows its head track, the digitizer and "
+                  "the cameras serve its profiles and frames) and compare the result with `station process` on it");
   cmd->add_flag("--dry-run", opt->dry_run, "Check the plan against the cell and print it; nothing moves");
   cmd->add_flag("--accept-damaged", opt->accept_damaged,
                 "Exit 0 even when the scan lost data (missing stereo views, sweeps over the profile-loss limit)");
@@ -106,8 +158,27 @@ CommandRunner addScanCommand(CLI::App& app) {
     world.seed = opt->seed;
     ScanJobOptions job;
     job.run.limits = config.limits;
-    job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
-    if (opt->plan.empty()) {
+    // A replay plays the recording's plan on a cell that serves the recording.
+    std::shared_ptr<sim::CellReplay> replay;
+    if (!opt->replay.empty()) {
+      if (!virtual_cell) throw std::runtime_error("--replay runs on the built-in virtual cell: leave --cell out");
+      if (!opt->dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
+      sim::RecordedSession recorded = sim::loadRecordedSession(opt->replay);
+      if (const auto loss = stampscan::trace::describeDataLoss(recorded.health); loss && !opt->accept_damaged)
+        throw std::runtime_error(opt->replay + " is damaged: " + *loss + "; pass --accept-damaged to replay what remains");
+      if (recorded.session.plan_toml.empty() && opt->plan.empty())
+        throw std::runtime_error(opt->replay + " does not carry its scan plan (recorded before traces kept it): pass "
+                                               "--plan with the plan it was recorded with");
+      job.plan = opt->plan.empty() ? acquisition::parseScanPlan(recorded.session.plan_toml, opt->replay + " (its plan)")
+                                   : acquisition::loadScanPlan(opt->plan);
+      world.part = recorded.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+      job.run.session = recorded.session;
+      if (opt->part_id == "sample" && !recorded.session.part_id.empty()) opt->part_id = recorded.session.part_id;
+      replay = std::make_shared<sim::CellReplay>(std::move(recorded));
+    } else {
+      job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
+    }
+    if (opt->plan.empty() && !replay) {
       if (opt->laser_only)
         std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
       job.plan.name = job.plan.part.kind + (opt->laser_only ? ", laser" : ", laser and stereo") + ", with calibration scenes";
@@ -121,17 +192,18 @@ CommandRunner addScanCommand(CLI::App& app) {
     // The embedded virtual cell first: hosting may re-execute this program (umockdev).
     std::unique_ptr<HostedVirtualCell> hosted;
     if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config);
+      hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
       config = hosted->config();
-      job.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
-                                  hosted->cell().truth().digitizer_latency_ns};
+      if (!replay)
+        job.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
+                                    hosted->cell().truth().digitizer_latency_ns};
     }
     acquisition::Cell cell(config);
     job.part_id = opt->part_id;
     job.runs_dir = opt->runs;
     // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry
-    // it yet; the virtual cell's sensors are the simulator's.)
-    job.run.session = sim::describeSession(world);
+    // it yet; the virtual cell's sensors are the simulator's; a replay's are the recording's.)
+    if (!replay) job.run.session = sim::describeSession(world);
     job.run.session.part_id = opt->part_id;
 
     std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
@@ -174,6 +246,7 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
                   static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                   static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
+    if (replay) compareWithRecording(*replay, opt->replay, job.plan, r);
     std::printf("  results     %s\n", r.run_dir.c_str());
     if (r.data_loss) {
       if (!opt->accept_damaged) {

@@ -133,14 +133,17 @@ std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& ce
 
 namespace stampscan::station {
 
-HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base) : config_(base) {
+HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base,
+                                     std::shared_ptr<sim::CellReplay> replay, bool cameras)
+    : config_(base) {
   sim::VirtualCellOptions o;
   o.world = world;
+  o.replay = std::move(replay);
   o.cmm_address = base.cmm.host;
   o.cmm_port = 0;  // free ports: a served cell or another scan may hold the configured ones
   o.plc_address = base.plc.host;
   o.plc_port = 0;
-  o.cameras = true;
+  o.cameras = cameras;
   o.left_address = base.left_camera.address;
   o.left_serial = base.left_camera.serial;
   o.right_address = base.right_camera.address;

@@ -45,7 +45,10 @@ namespace stampscan::station {
 // config to reach it with: the base with the servers' actual ports.
 class HostedVirtualCell {
  public:
-  HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base);
+  // With `replay`, the cell plays a recorded session instead of the world (sim/cell_replay.hpp).
+  // Without `cameras` the stereo pair is left out: it holds UDP 3956, which one cell per machine can.
+  HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base,
+                    std::shared_ptr<sim::CellReplay> replay = nullptr, bool cameras = true);
   ~HostedVirtualCell();
   HostedVirtualCell(const HostedVirtualCell&) = delete;
   HostedVirtualCell& operator=(const HostedVirtualCell&) = delete;

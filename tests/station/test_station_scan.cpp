@@ -78,6 +78,7 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
     const auto cut = static_cast<std::size_t>(where(rng) * static_cast<double>(bytes.size()));
     const fs::path cut_trace = work() / "cut.mcap", out = work() / "cut.ply";
     writeFile(cut_trace, bytes.substr(0, cut));
+    fs::remove(out);
     // Without --accept-damaged the cut trace is refused, naming the cut; nothing is written.
     const RunResult refused = run("process " + quote(cut_trace) + " -o " + quote(out) + " -q");
     EXPECT_EQ(refused.exit_code, 1) << refused.out << refused.err;
@@ -145,6 +146,33 @@ TEST_F(StationTest, TheLiveTraceOpensInTheReferenceReader) {
   EXPECT_NE(node.out.find("topic=/digitizer/profile schema=stampscan_msgs/msg/LaserProfile count=" + std::to_string(profiles) + " "),
             std::string::npos)
       << node.out;
+}
+
+// Replay: a scan recorded on the cell runs again through the drivers, the runner and the
+// measurement on a virtual cell fed from its trace, and gives the Cloud4D `station process` gives
+// on that trace. (Laser only: the replayed cell then has no cameras and needs no camera lock.)
+TEST_F(StationTest, AReplayedScanGivesTheCloudOfItsRecording) {
+  const fs::path runs = work() / "runs", replays = work() / "replays";
+  ASSERT_EQ(run("scan -q --laser-only --part-id R-1 -o " + quote(runs)).exit_code, 0);
+  const fs::path recording = onlyRunFolder(runs) / "trace.mcap";
+  const RunResult r = run("scan -q --replay " + quote(recording) + " -o " + quote(replays));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("(0 not in the recording)"), std::string::npos) << r.out;
+  const fs::path dir = onlyRunFolder(replays);
+  EXPECT_NE(dir.filename().string().find("R-1"), std::string::npos) << "the part id comes from the recording";
+  std::ifstream in(dir / "run.json");
+  const nlohmann::json j = nlohmann::json::parse(in).at("replay");
+  EXPECT_GT(j.at("reference_elements").get<std::size_t>(), 250u);
+  EXPECT_GE(j.at("matched").get<std::size_t>(), j.at("reference_elements").get<std::size_t>() * 99 / 100) << j.dump(2);
+  EXPECT_LE(j.at("position_rms_mm").get<double>(), 0.002) << j.dump(2);
+  EXPECT_LE(j.at("strain_rms").get<double>(), 0.0005) << j.dump(2);
+
+  // A trace whose data is cut is not replayed without the operator's say.
+  const std::string bytes = readFile(recording);
+  writeFile(work() / "cut.mcap", bytes.substr(0, bytes.size() / 2));
+  const RunResult cut = run("scan -q --replay " + quote(work() / "cut.mcap") + " -o " + quote(replays));
+  EXPECT_EQ(cut.exit_code, 1) << cut.out << cut.err;
+  EXPECT_NE(cut.err.find("--accept-damaged"), std::string::npos) << cut.err;
 }
 
 TEST_F(StationTest, CtrlCEndsAScanCleanly) {

@@ -119,6 +119,7 @@ KeyValues encodeSession(const SessionDescription& s) {
   if (!s.part_id.empty()) r["part_id"] = s.part_id;
   if (!s.plan.empty()) r["plan"] = s.plan;
   if (!s.fixture.empty()) r["fixture"] = s.fixture;
+  if (!s.plan_toml.empty()) r["plan_toml"] = s.plan_toml;
   if (s.camera_nominal) {
     const CameraIntrinsicsRecord& c = *s.camera_nominal;
     r["camera_nominal_intrinsics"] = std::to_string(c.width) + " " + std::to_string(c.height) + " " + formatNumber(c.fx) +
@@ -147,6 +148,7 @@ SessionDescription decodeSession(const KeyValues& record) {
   s.part_id = in.textOr("part_id", "");
   s.plan = in.textOr("plan", "");
   s.fixture = in.textOr("fixture", "");
+  s.plan_toml = in.textOr("plan_toml", "");
   s.grid = in.textOr("grid", "circle");
   if (s.grid != "circle" && s.grid != "square") bad("grid", "is '" + s.grid + "': expected circle or square");
   s.grid_pitch_mm = in.has("grid_pitch_mm") ? in.positive("grid_pitch_mm") : s.grid_pitch_mm;

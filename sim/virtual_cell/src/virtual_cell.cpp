@@ -40,6 +40,12 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
   VirtualCmmConfig cmm;
   cmm.address = options_.cmm_address;
   cmm.port = options_.cmm_port;
+  if (options_.replay) {
+    cmm.follow = [replay = options_.replay](const std::array<double, 6>& from, const std::array<double, 6>& to,
+                                            std::chrono::steady_clock::time_point now) {
+      return replay->followMove(from, to, now);
+    };
+  }
   cmm_ = std::make_unique<VirtualCmm>(cmm);
   VirtualPlcOptions plc;
   plc.address = options_.plc_address;
@@ -60,6 +66,7 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
 }
 
 bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const {
+  if (options_.replay) return replayFrame(camera, request, out);
   const CameraRenderer& renderer = *renderers_[camera];
   const CameraIntrinsics& in = renderer.intrinsics();
   // The image the camera is set to must be the size its optics are simulated at.
@@ -74,6 +81,21 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
   const std::vector<std::uint8_t> bytes = image.bytes();
   if (bytes.size() != out.size()) return false;
   std::copy(bytes.begin(), bytes.end(), out.begin());
+  return true;
+}
+
+// The recorded frame of that instant; a black one when the recording has none of that size there
+// (the view was missing when recorded, or the camera is set to another size).
+bool VirtualCell::replayFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const {
+  CellReplay& replay = *options_.replay;
+  const RecordedFrame* frame =
+      replay.frameNear(camera, replay.recordedTime(std::chrono::steady_clock::now()), 2'000'000'000);
+  if (frame && frame->width == request.width && frame->height == request.height &&
+      frame->bytes_per_pixel == request.bytes_per_pixel && frame->data.size() == out.size()) {
+    std::copy(frame->data.begin(), frame->data.end(), out.begin());
+  } else {
+    std::fill(out.begin(), out.end(), std::uint8_t{0});
+  }
   return true;
 }
 
@@ -99,7 +121,8 @@ VirtualDigitizerOptions VirtualCell::digitizerOptions() const {
   VirtualDigitizerOptions o;
   o.paced = true;
   o.half_angle = static_cast<float>(options_.world.digitizer.half_angle);
-  o.stamp_latency_ns = truth_.digitizer_latency_ns;
+  // A replay serves profiles stamped as they were recorded, latency included.
+  o.stamp_latency_ns = options_.replay ? 0 : truth_.digitizer_latency_ns;
   return o;
 }
 
@@ -111,7 +134,19 @@ VirtualDigitizer::TimedProfileSource VirtualCell::profileSource() {
     profile.intensity.assign(n, 0);
     // The PLC's shutter: closed, the laser line never reaches the part.
     if (!plc_->coil(drivers::plc::Coil::LaserShutterOpenRequest) || plc_->input(drivers::plc::DiscreteInput::LaserShutterClosed))
-      return;
+      return std::int64_t{0};
+    if (options_.replay) {
+      // The recorded profile nearest to this tick, stamped with its own exposure.
+      CellReplay& replay = *options_.replay;
+      const std::int64_t at = replay.recordedTime(exposure);
+      const auto period_ns = static_cast<std::int64_t>(1e9 / std::max(config.profile_rate_hz, 1.0));
+      const RecordedProfile* recorded = replay.profileNear(at, period_ns);
+      if (recorded == nullptr || recorded->range.size() != n) return std::int64_t{0};
+      profile.range = recorded->range;
+      profile.intensity = recorded->intensity;
+      profile.status = recorded->status;
+      return recorded->station_time_ns - at;
+    }
     const VirtualCmmStatus st = cmm_->statusAt(exposure);
     const HeadState head{Vec3(st.position[0], st.position[1], st.position[2]), st.head_a, st.head_b, 0};
     DigitizerSpec spec = options_.world.digitizer;
@@ -122,6 +157,7 @@ VirtualDigitizer::TimedProfileSource VirtualCell::profileSource() {
     profile.range = std::move(m.range);
     profile.intensity = std::move(m.intensity);
     if (m.glare) profile.status |= 1u;  // overexposed (drivers/digitizer/PROTOCOL.md)
+    return std::int64_t{0};
   };
 }
 

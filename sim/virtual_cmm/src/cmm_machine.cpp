@@ -42,6 +42,13 @@ CmmMachine::CmmMachine(VirtualCmmConfig config)
       accel_(config_.default_accel) {}
 
 MachinePose CmmMachine::poseLocked(Clock::time_point now) const {
+  if (move_ && move_->followed) {
+    const std::array<double, 6> axes =
+        move_->followed->pose_at(std::clamp(seconds(now - move_->start), 0.0, move_->followed->seconds));
+    MachinePose p;
+    for (std::size_t i = 0; i < 6; ++i) p.axis(i) = axes[i];
+    return p;
+  }
   if (!move_ || move_->progress.distance == 0) return pose_;
   const double fraction = move_->progress.distanceAt(seconds(now - move_->start));
   MachinePose p;
@@ -164,6 +171,20 @@ Clock::time_point CmmMachine::beginMove(const MachinePose& target, Clock::time_p
   move.start = now;
   move.from = poseLocked(now);
   move.to = target;
+  if (config_.follow) {
+    std::array<double, 6> from{}, to{};
+    for (std::size_t i = 0; i < 6; ++i) from[i] = move.from.axis(i), to[i] = target.axis(i);
+    if (std::optional<FollowedMove> followed = config_.follow(from, to, now)) {
+      // It arrives where the recording arrived, which is the target to the machine's resolution.
+      move.followed = std::move(followed);
+      const std::array<double, 6> end = move.followed->pose_at(move.followed->seconds);
+      for (std::size_t i = 0; i < 6; ++i) move.to.axis(i) = end[i];
+      move.progress = planTrapezoid(0.0, 1.0, 1.0);
+      const double duration = move.followed->seconds;
+      move_ = std::move(move);
+      return now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration));
+    }
+  }
   // The progress p runs from 0 to 1. The ram moves length * p, each angle delta * p: its speed and
   // acceleration limits become limits on dp/dt of limit / length and limit / delta, and the tightest
   // of them all shapes the one trapezoid every axis follows. A move of the ram alone keeps the
@@ -193,6 +214,15 @@ void CmmMachine::endMove(bool reached, Clock::time_point now) {
   pose_ = reached ? move_->to : poseLocked(now);
   move_.reset();
   ++(reached ? completed_ : aborted_);
+}
+
+std::vector<Clock::time_point> CmmMachine::followedReportTimes() const {
+  std::lock_guard lock(mutex_);
+  std::vector<Clock::time_point> times;
+  if (!move_ || !move_->followed) return times;
+  for (const double t : move_->followed->report_at)
+    times.push_back(move_->start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t)));
+  return times;
 }
 
 std::size_t CmmMachine::movesCompleted() const {

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace stampscan::sim::detail {
 
@@ -70,6 +71,10 @@ class CmmMachine {
   // Ends the move: at the target when `reached`, else where the ram is at `now` (an abort).
   void endMove(bool reached, Clock::time_point now);
 
+  // The report instants of the move in progress when it is followed (FollowedMove::report_at), as
+  // absolute times; empty otherwise.
+  std::vector<Clock::time_point> followedReportTimes() const;
+
   std::size_t movesCompleted() const;
   std::size_t movesAborted() const;
 
@@ -78,6 +83,7 @@ class CmmMachine {
     Clock::time_point start;
     MachinePose from, to;
     TrapezoidMove progress;  // "distance" 0..1 along the move; 0 long when nothing moves
+    std::optional<FollowedMove> followed;  // a replayed move, followed instead of `progress`
   };
   MachinePose poseLocked(Clock::time_point now) const;
 

@@ -382,7 +382,29 @@ bool IppSession::pause(Clock::time_point until) {
 
 bool IppSession::runMove(const MachinePose& target) {
   const Clock::time_point arrival = machine_.beginMove(target, Clock::now());
+  // A replayed move reports where the recorded one did.
+  const std::vector<Clock::time_point> report_times = machine_.followedReportTimes();
+  std::size_t next_report = 0;
   std::unique_lock lock(mutex_);
+  for (;;) {
+    if (report_times.empty()) break;
+    const Clock::time_point now = Clock::now();
+    if (abort_requested_ || closing_) {
+      machine_.endMove(false, now);
+      return false;
+    }
+    if (next_report < report_times.size() && now >= report_times[next_report]) {
+      ++next_report;
+      if (std::optional<std::string> report = reportNow(now)) {
+        lock.unlock();
+        sink_(*report);
+        lock.lock();
+      }
+      continue;
+    }
+    if (now >= arrival && next_report >= report_times.size()) break;
+    motion_.wait_until(lock, next_report < report_times.size() ? report_times[next_report] : arrival);
+  }
   for (;;) {
     const Clock::time_point now = Clock::now();
     if (abort_requested_ || closing_) {
@@ -432,6 +454,13 @@ std::optional<std::string> IppSession::dueReport(Clock::time_point now, bool at_
     }
     if (!due) return std::nullopt;
   }
+  return reportNow(now);
+}
+
+std::optional<std::string> IppSession::reportNow(Clock::time_point now) {
+  if (!daemon_) return std::nullopt;
+  MoveDaemon& d = *daemon_;
+  const MachinePose pose = machine_.pose(now);
   d.reported = true;
   d.last_time = now;
   d.last_pose = pose;

@@ -115,6 +115,8 @@ class IppSession {
   bool runMove(const MachinePose& target);                       // false when aborted
   bool pause(Clock::time_point until);                           // false when aborted
   std::optional<std::string> dueReport(Clock::time_point now, bool at_rest);  // with mutex_ held
+  // The report of the daemon's items now, whatever its schedule (a replayed move's recorded instants).
+  std::optional<std::string> reportNow(Clock::time_point now);
   Clock::time_point nextReportCheck(Clock::time_point now) const;             // with mutex_ held
 
   // Command handlers (session_commands.cpp).

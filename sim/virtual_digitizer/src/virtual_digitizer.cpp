@@ -166,13 +166,14 @@ struct VirtualDigitizer::Impl {
                                                              std::chrono::duration<double>((sequence - stream_first_sequence) /
                                                                                            config.profile_rate_hz))
                                         : std::chrono::steady_clock::now();
+    std::int64_t exposure_shift_ns = 0;
     if (timed_source)
-      timed_source(sequence, config, exposure, profile);
+      exposure_shift_ns = timed_source(sequence, config, exposure, profile);
     else
       source(sequence, config, profile);
     profile.sequence = sequence;
     const auto exposure_ns = static_cast<std::uint64_t>(
-        std::chrono::duration_cast<std::chrono::nanoseconds>(exposure - clock_zero).count());
+        std::chrono::duration_cast<std::chrono::nanoseconds>(exposure - clock_zero).count() + exposure_shift_ns);
     profile.device_time_ns =
         options.paced ? exposure_ns + static_cast<std::uint64_t>(options.stamp_latency_ns) : deviceTime(sequence);
     if (mirror_fault) profile.status |= kStatusMirrorFault;

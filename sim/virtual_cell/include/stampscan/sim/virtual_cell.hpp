@@ -16,6 +16,7 @@
 // digitizer's thread and only reads the CMM's and the PLC's state (both thread-safe).
 #pragma once
 
+#include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/sim/virtual_camera.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
@@ -51,6 +52,10 @@ struct VirtualCellOptions {
   // Where the cameras read the head's pose when the CMM is served by another process (empty: from
   // this object's CMM). Position in mm, head_a/head_b in radians, as VirtualCmmStatus has them.
   std::function<VirtualCmmStatus()> head_status;
+
+  // Replay (cell_replay.hpp): when set, the CMM follows the recorded head track and the digitizer and
+  // the cameras serve the recorded profiles and frames instead of rendering the world.
+  std::shared_ptr<CellReplay> replay;
 };
 
 class VirtualCell {
@@ -86,6 +91,7 @@ class VirtualCell {
  private:
   class WorldScene;
   bool renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
+  bool replayFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
 
   VirtualCellOptions options_;
   CellTruth truth_;

@@ -29,12 +29,24 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace stampscan::sim {
+
+// A move the virtual CMM follows instead of planning its own (VirtualCmmConfig::follow).
+struct FollowedMove {
+  double seconds = 0;  // from the command to the arrival
+  // The six axes (mm, degrees) `t` seconds after the command, for 0 <= t <= seconds.
+  std::function<std::array<double, 6>(double t)> pose_at;
+  // When the recorded CMM reported during the move (s since the command, rising): move reports
+  // (OnMoveReportE) then go out at these instants instead of on the daemon's own schedule, so that a
+  // replayed head track is sampled where the recorded one was. Empty: the usual schedule.
+  std::vector<double> report_at;
+};
 
 struct VirtualCmmConfig {
   std::string address = "127.0.0.1";
@@ -80,6 +92,13 @@ struct VirtualCmmConfig {
   // How long a second client waits for the current one to hang up before it is refused. Long enough
   // for a station that reconnects (the old session's teardown takes milliseconds).
   std::chrono::milliseconds second_client_wait{std::chrono::seconds(2)};
+
+  // Replay: asked at the start of every move (GoTo, Home) with the six axes where the machine stands
+  // and where it is sent (X, Y, Z in mm; Tool.A, Tool.B, Tool.C in degrees) and the time; a move it
+  // returns is followed instead of the machine's own kinematics (a recorded session plays back).
+  std::function<std::optional<FollowedMove>(const std::array<double, 6>& from, const std::array<double, 6>& to,
+                                            std::chrono::steady_clock::time_point now)>
+      follow;
 };
 
 struct VirtualCmmStatus {

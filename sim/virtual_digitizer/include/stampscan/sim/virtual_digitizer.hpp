@@ -61,10 +61,12 @@ class VirtualDigitizer {
   // The source of profile data; the default is testPattern().
   void setProfileSource(ProfileSource source);
   // A source that is also told when the profile was exposed (steady clock): a simulated world
-  // renders itself as it was at that instant. Replaces the plain source.
+  // renders itself as it was at that instant. Replaces the plain source. It returns how much later
+  // (ns, may be negative) than `exposure` the profile it gave was really exposed, and the profile is
+  // stamped so: a replay serves the recorded profile nearest to each tick, exposed between ticks.
   using TimedProfileSource =
-      std::function<void(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
-                         std::chrono::steady_clock::time_point exposure, drivers::digitizer::Profile& profile)>;
+      std::function<std::int64_t(std::uint32_t sequence, const drivers::digitizer::DigitizerConfig& config,
+                                 std::chrono::steady_clock::time_point exposure, drivers::digitizer::Profile& profile)>;
   void setTimedProfileSource(TimedProfileSource source);
   // A deterministic pattern of the sequence number: ranges 80..120 mm with every 97th point a
   // dropout (0), intensities cycling.
