@@ -42,6 +42,9 @@ namespace {
 struct SharedHead {
   std::atomic<std::uint64_t> sequence{0};
   std::atomic<double> x{0}, y{0}, z{0}, a{0}, b{0};
+  // A replay's time map (sim::CellReplay::shareTimeMap): the CMM's process sets it at every move.
+  std::atomic<std::int64_t> replay_offset_ns{0};
+  std::atomic<bool> replay_offset_known{false};
 
   void publish(const sim::VirtualCmmStatus& st) {
     sequence.fetch_add(1);
@@ -81,13 +84,20 @@ void writeAll(int fd, const std::string& text) {
 
 // The body of one device's process: serves until SIGINT or SIGTERM, then exits. Reports "ready
 // PORT" or "error: WHAT" on `report` first.
-[[noreturn]] void serveDevice(Device device, sim::VirtualCellOptions options, SharedHead* head, int report) {
+[[noreturn]] void serveDevice(Device device, sim::VirtualCellOptions options, SharedHead* head, int report,
+                              const std::string& replay_trace) {
   options.serve_cmm = device == Device::Cmm;
   options.serve_plc = device == Device::Plc;
   options.cameras = device == Device::Cameras;
   if (device == Device::Cameras) options.head_status = [head] { return head->read(); };
   int code = 0;
   try {
+    if (!replay_trace.empty() && device != Device::Plc) {
+      // Each process reads the recording itself (a fork copies no thread, and the file is read once
+      // per device that serves it).
+      options.replay = std::make_shared<sim::CellReplay>(sim::loadRecordedSession(replay_trace));
+      options.replay->shareTimeMap(&head->replay_offset_ns, &head->replay_offset_known);
+    }
     sim::VirtualCell cell(options);
     cell.start();
     std::atomic<bool> stopping{false};
@@ -127,9 +137,10 @@ struct DeviceProcess {
   int port = 0;
 };
 
-// Forks the device's process and waits (up to 20 s) for it to say it serves. Throws naming the
+// Forks the device's process and waits (up to 20 s, 120 s for a replay) for it to say it serves. Throws naming the
 // device with its own error when it cannot.
-DeviceProcess startDevice(Device device, const sim::VirtualCellOptions& options, SharedHead* head) {
+DeviceProcess startDevice(Device device, const sim::VirtualCellOptions& options, SharedHead* head,
+                          const std::string& replay_trace) {
   int fds[2];
   if (::pipe(fds) != 0) throw std::runtime_error(std::string("cannot start the ") + deviceName(device) + ": pipe failed");
   std::fflush(stdout);
@@ -138,11 +149,13 @@ DeviceProcess startDevice(Device device, const sim::VirtualCellOptions& options,
   if (pid == 0) {
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // a device never outlives its supervisor
     ::close(fds[0]);
-    serveDevice(device, options, head, fds[1]);
+    serveDevice(device, options, head, fds[1], replay_trace);
   }
   ::close(fds[1]);
   std::string reply;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  // A replay reads its recording first, which may take a while for a long session.
+  const auto limit = std::chrono::seconds(replay_trace.empty() ? 20 : 120);
+  const auto deadline = std::chrono::steady_clock::now() + limit;
   for (;;) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     pollfd p{fds[0], POLLIN, 0};
@@ -160,7 +173,7 @@ DeviceProcess startDevice(Device device, const sim::VirtualCellOptions& options,
   while (!reply.empty() && reply.back() == '\n') reply.pop_back();
   if (reply.rfind("error: ", 0) == 0) reply = reply.substr(7);
   throw std::runtime_error(std::string("the virtual ") + deviceName(device) + " did not start: " +
-                           (reply.empty() ? "no answer within 20 s" : reply));
+                           (reply.empty() ? "no answer within " + std::to_string(limit.count()) + " s" : reply));
 }
 
 void stopDevices(std::vector<DeviceProcess>& devices) {
@@ -187,13 +200,17 @@ using acquisition::virtualCell;
 
 CommandRunner addServeSubcommand(CLI::App* sim) {
   struct Options {
-    std::string cell, part = "pan";
+    std::string cell, part = "pan", replay;
     double seconds = 0;
   };
   auto opt = std::make_shared<Options>();
   CLI::App* cmd = sim->add_subcommand("serve", "Run the virtual cell (CMM over I++ DME, PLC over Modbus TCP, GigE Vision cameras) until interrupted");
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell");
   cmd->add_option("--part", opt->part, "The part on the fixture of the simulated world")->check(CLI::IsMember({"pan", "dome"}));
+  cmd->add_option("--replay", opt->replay,
+                  "Serve a recorded trace instead of the simulated world: the CMM follows its head track, the "
+                  "cameras serve its frames (the digitizer is hosted by the command that scans)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--for", opt->seconds, "Stop after this many seconds (default: run until Ctrl-C)")->check(CLI::PositiveNumber);
   return [opt]() {
     const CellConfig cell = opt->cell.empty() ? virtualCell() : loadCellConfig(opt->cell);
@@ -226,13 +243,14 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     SharedHead* head = new (page) SharedHead();
     std::vector<DeviceProcess> devices;
     try {
-      for (const Device d : {Device::Cmm, Device::Plc, Device::Cameras}) devices.push_back(startDevice(d, world, head));
+      for (const Device d : {Device::Cmm, Device::Plc, Device::Cameras}) devices.push_back(startDevice(d, world, head, opt->replay));
     } catch (...) {
       stopDevices(devices);
       throw;
     }
     const int cmm_port = devices[0].port, plc_port = devices[1].port;
-    std::printf("station sim serve: %s (each device in a process of its own)\n", cell.name.c_str());
+    std::printf("station sim serve: %s (each device in a process of its own)%s\n", cell.name.c_str(),
+                opt->replay.empty() ? "" : (", replaying " + opt->replay).c_str());
     std::printf("  cmm         I++ DME on %s:%d   (try: printf '00001 StartSession()\\r\\n' | nc %s %d)\n",
                 cell.cmm.host.c_str(), cmm_port, cell.cmm.host.c_str(), cmm_port);
     std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a 1 -t 1 -r 1 -c 6 -1 -p %d %s)\n",
@@ -270,7 +288,7 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
                     how.c_str());
         std::fflush(stdout);
         try {
-          d = startDevice(d.device, world, head);
+          d = startDevice(d.device, world, head, opt->replay);
           std::printf("  %-11s serving again\n", deviceName(d.device));
         } catch (const std::exception& e) {
           std::printf("  %-11s %s\n", deviceName(d.device), e.what());

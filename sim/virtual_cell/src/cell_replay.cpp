@@ -187,6 +187,10 @@ std::optional<FollowedMove> CellReplay::followMove(const std::array<double, 6>& 
   cursor_ = *arrival;
   offset_ns_ = start_ns - steadyNs(now);
   offset_known_ = true;
+  if (shared_offset_ns_ != nullptr) {
+    shared_offset_ns_->store(offset_ns_);
+    shared_known_->store(true);
+  }
   ++stats_.moves_followed;
 
   FollowedMove move;
@@ -213,9 +217,17 @@ std::optional<FollowedMove> CellReplay::followMove(const std::array<double, 6>& 
 
 std::int64_t CellReplay::recordedTime(std::chrono::steady_clock::time_point t) const {
   std::lock_guard lock(mutex_);
+  const bool known = shared_known_ != nullptr ? shared_known_->load() : offset_known_;
+  const std::int64_t offset = shared_offset_ns_ != nullptr ? shared_offset_ns_->load() : offset_ns_;
   // Before the first followed move the recording's first report stands for the replay's start.
-  if (!offset_known_) return recording_.head.front().station_time_ns;
-  return steadyNs(t) + offset_ns_;
+  if (!known) return recording_.head.front().station_time_ns;
+  return steadyNs(t) + offset;
+}
+
+void CellReplay::shareTimeMap(std::atomic<std::int64_t>* offset_ns, std::atomic<bool>* known) {
+  std::lock_guard lock(mutex_);
+  shared_offset_ns_ = offset_ns;
+  shared_known_ = known;
 }
 
 const RecordedProfile* CellReplay::profileNear(std::int64_t recorded_ns, std::int64_t tolerance_ns) {

@@ -24,6 +24,7 @@
 #include "stampscan/sim/virtual_cmm.hpp"
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -90,6 +91,11 @@ class CellReplay {
 
   ReplayStats stats() const;
 
+  // Keeps the time map in `offset_ns` and `known` (lock-free atomics, e.g. in memory shared between
+  // processes) instead of in this object: the process that follows the moves writes it, the others
+  // (`station sim serve` runs the cameras apart from the CMM) read it. Call before any other member.
+  void shareTimeMap(std::atomic<std::int64_t>* offset_ns, std::atomic<bool>* known);
+
  private:
   RecordedSession recording_;
   double report_interval_s_ = 0.01;  // the recording's usual spacing of position reports in a move
@@ -97,6 +103,8 @@ class CellReplay {
   std::size_t cursor_ = 0;  // head samples before it belong to moves already followed
   std::int64_t offset_ns_ = 0;  // recorded station time minus replay steady time
   bool offset_known_ = false;
+  std::atomic<std::int64_t>* shared_offset_ns_ = nullptr;  // see shareTimeMap()
+  std::atomic<bool>* shared_known_ = nullptr;
   ReplayStats stats_;
 };
 
