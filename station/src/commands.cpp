@@ -5,9 +5,10 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 8> kCommands{{
+  static constexpr std::array<CommandEntry, 9> kCommands{{
       {"scan", addScanCommand},
       {"process", addProcessCommand},
+      {"report", addReportCommand},
       {"fit", addFitCommand},
       {"devices", addDevicesCommand},
       {"trace", addTraceCommand},

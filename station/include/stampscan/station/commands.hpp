@@ -27,6 +27,7 @@ CommandRunner addSimCommand(CLI::App& app);
 CommandRunner addProcessCommand(CLI::App& app);
 CommandRunner addDevicesCommand(CLI::App& app);
 CommandRunner addTraceCommand(CLI::App& app);
+CommandRunner addReportCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.
 CommandRunner addServeSubcommand(CLI::App* sim);
 

@@ -1,0 +1,66 @@
+// `station report RUN_DIR`: the forming-limit analysis and report of a run folder, written into it.
+// A thin caller of report::writeRunReport (station/report/), which `station scan` calls as well.
+#include "stampscan/report/run_report.hpp"
+#include "stampscan/station/commands.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+namespace stampscan::station {
+
+namespace {
+struct ReportCommandOptions {
+  std::string run_dir, material, program;
+  bool list_materials = false;
+};
+
+void printMaterials() {
+  for (const report::Material& m : report::builtInMaterials().materials())
+    std::printf("  %-10s %-9s t %.2f mm  n %.2f  FLC %s, margin %.0f%%\n", m.name.c_str(), report::toString(m.family),
+                m.thickness_mm, m.n, m.flc.describe().c_str(), m.safety_margin_percent);
+}
+}  // namespace
+
+CommandRunner addReportCommand(CLI::App& app) {
+  auto opt = std::make_shared<ReportCommandOptions>();
+  CLI::App* cmd = app.add_subcommand("report",
+                                     "Forming analysis of a run folder: strain maps, forming-limit diagram, "
+                                     "verdict, PDF and HTML report, elements.csv (written into the folder)");
+  cmd->add_option("run_dir", opt->run_dir, "The run folder (RUNS/<time>-<part-id>/, with cloud4d.ply)");
+  cmd->add_option(
+      "--material", opt->material,
+      std::string("Sheet material (default: run.json's \"material\", else ") + report::kDefaultMaterial + ")");
+  cmd->add_option("--program", opt->program, "The press program, for the report (default: run.json's \"program\")");
+  cmd->add_flag("--list-materials", opt->list_materials, "List the built-in materials and exit");
+  return [opt]() {
+    if (opt->list_materials) {
+      printMaterials();
+      return 0;
+    }
+    if (opt->run_dir.empty()) throw std::runtime_error("report: give the run folder (or --list-materials)");
+    report::ReportOptions options;
+    options.material = opt->material;
+    options.program = opt->program;
+    const report::ReportSummary s = report::writeRunReport(opt->run_dir, options);
+    std::printf("station report %s\n", s.run_dir.c_str());
+    std::printf("  material    %s%s\n", s.material.c_str(),
+                s.material_source == report::MaterialSource::Default
+                    ? " (the default: run.json names no material; choose with --material)"
+                : s.material_source == report::MaterialSource::RunJson ? " (from run.json)"
+                                                                       : "");
+    std::printf("  surface     %s\n", s.drawn_from_mesh ? "mesh.ply" : "cloud4d.ply (the run has no mesh)");
+    for (const auto& file : s.files) std::printf("  wrote       %s\n", file.filename().c_str());
+    std::printf("  elements    %zu:", s.elements);
+    for (std::size_t z = 0; z < report::kZoneCount; ++z)
+      std::printf("%s %s %zu", z ? "," : "", report::toString(static_cast<report::Zone>(z)), s.zone_counts[z]);
+    char margin[48] = "none (no strain path meets the FLC)";
+    if (std::isfinite(s.min_margin_percent)) std::snprintf(margin, sizeof margin, "%.1f%%", s.min_margin_percent);
+    std::printf("\n  figures     max thinning %.1f%%, min safety margin %s\n", s.max_thinning_percent, margin);
+    std::printf("  verdict     %s: %s\n", report::toString(s.verdict), s.verdict_reason.c_str());
+    std::printf("  time        %.2f s (images, PDF and HTML %.2f s)\n", s.seconds, s.drawing_seconds);
+    return 0;
+  };
+}
+
+}  // namespace stampscan::station
