@@ -29,6 +29,7 @@ namespace {
 
 struct ScanOptions {
   std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
+  std::string material, program;
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false;
   std::uint64_t seed = 1;
 };
@@ -137,6 +138,9 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_option("--grid", opt->grid, "The virtual part's printed grid")->check(CLI::IsMember({"circle", "square"}));
   cmd->add_option("--part-id", opt->part_id, "The part's id, for the run folder and the record");
   cmd->add_option("-o,--runs", opt->runs, "Folder of run folders (created when missing)");
+  cmd->add_option("--material", opt->material, "The sheet's material, for the forming-limit report (see `station report "
+                                               "--list-materials`; default DC04)");
+  cmd->add_option("--program", opt->program, "The press program the part comes from, for the report and the history");
   cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
   cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
@@ -149,6 +153,8 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
+    // An unknown material is refused before anything moves (the report at the end would fail).
+    if (!opt->material.empty()) (void)report::builtInMaterials().find(opt->material);
     acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
 
     // The virtual world, and the built-in plan for its part (or the plan file).
@@ -201,6 +207,8 @@ CommandRunner addScanCommand(CLI::App& app) {
     acquisition::Cell cell(config);
     job.part_id = opt->part_id;
     job.runs_dir = opt->runs;
+    job.material = opt->material;
+    job.program = opt->program;
     // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry
     // it yet; the virtual cell's sensors are the simulator's; a replay's are the recording's.)
     if (!replay) job.run.session = sim::describeSession(world);
@@ -247,7 +255,17 @@ CommandRunner addScanCommand(CLI::App& app) {
                   static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                   static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
     if (replay) compareWithRecording(*replay, opt->replay, job.plan, r);
+    if (r.report) {
+      std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",
+                  report::toString(r.report->verdict), r.report->verdict_reason.c_str(), r.report->material.c_str(),
+                  r.report->seconds);
+    }
     std::printf("  results     %s\n", r.run_dir.c_str());
+    if (!r.report_error.empty()) {
+      std::fprintf(stderr, "station: error: the scan is measured, but its report failed: %s (run `station report %s` "
+                           "once the cause is fixed)\n", r.report_error.c_str(), r.run_dir.c_str());
+      return 1;
+    }
     if (r.data_loss) {
       if (!opt->accept_damaged) {
         std::fprintf(stderr, "station: error: the scan lost data: %s. The results lack those elements (run.json says "

@@ -246,7 +246,19 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   }
   result.data_loss = dataLoss(result.run);
   record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
+  if (!o.material.empty()) record["material"] = o.material;
+  if (!o.program.empty()) record["program"] = o.program;
   writeJsonAtomically(result.run_dir / "run.json", record);
+  // The report of what was measured: the verdict, the maps, the FLD, the PDF. A report that fails
+  // leaves the measured run as it is and says why.
+  try {
+    report::ReportOptions options;
+    options.material = o.material;
+    options.program = o.program;
+    result.report = report::writeRunReport(result.run_dir, options);
+  } catch (const std::exception& e) {
+    result.report_error = e.what();
+  }
   return result;
 }
 

@@ -15,6 +15,7 @@
 // run keeps its trace and a run.json saying why, and run() throws naming both.
 #pragma once
 
+#include "stampscan/report/run_report.hpp"
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/acquisition/scan_runner.hpp"
 #include "stampscan/fitting/cloud.hpp"
@@ -40,6 +41,9 @@ struct ScanJobOptions {
   std::filesystem::path runs_dir = "stampscan-runs";
   // When the cell is simulated: the job then reports its accuracy against the truth.
   std::optional<SimulationTruth> truth;
+  // For the report written at the end (station/report): the sheet's material (empty: the report's
+  // default) and the press program; both also go into run.json.
+  std::string material, program;
 };
 
 struct ScanAccuracy {
@@ -58,6 +62,9 @@ struct ScanJobResult {
   // What the scan did not record that the plan asked for (missing views, sweeps over the loss
   // limit): the result lacks elements there. Also in run.json as "data_loss".
   std::optional<std::string> data_loss;
+  // The forming-limit report written into the run folder, or why it could not be.
+  std::optional<report::ReportSummary> report;
+  std::string report_error;
 };
 
 // The data a finished run lacks, in one line, or nothing when it recorded all the plan asked for.
