@@ -244,7 +244,8 @@ TEST(VirtualPlcConnections, ConnectionsBeyondTheCapAreRefusedAtOnce) {
   ASSERT_TRUE(waitUntil([&] { return plc.connectionCount() == 2; }));
   RawModbusClient third(plc.port());
   EXPECT_TRUE(third.closedWithin(1000ms)) << "the connection over the cap was not closed";
-  EXPECT_EQ(plc.connectionsRefused(), 1U);
+  // The acceptor counts the refusal as it closes the connection: the count may trail the close.
+  EXPECT_TRUE(waitUntil([&] { return plc.connectionsRefused() == 1U; })) << plc.connectionsRefused();
   first.send(readInputRegisters(1));
   EXPECT_TRUE(first.readAdu().has_value()) << "the connections within the cap are still served";
 
