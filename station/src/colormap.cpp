@@ -1,5 +1,7 @@
 #include "stampscan/station/colormap.hpp"
 
+#include "stampscan/report/colour_scale.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -28,17 +30,7 @@ std::vector<Rgb> colorize(const std::vector<double>& values, double lo, double h
 }
 
 std::array<double, 2> displayRange(const std::vector<double>& values) {
-  std::vector<double> finite;
-  finite.reserve(values.size());
-  for (double v : values)
-    if (std::isfinite(v)) finite.push_back(v);
-  if (finite.empty()) return {0.0, 1.0};
-  const auto at = [&](double q) {
-    auto it = finite.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(finite.size() - 1));
-    std::nth_element(finite.begin(), it, finite.end());
-    return *it;
-  };
-  const double lo = at(0.01), hi = at(0.99);
+  const auto [lo, hi] = report::robustRange(values);
   return {lo, hi > lo ? hi : lo + 1e-9};
 }
 

@@ -62,9 +62,6 @@ ColourScale roundedScale(std::string title, std::string unit, double lo, double 
   return ColourScale(std::move(title), std::move(unit), edges, temperatureBands(edges.size() - 1));
 }
 
-namespace {
-// The 1st and 99th percentiles of the finite values: a few outliers do not wash out the map (they
-// take the end colours).
 std::array<double, 2> robustRange(const std::vector<double>& values) {
   std::vector<double> finite;
   finite.reserve(values.size());
@@ -78,7 +75,6 @@ std::array<double, 2> robustRange(const std::vector<double>& values) {
   };
   return {at(0.01), at(0.99)};
 }
-}  // namespace
 
 ColourScale thinningScale(const std::vector<double>& thinning) {
   const auto [lo, hi] = robustRange(thinning);

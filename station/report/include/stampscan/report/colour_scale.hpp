@@ -44,6 +44,9 @@ ColourScale roundedScale(std::string title, std::string unit, double lo, double 
 
 // Thinning in %, over the values' range (from 0, or below when the part thickened).
 ColourScale thinningScale(const std::vector<double>& thinning_percent);
+// The 1st and 99th percentiles of the finite values ({0, 1} when there are none): a few outliers
+// then take the end colours instead of washing out the map.
+std::array<double, 2> robustRange(const std::vector<double>& values);
 // Major engineering strain in %, over the values' range (from 0, or below).
 ColourScale majorStrainScale(const std::vector<double>& major_percent);
 // The safety margin in engineering strain %, fixed to the material's marginal band: red at and
