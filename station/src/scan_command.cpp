@@ -4,9 +4,6 @@
 // (the part, sphere and plate in one simulated world) and talks to it only through the drivers on
 // loopback, as to a real cell.
 #include "stampscan/acquisition/cell.hpp"
-#include "stampscan/fitting/atomic_file.hpp"
-#include "stampscan/fitting/ply_io.hpp"
-#include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/station/commands.hpp"
@@ -14,13 +11,9 @@
 #include "stampscan/station/scan_job.hpp"
 #include "virtual_digitizer_host.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <atomic>
 #include <csignal>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <thread>
 
 namespace stampscan::station {
@@ -33,15 +26,6 @@ struct ScanOptions {
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false;
   std::uint64_t seed = 1;
 };
-
-namespace fs = std::filesystem;
-
-std::string readText(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 // Ctrl-C and SIGTERM: the handler only sets a flag; a watcher thread turns it into an operator abort.
 std::atomic<int> g_stop_signal{0};
@@ -93,36 +77,17 @@ void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfi
   std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
 }
 
-// A replay's result against `station process` on the recording: the same Cloud4D, up to the
-// resampling of the head track. Printed, and kept in run.json as "replay".
-void compareWithRecording(const sim::CellReplay& replay, const std::string& recording, const acquisition::ScanPlan& plan,
-                          const ScanJobResult& r) {
+// What the replay served, and its result against `station process` on the recording (ScanJob
+// measured both).
+void printReplay(const sim::CellReplay& replay, const ScanJobResult& r) {
   const sim::ReplayStats s = replay.stats();
   std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "
               "(%zu ticks without one), %zu frames\n",
               s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
-  registration::MeasureParams params;
-  params.with_stereo = plan.stereoCount(acquisition::kScenePart) > 0 &&
-                       plan.stereoCount(acquisition::kScenePlate) >= params.min_plate_views;
-  const registration::ScanTrace trace = registration::loadScanTrace(recording, {}, params.with_stereo);
-  const fitting::Cloud reference = registration::toCloud(registration::measureScan(trace, params, nullptr).elements);
-  const fitting::Cloud replayed = fitting::readPly(r.run_dir / "cloud4d.ply");
-  const ScanAccuracy a = accuracyAgainst(replayed, reference);
-  std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
-              "thickness strain RMS %.5f\n",
-              reference.size(), a.matched, replayed.size(), a.position_rms_mm, a.strain_rms);
-  const fs::path run_json = r.run_dir / "run.json";
-  nlohmann::json record = nlohmann::json::parse(readText(run_json));
-  record["replay"] = {{"recording", recording},
-                      {"moves_followed", s.moves_followed},
-                      {"moves_not_recorded", s.moves_not_recorded},
-                      {"profiles_served", s.profiles_served},
-                      {"frames_served", s.frames_served},
-                      {"reference_elements", reference.size()},
-                      {"matched", a.matched},
-                      {"position_rms_mm", a.position_rms_mm},
-                      {"strain_rms", a.strain_rms}};
-  fitting::writeFileAtomically(run_json, record.dump(2) + "\n");
+  if (const auto& a = r.against_recording)
+    std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
+                "thickness strain RMS %.5f\n",
+                r.recording_elements, a->matched, r.elements, a->position_rms_mm, a->strain_rms);
 }
 
 }  // namespace
@@ -181,6 +146,7 @@ CommandRunner addScanCommand(CLI::App& app) {
       job.run.session = recorded.session;
       if (opt->part_id == "sample" && !recorded.session.part_id.empty()) opt->part_id = recorded.session.part_id;
       replay = std::make_shared<sim::CellReplay>(std::move(recorded));
+      job.replayed_trace = opt->replay;
     } else {
       job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
     }
@@ -254,7 +220,7 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
                   static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                   static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
-    if (replay) compareWithRecording(*replay, opt->replay, job.plan, r);
+    if (replay) printReplay(*replay, r);
     if (r.report) {
       std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",
                   report::toString(r.report->verdict), r.report->verdict_reason.c_str(), r.report->material.c_str(),

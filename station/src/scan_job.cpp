@@ -244,6 +244,19 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                           {"strain_rms", result.accuracy->strain_rms},
                           {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
   }
+  if (!o.replayed_trace.empty()) {
+    // The recording measured as `station process` measures it: a replay must give the same cloud.
+    registration::MeasureParams params = measure;
+    const registration::ScanTrace recorded = registration::loadScanTrace(o.replayed_trace, {}, params.with_stereo);
+    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).elements);
+    result.recording_elements = reference.size();
+    result.against_recording = accuracyAgainst(cloud, reference);
+    record["replay"] = {{"recording", o.replayed_trace.string()},
+                        {"reference_elements", reference.size()},
+                        {"matched", result.against_recording->matched},
+                        {"position_rms_mm", result.against_recording->position_rms_mm},
+                        {"strain_rms", result.against_recording->strain_rms}};
+  }
   result.data_loss = dataLoss(result.run);
   record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
   if (!o.material.empty()) record["material"] = o.material;

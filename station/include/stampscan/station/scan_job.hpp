@@ -44,6 +44,9 @@ struct ScanJobOptions {
   // For the report written at the end (station/report): the sheet's material (empty: the report's
   // default) and the press program; both also go into run.json.
   std::string material, program;
+  // A replay (sim/cell_replay.hpp): the trace it plays. The job then also measures that trace as
+  // `station process` does and compares the two Cloud4Ds (ScanJobResult::against_recording).
+  std::filesystem::path replayed_trace;
 };
 
 struct ScanAccuracy {
@@ -59,6 +62,9 @@ struct ScanJobResult {
   registration::DigitizerCalibration digitizer;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
+  // With ScanJobOptions::replayed_trace: this run's elements against the recording's.
+  std::optional<ScanAccuracy> against_recording;
+  std::size_t recording_elements = 0;
   // What the scan did not record that the plan asked for (missing views, sweeps over the loss
   // limit): the result lacks elements there. Also in run.json as "data_loss".
   std::optional<std::string> data_loss;
