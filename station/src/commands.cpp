@@ -5,12 +5,16 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 9> kCommands{{
+  static constexpr std::array<CommandEntry, 13> kCommands{{
       {"scan", addScanCommand},
       {"process", addProcessCommand},
       {"report", addReportCommand},
+      {"history", addHistoryCommand},
+      {"trend", addTrendCommand},
       {"fit", addFitCommand},
       {"devices", addDevicesCommand},
+      {"verify", addVerifyCommand},
+      {"calibration", addCalibrationCommand},
       {"trace", addTraceCommand},
       {"sim", addSimCommand},
       {"sample", addSampleCommand},

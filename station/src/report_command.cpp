@@ -1,6 +1,7 @@
 // `station report RUN_DIR`: the forming-limit analysis and report of a run folder, written into it.
 // A thin caller of report::writeRunReport (station/report/), which `station scan` calls as well.
 #include "stampscan/report/run_report.hpp"
+#include "stampscan/results/run_recording.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <cmath>
@@ -59,6 +60,7 @@ CommandRunner addReportCommand(CLI::App& app) {
     std::printf("\n  figures     max thinning %.1f%%, min safety margin %s\n", s.max_thinning_percent, margin);
     std::printf("  verdict     %s: %s\n", report::toString(s.verdict), s.verdict_reason.c_str());
     std::printf("  time        %.2f s (images, PDF and HTML %.2f s)\n", s.seconds, s.drawing_seconds);
+    std::printf("  recorded    %s\n", results::recordRunInResults(s.run_dir).run_id.c_str());  // in RUNS/results.sqlite
     return 0;
   };
 }

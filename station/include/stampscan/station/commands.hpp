@@ -28,6 +28,10 @@ CommandRunner addProcessCommand(CLI::App& app);
 CommandRunner addDevicesCommand(CLI::App& app);
 CommandRunner addTraceCommand(CLI::App& app);
 CommandRunner addReportCommand(CLI::App& app);
+CommandRunner addHistoryCommand(CLI::App& app);
+CommandRunner addTrendCommand(CLI::App& app);
+CommandRunner addVerifyCommand(CLI::App& app);
+CommandRunner addCalibrationCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.
 CommandRunner addServeSubcommand(CLI::App* sim);
 

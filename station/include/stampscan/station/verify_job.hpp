@@ -1,0 +1,71 @@
+// The daily check of the cell's digitizer: what `station verify` does. Sweeps over the reference
+// sphere (a plan of sphere sweeps only) are run on the cell by the ScanRunner into a trace in the
+// calibration history, the profiles are placed in the machine frame with the calibration in use
+// (or, without one, the calibration these sweeps give), and the probing form and size errors of
+// ISO 10360-8 are computed on the sphere (registration/sphere_verification.hpp) and compared with
+// their maximum permissible errors. The outcome is a calibration record beside its trace:
+//
+//   HISTORY/<id>.mcap   the sweeps, every device message as it arrived
+//           <id>.json   the verification record (registration/calibration_record.hpp)
+//
+// Not done yet: the stereo pair's probing errors (the plate and part views of ISO 10360-8 need a
+// sphere seen by the cameras) and the length check between two spheres of a known distance.
+//
+// Thread safety: run() blocks; abort() may be called from any other thread.
+#pragma once
+
+#include "stampscan/acquisition/cell.hpp"
+#include "stampscan/acquisition/scan_runner.hpp"
+#include "stampscan/registration/calibration_record.hpp"
+#include "stampscan/registration/digitizer_calibration.hpp"
+#include "stampscan/registration/sphere_verification.hpp"
+
+#include <filesystem>
+#include <mutex>
+#include <optional>
+#include <string>
+
+namespace stampscan::station {
+
+// The plan's reference-sphere sweeps alone, named for verification. Throws std::runtime_error when
+// the plan has none.
+acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan);
+
+struct VerifyJobOptions {
+  acquisition::ScanPlan plan;      // sphere sweeps (other steps are refused)
+  acquisition::ScanRunParams run;  // the session description must give the sphere's radius
+  std::filesystem::path history = "stampscan-runs/calibration/history";
+  // The calibration in use, and where it came from. Absent: the sweeps calibrate the digitizer
+  // themselves, and the check then shows the sensor's noise and the calibration model's fit only.
+  std::optional<registration::DigitizerCalibration> calibration;
+  std::string calibration_source;
+  // The certified diameter is taken from the session description (the cell's sphere).
+  registration::SphereVerificationParams sphere;
+};
+
+struct VerifyJobResult {
+  acquisition::ScanRunResult run;
+  registration::SphereVerification digitizer;
+  std::optional<registration::SphereCalibrationResult> calibrated;  // when the sweeps calibrated the digitizer
+  registration::CalibrationRecord record;
+  std::filesystem::path record_file, trace_file;
+};
+
+class VerifyJob {
+ public:
+  VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer = nullptr);
+  // Throws acquisition::ScanError for a plan refused before motion (nothing written), and
+  // std::runtime_error for an aborted run (the trace is kept) or sweeps that do not measure the
+  // sphere (too few points on it). A verification that fails its limits is a result, not an error.
+  VerifyJobResult run(const VerifyJobOptions& options);
+  void abort(const std::string& reason);
+
+ private:
+  acquisition::Cell& cell_;
+  acquisition::ScanObserver* observer_;
+  std::mutex mutex_;
+  acquisition::ScanRunner* runner_ = nullptr;
+  std::optional<std::string> pending_abort_;
+};
+
+}  // namespace stampscan::station

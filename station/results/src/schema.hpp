@@ -1,0 +1,54 @@
+// The results schema, written once for both databases: the migrations and the run columns. The SQL
+// is the common subset of SQLite and PostgreSQL (TEXT, BIGINT, DOUBLE PRECISION, ON CONFLICT).
+#pragma once
+
+#include "stampscan/results/results_store.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace stampscan::results::schema {
+
+// Migration k brings a database from version k-1 to k; version 0 is an empty database.
+struct Migration {
+  int version;
+  const char* description;
+  std::vector<const char*> statements;
+};
+const std::vector<Migration>& migrations();
+// The statements that bring a database of version `found` to kSchemaVersion, the version row
+// included; to run in one transaction after kCreateVersionTable.
+std::vector<std::string> migrationStatements(int found);
+
+// The table that holds the version: one row. Created before any migration runs.
+inline constexpr const char* kCreateVersionTable = "CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)";
+
+// The run columns in the order selectRuns reads them and upsertRun binds them.
+inline constexpr const char* kRunColumns[] = {
+    "run_id",           "part_id",          "program",
+    "plan",             "cell",             "started_utc",
+    "material",         "verdict",          "max_thinning_percent",
+    "min_margin_percent", "marginal_band_percent", "elements",
+    "position_rms_mm",  "strain_rms",       "data_loss",
+    "run_dir",          "status",           "reason"};
+inline constexpr std::size_t kRunColumnCount = sizeof kRunColumns / sizeof kRunColumns[0];
+
+// "INSERT INTO runs (...) VALUES (...) ON CONFLICT (run_id) DO UPDATE SET ...", with the
+// placeholders the database wants (? or $1, ...): placeholder(i) for column i (from 0).
+std::string upsertSql(const std::function<std::string(std::size_t)>& placeholder);
+
+// "SELECT ... FROM runs WHERE ... ORDER BY ...": the filter's conditions with placeholders for its
+// values, which are appended to `values` in placeholder order.
+std::string selectSql(const RunFilter& filter, const std::function<std::string(std::size_t)>& placeholder,
+                      std::vector<std::string>& values);
+
+// The error message for a database newer than this program.
+std::string newerSchemaMessage(const std::string& location, int found);
+
+}  // namespace stampscan::results::schema
+
+namespace stampscan::results::schema {
+// Now, as the ISO UTC text the rows hold (second resolution).
+std::string nowUtc();
+}  // namespace stampscan::results::schema

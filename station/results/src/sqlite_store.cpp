@@ -1,0 +1,203 @@
+// The results history in an SQLite file (RUNS/results.sqlite), through SQLiteCpp. The default
+// rollback journal, not WAL: WAL needs a writable -shm file beside the database even to read it,
+// and the history must read a database that an operator may only read.
+#include "schema.hpp"
+#include "stampscan/results/results_store.hpp"
+
+#include <SQLiteCpp/SQLiteCpp.h>
+#include <sqlite3.h>
+
+namespace stampscan::results {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// One write transaction: BEGIN IMMEDIATE takes the write lock at once (waiting at most the busy
+// timeout), so two writers never both read the schema and then both migrate it. Rolled back unless
+// committed.
+class WriteTransaction {
+ public:
+  explicit WriteTransaction(SQLite::Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
+  ~WriteTransaction() {
+    if (!committed_) {
+      try {
+        db_.exec("ROLLBACK");
+      } catch (const SQLite::Exception&) {
+        // SQLite may already have rolled back (after SQLITE_FULL, for example); nothing is left to undo.
+      }
+    }
+  }
+  WriteTransaction(const WriteTransaction&) = delete;
+  WriteTransaction& operator=(const WriteTransaction&) = delete;
+  void commit() {
+    db_.exec("COMMIT");
+    committed_ = true;
+  }
+
+ private:
+  SQLite::Database& db_;
+  bool committed_ = false;
+};
+
+class SqliteStore final : public ResultsStore {
+ public:
+  SqliteStore(const fs::path& file, const StoreOptions& options) : ResultsStore(file.string()), options_(options) {
+    std::error_code error;
+    if (options.read_only && !fs::exists(file, error))
+      throw ResultsError(location() + ": no results database (no run has been recorded in this runs folder yet)");
+    try {
+      const int flags = options.read_only ? SQLite::OPEN_READONLY : SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE;
+      db_ = std::make_unique<SQLite::Database>(file.string(), flags, static_cast<int>(options.lock_timeout.count()));
+    } catch (const SQLite::Exception& e) {
+      fail("cannot be opened", e);
+    }
+    // SQLite opens a file it may not write read-only without a word; say so now rather than at the
+    // first write.
+    if (!options.read_only && sqlite3_db_readonly(db_->getHandle(), "main") == 1)
+      throw ResultsError(location() + ": read-only (the file cannot be written); runs cannot be recorded in it");
+    try {
+      const int version = readVersion();
+      if (version > kSchemaVersion) throw ResultsError(schema::newerSchemaMessage(location(), version));
+      if (version < kSchemaVersion) {
+        if (options.read_only)
+          throw ResultsError(location() + ": results database of schema version " + std::to_string(version) +
+                             ", older than this program's " + std::to_string(kSchemaVersion) +
+                             "; record a run in it to migrate it first");
+        migrate();
+      }
+    } catch (const SQLite::Exception& e) {
+      fail("cannot be read", e);
+    }
+  }
+
+ protected:
+  void upsertRuns(const std::vector<RunRecord>& runs) override {
+    const RunRecord* current = &runs.front();
+    try {
+      WriteTransaction transaction(*db_);
+      SQLite::Statement insert(*db_, schema::upsertSql([](std::size_t) { return std::string("?"); }));
+      const std::string recorded = schema::nowUtc();
+      for (const RunRecord& run : runs) {
+        current = &run;
+        bind(insert, run, recorded);
+        insert.exec();
+        insert.reset();
+      }
+      transaction.commit();
+    } catch (const SQLite::Exception& e) {
+      fail(runs.size() == 1 ? "run " + current->run_id + " not recorded"
+                            : std::to_string(runs.size()) + " runs not recorded (at run " + current->run_id + ")",
+           e);
+    }
+  }
+
+  static void bind(SQLite::Statement& insert, const RunRecord& run, const std::string& recorded) {
+    int k = 1;
+    const auto text = [&](const std::string& v) { insert.bind(k++, v); };
+    const auto number = [&](const std::optional<double>& v) {
+      if (v) insert.bind(k++, *v);
+      else insert.bind(k++);
+    };
+    text(run.run_id), text(run.part_id), text(run.program), text(run.plan), text(run.cell), text(run.started_utc);
+    text(run.material), text(run.verdict), number(run.max_thinning_percent), number(run.min_margin_percent);
+    number(run.marginal_band_percent);
+    if (run.elements) insert.bind(k++, static_cast<std::int64_t>(*run.elements));
+    else insert.bind(k++);
+    number(run.position_rms_mm), number(run.strain_rms), text(run.data_loss), text(run.run_dir);
+    text(toString(run.status)), text(run.reason), text(recorded);
+  }
+
+  std::vector<RunRecord> selectRuns(const RunFilter& filter) const override {
+    std::vector<RunRecord> runs;
+    try {
+      std::vector<std::string> values;
+      SQLite::Statement query(*db_, schema::selectSql(filter, [](std::size_t) { return std::string("?"); }, values));
+      for (std::size_t i = 0; i < values.size(); ++i) query.bind(static_cast<int>(i + 1), values[i]);
+      while (query.executeStep()) {
+        RunRecord& r = runs.emplace_back();
+        int c = 0;
+        const auto text = [&](std::string& out) { out = query.getColumn(c++).getString(); };
+        const auto number = [&](std::optional<double>& out) {
+          const SQLite::Column column = query.getColumn(c++);
+          if (!column.isNull()) out = column.getDouble();
+        };
+        text(r.run_id), text(r.part_id), text(r.program), text(r.plan), text(r.cell), text(r.started_utc);
+        text(r.material), text(r.verdict), number(r.max_thinning_percent), number(r.min_margin_percent);
+        number(r.marginal_band_percent);
+        if (const SQLite::Column elements = query.getColumn(c++); !elements.isNull()) r.elements = elements.getInt64();
+        number(r.position_rms_mm), number(r.strain_rms), text(r.data_loss), text(r.run_dir);
+        std::string status;
+        text(status);
+        text(r.reason);
+        try {
+          r.status = runStatusFromString(status);
+        } catch (const ResultsError& e) {
+          throw ResultsError(location() + ": run " + r.run_id + ": " + e.what());
+        }
+      }
+    } catch (const SQLite::Exception& e) {
+      fail("cannot be queried", e);
+    }
+    return runs;
+  }
+
+  int storedSchemaVersion() const override {
+    try {
+      return readVersion();
+    } catch (const SQLite::Exception& e) {
+      fail("cannot be read", e);
+    }
+  }
+
+ private:
+  // 0 for an empty database (no schema_version table, or no row in it).
+  int readVersion() const {
+    SQLite::Statement table(*db_, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'");
+    if (!table.executeStep() || table.getColumn(0).getInt() == 0) return 0;
+    SQLite::Statement version(*db_, "SELECT max(version) FROM schema_version");
+    if (!version.executeStep() || version.getColumn(0).isNull()) return 0;
+    return version.getColumn(0).getInt();
+  }
+
+  void migrate() {
+    WriteTransaction transaction(*db_);
+    db_->exec(schema::kCreateVersionTable);
+    // Read again under the write lock: another process may have migrated meanwhile.
+    const int found = readVersion();
+    if (found > kSchemaVersion) throw ResultsError(schema::newerSchemaMessage(location(), found));
+    for (const std::string& statement : schema::migrationStatements(found)) db_->exec(statement);
+    transaction.commit();
+  }
+
+  [[noreturn]] void fail(const std::string& what, const SQLite::Exception& e) const {
+    std::string why;
+    switch (e.getErrorCode()) {
+      case SQLITE_BUSY:
+      case SQLITE_LOCKED:
+        why = "locked by another connection's write transaction (waited " +
+              std::to_string(options_.lock_timeout.count()) + " ms)";
+        break;
+      case SQLITE_READONLY: why = std::string("read-only (") + e.what() + ")"; break;
+      case SQLITE_FULL: why = "the disk is full"; break;
+      case SQLITE_NOTADB: why = "not an SQLite database"; break;
+      case SQLITE_CORRUPT: why = std::string("damaged (") + e.what() + ")"; break;
+      case SQLITE_CANTOPEN:
+        why = std::string(e.what()) + " (does the folder exist, and may this user write in it?)";
+        break;
+      default: why = e.what();
+    }
+    throw ResultsError(location() + ": " + what + ": " + why);
+  }
+
+  StoreOptions options_;
+  std::unique_ptr<SQLite::Database> db_;
+};
+
+}  // namespace
+
+std::unique_ptr<ResultsStore> openSqliteStore(const std::filesystem::path& file, const StoreOptions& options) {
+  return std::make_unique<SqliteStore>(file, options);
+}
+
+}  // namespace stampscan::results

@@ -1,0 +1,127 @@
+// `station calibration list|show ID|diff ID1 ID2`: the cell's calibration history, the records that
+// `station verify` (and later `station calibrate`) write (registration/calibration_record.hpp).
+#include "stampscan/registration/calibration_record.hpp"
+#include "stampscan/station/commands.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+namespace stampscan::station {
+
+namespace {
+
+namespace fs = std::filesystem;
+using registration::CalibrationRecord;
+
+struct CalibrationOptions {
+  std::string calibration_dir = "stampscan-runs/calibration";
+  std::string id, other;
+};
+
+// The records' sub-folder of a calibration folder (see verify_job.hpp).
+fs::path historyOf(const std::string& calibration_dir) { return fs::path(calibration_dir) / "history"; }
+
+std::string checksSummary(const CalibrationRecord& r) {
+  std::size_t passed = 0;
+  for (const auto& c : r.checks) passed += c.passed ? 1 : 0;
+  return std::to_string(passed) + "/" + std::to_string(r.checks.size()) + " checks";
+}
+
+int list(const CalibrationOptions& o) {
+  const fs::path history = historyOf(o.calibration_dir);
+  const registration::RecordListing listing = registration::listCalibrationRecords(history);
+  if (listing.records.empty() && listing.problems.empty()) {
+    std::printf("no calibration records in %s (`station verify` writes one)\n", history.c_str());
+    return 0;
+  }
+  std::printf("%-36s %-13s %-21s %-9s %-11s %s\n", "id", "kind", "created", "verdict", "checks", "cell");
+  for (const auto& r : listing.records)
+    std::printf("%-36s %-13s %-21s %-9s %-11s %s\n", r.id.c_str(), r.kind.c_str(), r.created.c_str(),
+                registration::toString(r.verdict), checksSummary(r).c_str(), r.cell.c_str());
+  for (const auto& p : listing.problems) std::fprintf(stderr, "station: warning: %s\n", p.c_str());
+  return listing.problems.empty() ? 0 : 1;
+}
+
+int show(const CalibrationOptions& o) {
+  const CalibrationRecord r = registration::findCalibrationRecord(historyOf(o.calibration_dir), o.id);
+  std::printf("record      %s (%s, version %d)\n", r.id.c_str(), r.kind.c_str(), CalibrationRecord::kVersion);
+  std::printf("created     %s\n", r.created.c_str());
+  std::printf("cell        %s\n", r.cell.c_str());
+  for (const auto& s : r.sensors)
+    std::printf("sensor      %-10s %s, serial %s, firmware %s\n", s.family.c_str(), s.model.c_str(),
+                s.serial.empty() ? "(none)" : s.serial.c_str(), s.firmware.c_str());
+  for (const auto& t : r.traces) std::printf("trace       %s\n", t.c_str());
+  std::printf("calibration %s\n", r.calibration.c_str());
+  // Counts (no unit) as whole numbers, measures to the micrometre's hundredth.
+  const auto value = [](const char* what, const registration::RecordValue& v) {
+    if (v.unit.empty())
+      std::printf("%-11s %-40s %12.0f\n", what, v.name.c_str(), v.value);
+    else
+      std::printf("%-11s %-40s %12.5f %s\n", what, v.name.c_str(), v.value, v.unit.c_str());
+  };
+  for (const auto& v : r.parameters) value("parameter", v);
+  for (const auto& v : r.residuals) value("residual", v);
+  for (const auto& c : r.checks)
+    std::printf("check       %-4s %-47s %+.4f %s (limit %.4f)\n", c.passed ? "PASS" : "FAIL", c.name.c_str(), c.value,
+                c.unit.c_str(), c.limit);
+  std::printf("verdict     %s%s\n", registration::toString(r.verdict),
+              r.accepted_by.empty() ? "" : (" by " + r.accepted_by).c_str());
+  for (const auto& n : r.notes) std::printf("note        %s\n", n.c_str());
+  return 0;
+}
+
+int diff(const CalibrationOptions& o) {
+  const fs::path history = historyOf(o.calibration_dir);
+  const CalibrationRecord a = registration::findCalibrationRecord(history, o.id);
+  const CalibrationRecord b = registration::findCalibrationRecord(history, o.other);
+  std::printf("%s -> %s\n", a.id.c_str(), b.id.c_str());
+  for (const auto& d : registration::diffCalibrationRecords(a, b)) {
+    if (!d.before && !d.after) {
+      std::printf("  %-47s %s -> %s\n", d.name.c_str(), d.before_text.c_str(), d.after_text.c_str());
+      continue;
+    }
+    const auto number = [](const std::optional<double>& x) {
+      char text[32];
+      if (x)
+        std::snprintf(text, sizeof text, "%.5f", *x);
+      else
+        std::snprintf(text, sizeof text, "%s", "(absent)");
+      return std::string(text);
+    };
+    std::string change = "";
+    if (d.before && d.after) {
+      char text[48];
+      std::snprintf(text, sizeof text, "%+.5f %s", *d.after - *d.before, d.unit.c_str());
+      change = text;
+    }
+    std::printf("  %-47s %12s -> %12s  %s\n", d.name.c_str(), number(d.before).c_str(), number(d.after).c_str(),
+                change.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner addCalibrationCommand(CLI::App& app) {
+  auto opt = std::make_shared<CalibrationOptions>();
+  CLI::App* cmd = app.add_subcommand("calibration", "The cell's calibration history: list, show or compare records");
+  cmd->require_subcommand(1);
+  cmd->fallthrough();  // -d may come after the subcommand too
+  cmd->add_option("-d,--calibration-dir", opt->calibration_dir, "The cell's calibration folder (records in its history/)");
+  CLI::App* list_cmd = cmd->add_subcommand("list", "The records, oldest first");
+  CLI::App* show_cmd = cmd->add_subcommand("show", "One record in full");
+  show_cmd->add_option("ID", opt->id, "The record's id (see `station calibration list`)")->required();
+  CLI::App* diff_cmd = cmd->add_subcommand("diff", "Two records side by side: what changed, value by value");
+  diff_cmd->add_option("ID1", opt->id, "The earlier record")->required();
+  diff_cmd->add_option("ID2", opt->other, "The later record")->required();
+  return [opt, list_cmd, show_cmd, diff_cmd]() {
+    if (list_cmd->parsed()) return list(*opt);
+    if (show_cmd->parsed()) return show(*opt);
+    if (diff_cmd->parsed()) return diff(*opt);
+    return 2;
+  };
+}
+
+}  // namespace stampscan::station

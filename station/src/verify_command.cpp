@@ -1,0 +1,135 @@
+// `station verify`: the quick daily check of the digitizer on the reference sphere (verify_job.hpp),
+// with the calibration in use; pass or fail one line per check, and a record in the calibration
+// history. Exit 0 when every check passes, 2 when one fails, 1 on an error.
+#include "stampscan/registration/calibration_store.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/station/commands.hpp"
+#include "stampscan/station/progress.hpp"
+#include "stampscan/station/verify_job.hpp"
+#include "virtual_digitizer_host.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+namespace stampscan::station {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct VerifyOptions {
+  std::string cell, calibration_dir = "stampscan-runs/calibration", calibration;
+  registration::SphereVerificationParams sphere;
+  std::uint64_t seed = 1;
+  bool quiet = false;
+};
+
+class VerifyObserver final : public acquisition::ScanObserver {
+ public:
+  explicit VerifyObserver(bool quiet) : quiet_(quiet) {}
+  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
+  void progress(const acquisition::ScanProgress& p) override {
+    if (quiet_) return;
+    bar_.update(p.doing, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
+  }
+  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void finish() { bar_.finish(); }
+
+ private:
+  bool quiet_;
+  ProgressBar bar_;
+};
+
+void printCheck(const registration::RecordCheck& c) {
+  std::printf("  %s  %s: %+.4f %s (MPE %.4f %s)\n", c.passed ? "PASS" : "FAIL", c.name.c_str(), c.value, c.unit.c_str(),
+              c.limit, c.unit.c_str());
+}
+
+}  // namespace
+
+CommandRunner addVerifyCommand(CLI::App& app) {
+  auto opt = std::make_shared<VerifyOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "verify", "Check the digitizer on the reference sphere with the calibration in use: the probing form and size "
+                "errors of ISO 10360-8 against their MPE, one line each, and a record in the calibration history "
+                "(exit 2 when a check fails)");
+  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  cmd->add_option("-o,--calibration-dir", opt->calibration_dir,
+                  "The cell's calibration folder: digitizer.json in use, history/ of records and their traces");
+  cmd->add_option("--calibration", opt->calibration,
+                  "The digitizer calibration to verify (default: digitizer.json in the calibration folder; without "
+                  "one, the sweeps calibrate the digitizer themselves)");
+  cmd->add_option("--form-mpe", opt->sphere.form_mpe_mm, "MPE of the probing form error P[Form.Sph.All], mm")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--size-mpe", opt->sphere.size_mpe_mm, "MPE of the probing size error |P[Size.Sph.All]|, mm")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
+  cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
+  return [opt]() {
+    const bool virtual_cell = opt->cell.empty();
+    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    // The simulator's plan for the cell's sphere, its sweeps alone: every fan position, depth, head
+    // angle, speed and direction of the calibration sweeps, so that the check sees what calibration saw.
+    sim::ScanParams world = sim::ScanParams::quick();
+    world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    world.seed = opt->seed;
+    VerifyJobOptions job;
+    job.plan = sphereSweepsOf(sim::planScan(world));
+    job.run.limits = config.limits;
+    job.sphere = opt->sphere;
+    const fs::path dir = opt->calibration_dir;
+    job.history = dir / "history";
+    const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
+    if (!opt->calibration.empty() || fs::exists(stored)) {
+      const registration::DigitizerCalibrationFile file = registration::loadDigitizerCalibration(stored);
+      job.calibration = file.calibration;
+      job.calibration_source = stored.string() + " (created " + file.created + ")";
+    }
+
+    // The embedded virtual cell first (it may re-execute this program); no cameras: no stereo views.
+    std::unique_ptr<HostedVirtualCell> hosted;
+    if (virtual_cell) {
+      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, false);
+      config = hosted->config();
+    }
+    acquisition::Cell cell(config);
+    // The cell's geometry as drawn, the sphere's certified radius with it (as `station scan` does
+    // until a real cell's file carries it).
+    job.run.session = sim::describeSession(world);
+    job.run.session.part_id = "reference sphere";
+
+    std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
+                hosted ? " (hosted in this process)" : "");
+    std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
+                                                      : "none in use: the sweeps calibrate the digitizer themselves");
+    VerifyObserver observer(opt->quiet);
+    VerifyJob verify(cell, &observer);
+    VerifyJobResult r;
+    try {
+      r = verify.run(job);
+    } catch (...) {
+      observer.finish();
+      throw;
+    }
+    observer.finish();
+    const registration::SphereVerification& v = r.digitizer;
+    std::printf("  sweeps      %zu over the sphere, %llu profiles (%llu lost) in %.1f s\n", r.run.sweeps_done,
+                static_cast<unsigned long long>(r.run.profiles), static_cast<unsigned long long>(r.run.lost_profiles),
+                r.run.wall_seconds);
+    if (r.calibrated)
+      std::printf("  calibrated  latency %.3f ms, residual %.4f mm RMS over %zu points\n",
+                  static_cast<double>(r.calibrated->calibration.latency_ns) * 1e-6, r.calibrated->rms_mm,
+                  r.calibrated->inliers);
+    std::printf("  sphere      %zu of %zu points on it; fitted diameter %.4f mm (certified %.4f), radial RMS %.4f mm\n",
+                v.points_on_sphere, v.points_measured, 2 * v.fit.radius, 2 * v.fit.radius - v.size_error_mm,
+                v.fit.rms_mm);
+    for (const auto& c : r.record.checks) printCheck(c);
+    std::printf("  not yet     the stereo pair's probing errors; the length check between two spheres\n");
+    std::printf("  record      %s (%s)\n", r.record.id.c_str(), r.record_file.c_str());
+    std::printf("  verdict     %s\n", v.passed() ? "PASSED" : "FAILED");
+    return v.passed() ? 0 : 2;
+  };
+}
+
+}  // namespace stampscan::station

@@ -1,0 +1,173 @@
+#include "stampscan/station/verify_job.hpp"
+
+#include "stampscan/acquisition/trace/mcap_writer.hpp"
+#include "stampscan/acquisition/trace/trace_recorder.hpp"
+#include "stampscan/registration/calibration_store.hpp"
+#include "stampscan/registration/measure_scan.hpp"
+#include "stampscan/registration/scan_trace.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace stampscan::station {
+
+namespace fs = std::filesystem;
+using registration::RecordCheck;
+using registration::RecordValue;
+
+namespace {
+
+// Profiles exposed within the sphere sweeps, where the head track is to be trusted (the measuring
+// path's own limit: a tenth of the goal for positions).
+std::vector<registration::Profile> sphereProfiles(const registration::ScanTrace& trace, const registration::HeadTrack& track,
+                                                  const registration::DigitizerCalibration& calibration) {
+  const double max_track_error_mm = registration::MeasureParams{}.max_track_error_mm;
+  std::vector<registration::Profile> out;
+  for (const auto& w : trace.sweeps) {
+    if (!w.is(acquisition::kSceneSphere)) continue;
+    for (const auto& p : trace.profiles) {
+      const std::int64_t t = calibration.exposureTime(p);
+      if (t >= w.begin_ns && t <= w.end_ns && track.covers(t) && track.chordError(t) <= max_track_error_mm)
+        out.push_back(p);
+    }
+  }
+  return out;
+}
+
+std::vector<RecordValue> calibrationValues(const registration::DigitizerCalibration& c) {
+  const Eigen::Vector3d t = c.head_from_digitizer.translation();
+  const Eigen::AngleAxisd r(c.head_from_digitizer.linear());
+  return {{"digitizer mount x", t.x(), "mm"},
+          {"digitizer mount y", t.y(), "mm"},
+          {"digitizer mount z", t.z(), "mm"},
+          {"digitizer mount rotation", r.angle() * 180 / 3.14159265358979323846, "deg"},
+          {"digitizer latency", static_cast<double>(c.latency_ns) * 1e-6, "ms"}};
+}
+
+}  // namespace
+
+acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan) {
+  acquisition::ScanPlan out = plan;
+  out.name = "reference sphere, verification";
+  std::erase_if(out.steps, [](const acquisition::PlanStep& s) {
+    const auto* sweep = std::get_if<acquisition::SweepStep>(&s);
+    return !sweep || sweep->scene != acquisition::kSceneSphere;
+  });
+  if (out.steps.empty()) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
+  return out;
+}
+
+VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer) : cell_(cell), observer_(observer) {}
+
+void VerifyJob::abort(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (runner_)
+    runner_->abort(reason);
+  else if (!pending_abort_)
+    pending_abort_ = reason;
+}
+
+VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
+  if (o.plan.stereoCount() > 0 || o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere))
+    throw acquisition::ScanError("a verification plan holds reference-sphere sweeps only; '" + o.plan.name +
+                                 "' has other steps");
+  if (!o.run.session.reference_sphere_radius_mm)
+    throw acquisition::ScanError("the cell's description gives no reference-sphere radius: nothing to verify against");
+  if (const auto problems = acquisition::checkPlan(o.plan, o.run.limits); !problems.empty())
+    throw acquisition::ScanError("the plan cannot run on this cell: " + problems.front());
+
+  VerifyJobResult result;
+  registration::CalibrationRecord& record = result.record;
+  record.kind = "verification";
+  record.id = registration::newRecordId(o.history, record.kind);
+  record.created = registration::utcNow();
+  record.cell = cell_.config().name;
+  fs::create_directories(o.history);
+  result.trace_file = o.history / (record.id + ".mcap");
+  record.traces.push_back(result.trace_file.filename().string());
+  {
+    trace::McapWriter writer(result.trace_file);
+    trace::TraceRecorder recorder(writer);
+    const acquisition::StationClock clock;
+    acquisition::ScanRunner runner(cell_.devices(), recorder, clock, observer_);
+    {
+      std::lock_guard lock(mutex_);
+      runner_ = &runner;
+      if (pending_abort_) runner.abort(*pending_abort_);
+    }
+    try {
+      result.run = runner.run(o.plan, o.run);
+    } catch (...) {
+      {
+        std::lock_guard lock(mutex_);
+        runner_ = nullptr;
+      }
+      writer.close();
+      std::error_code ignored;
+      fs::remove(result.trace_file, ignored);  // refused before motion: nothing to keep
+      throw;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      runner_ = nullptr;
+    }
+    writer.close();
+  }
+  for (const auto& d : result.run.devices) record.sensors.push_back({d.family, d.model, d.serial, d.firmware});
+  if (!result.run.completed)
+    throw std::runtime_error("the verification sweeps were aborted: " + result.run.abort_reason + " (the trace is " +
+                             result.trace_file.string() + "; no record was written)");
+
+  const registration::ScanTrace trace = registration::loadScanTrace(result.trace_file);
+  const auto pairs = trace.clock_pairs.find("digitizer");
+  if (pairs == trace.clock_pairs.end())
+    throw std::runtime_error(result.trace_file.string() + ": no clock-sync pairs for the digitizer");
+  const registration::HeadTrack track(trace.head);
+  const double certified_diameter = 2 * *o.run.session.reference_sphere_radius_mm;
+
+  registration::DigitizerCalibration calibration;
+  if (o.calibration) {
+    calibration = *o.calibration;
+    record.calibration = o.calibration_source;
+  } else {
+    // No calibration in use: the sweeps calibrate the digitizer themselves (mount and latency).
+    registration::SphereCalibrationParams sp;
+    sp.sphere_radius = 0.5 * certified_diameter;
+    sp.nominal.head_from_digitizer = registration::toIsometry(o.run.session.head_from_digitizer_nominal);
+    sp.nominal.clock_offset_ns = registration::clockOffset(pairs->second);
+    registration::DigitizerCalibration nominal = sp.nominal;
+    result.calibrated = registration::calibrateDigitizer(sphereProfiles(trace, track, nominal), track, sp);
+    calibration = result.calibrated->calibration;
+    record.calibration = "calibrated on these sweeps (no calibration in use): the check shows the sensor's noise and "
+                         "the calibration model's fit, not a stored calibration";
+    record.residuals.push_back({"calibration residual RMS", result.calibrated->rms_mm, "mm"});
+  }
+  calibration.clock_offset_ns = registration::clockOffset(pairs->second);  // changes at every power-up
+
+  const std::vector<registration::Vec3> points =
+      registration::spherePoints(sphereProfiles(trace, track, calibration), track, calibration);
+  registration::SphereVerificationParams sp = o.sphere;
+  sp.certified_diameter_mm = certified_diameter;
+  result.digitizer = registration::verifySphere(points, sp);
+  const registration::SphereVerification& v = result.digitizer;
+
+  record.parameters = calibrationValues(calibration);
+  record.parameters.push_back({"certified sphere diameter", certified_diameter, "mm"});
+  record.parameters.push_back({"fitted sphere diameter", 2 * v.fit.radius, "mm"});
+  record.parameters.push_back({"sphere centre x", v.fit.centre.x(), "mm"});
+  record.parameters.push_back({"sphere centre y", v.fit.centre.y(), "mm"});
+  record.parameters.push_back({"sphere centre z", v.fit.centre.z(), "mm"});
+  record.residuals.push_back({"radial deviation RMS", v.fit.rms_mm, "mm"});
+  record.residuals.push_back({"points on the sphere", static_cast<double>(v.points_on_sphere), ""});
+  record.residuals.push_back({"points measured", static_cast<double>(v.points_measured), ""});
+  record.checks.push_back({"probing form error P[Form.Sph.All] (digitizer)", v.form_error_mm, sp.form_mpe_mm, "mm", v.form_passed});
+  record.checks.push_back({"probing size error P[Size.Sph.All] (digitizer)", v.size_error_mm, sp.size_mpe_mm, "mm", v.size_passed});
+  record.verdict = v.passed() ? registration::RecordVerdict::Passed : registration::RecordVerdict::Failed;
+  record.notes.push_back("not checked yet: the stereo pair's probing errors and the length between two spheres");
+  if (result.run.lost_profiles > 0)
+    record.notes.push_back(std::to_string(result.run.lost_profiles) + " digitizer profiles were lost during the sweeps");
+  result.record_file = registration::saveCalibrationRecord(o.history, record);
+  return result;
+}
+
+}  // namespace stampscan::station
