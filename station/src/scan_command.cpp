@@ -227,6 +227,9 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.report->seconds);
     }
     std::printf("  results     %s\n", r.run_dir.c_str());
+    if (!r.history_error.empty())
+      std::fprintf(stderr, "station: warning: the run is complete but not in the results history: %s\n",
+                   r.history_error.c_str());
     if (!r.report_error.empty()) {
       std::fprintf(stderr, "station: error: the scan is measured, but its report failed: %s (run `station report %s` "
                            "once the cause is fixed)\n", r.report_error.c_str(), r.run_dir.c_str());

@@ -5,6 +5,7 @@
 #include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/results/run_recording.hpp"
 #include "stampscan/station/fit_runner.hpp"
 #include "live_measurement.hpp"
 
@@ -119,6 +120,17 @@ class SerialObserver final : public ScanJobObserver {
   std::mutex mutex_;
 };
 
+// Records the run folder in the results database of its runs folder; returns what went wrong, or
+// nothing. A history that cannot be written never loses the run itself: its folder is complete.
+std::string recordInHistory(const fs::path& run_dir, const fs::path& runs_dir, const std::string& failure) {
+  try {
+    results::recordRunInResults(run_dir, runs_dir.string(), failure);
+    return {};
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+}
+
 }  // namespace
 
 ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
@@ -211,6 +223,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   if (!result.run.completed) {
     measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);
+    recordInHistory(result.run_dir, o.runs_dir, "");  // as aborted, with its reason from run.json
     throw std::runtime_error("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
                              trace_file.string() + ")");
   }
@@ -272,6 +285,8 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   } catch (const std::exception& e) {
     result.report_error = e.what();
   }
+  // Every run is a row of the results history, a failed report included (as failed, with why).
+  result.history_error = recordInHistory(result.run_dir, o.runs_dir, result.report_error);
   return result;
 }
 

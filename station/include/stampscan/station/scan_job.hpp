@@ -71,6 +71,8 @@ struct ScanJobResult {
   // The forming-limit report written into the run folder, or why it could not be.
   std::optional<report::ReportSummary> report;
   std::string report_error;
+  // Why the run could not be recorded in the results history (empty: it was).
+  std::string history_error;
 };
 
 // The data a finished run lacks, in one line, or nothing when it recorded all the plan asked for.
