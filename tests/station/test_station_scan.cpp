@@ -20,7 +20,9 @@ namespace {
 
 fs::path onlyRunFolder(const fs::path& runs) {
   std::vector<fs::path> dirs;
-  for (const auto& e : fs::directory_iterator(runs)) dirs.push_back(e.path());
+  // The run folders only: the runs folder also holds the results database.
+  for (const auto& e : fs::directory_iterator(runs))
+    if (e.is_directory()) dirs.push_back(e.path());
   EXPECT_EQ(dirs.size(), 1u);
   return dirs.empty() ? fs::path() : dirs.front();
 }

@@ -132,7 +132,10 @@ std::uint64_t GigECamera::Impl::unwrapFrameId(std::uint64_t raw) {
 void GigECamera::Impl::handleBuffer(ArvBuffer* buffer, std::int64_t received_ns) {
   const ArvBufferStatus status = arv_buffer_get_status(buffer);
   const std::uint64_t id = unwrapFrameId(arv_buffer_get_frame_id(buffer));
-  if (!first_frame_id) first_frame_id = id;
+  // GVSP block ids start at 1 and skip 0: a buffer with id 0 holds stray packets (Aravis's packet
+  // socket can catch another camera's on the same host as a stream opens) and must not become
+  // the first frame, or every trigger id of the session would be off by one.
+  if (!first_frame_id && id != 0) first_frame_id = id;
   {
     std::lock_guard lock(stats_mutex);
     guint64 completed = 0, failures = 0, underruns = 0;
@@ -143,6 +146,11 @@ void GigECamera::Impl::handleBuffer(ArvBuffer* buffer, std::int64_t received_ns)
       ++stats.incomplete;
       ++stats.incomplete_by_reason[statusReason(status)];
       return;  // never delivered as a good frame
+    }
+    if (!first_frame_id) {  // block id 0: stray packets, whatever Aravis made of them
+      ++stats.incomplete;
+      ++stats.incomplete_by_reason["stray-block-0"];
+      return;
     }
   }
   size_t size = 0;

@@ -169,6 +169,28 @@ struct VirtualCamera::Impl {
   void runStream();
 
   // The fake camera's fill-pattern hook (our stream thread, under the fake camera's fill-pattern mutex).
+  // Renders the next frame into `staged` without holding the device lock: a simulated world may
+  // take a while to render, and the control channel (the controller's heartbeats among its
+  // requests) must be served meanwhile, or a busy machine makes the controller lose the camera.
+  // Stream thread only.
+  void stageFrame(const FrameRequest& size) {
+    FrameRequest request = size;
+    request.index = filled++;
+    staged.assign(std::size_t{request.width} * request.height * request.bytes_per_pixel, 0);
+    FrameSource current;
+    {
+      std::lock_guard lock(source_mutex);
+      current = source;
+    }
+    const std::span<std::uint8_t> out(staged.data(), staged.size());
+    if (!current || !current(request, out)) testPattern(request, out);
+    staged_request = request;
+    staged_ready = true;
+  }
+  std::vector<std::uint8_t> staged;  // stream thread only (fill() runs on it too)
+  FrameRequest staged_request;
+  bool staged_ready = false;
+
   static void fill(ArvBuffer* buffer, void* data, guint32, guint32, ArvPixelFormat format) {
     auto* self = static_cast<Impl*>(data);
     FrameRequest request;
@@ -192,6 +214,16 @@ struct VirtualCamera::Impl {
     // camera only calls this hook after checking the buffer holds width * height * pixel size.
     if (bytes == nullptr || need > arv_fake_camera_get_payload(fake)) return;
     const std::span<std::uint8_t> out(bytes, need);
+    // The image rendered beforehand, outside the device lock (runStream): copied, not made again.
+    if (self->staged_ready && self->staged.size() == need && self->staged_request.width == request.width &&
+        self->staged_request.height == request.height &&
+        self->staged_request.bytes_per_pixel == request.bytes_per_pixel) {
+      --self->filled;  // counted when it was staged
+      std::copy(self->staged.begin(), self->staged.end(), out.begin());
+      self->staged_ready = false;
+      return;
+    }
+    self->staged_ready = false;
     FrameSource source;
     {
       std::lock_guard lock(self->source_mutex);
@@ -313,6 +345,7 @@ void VirtualCamera::Impl::runStream() {
     std::chrono::microseconds wait = std::chrono::milliseconds(100);
     bool due = false;
     gvsp::BlockInfo info;
+    FrameRequest render;
     gvsp::Destination to;
     std::uint32_t packet_size = 0;
     std::size_t payload = 0;
@@ -347,6 +380,19 @@ void VirtualCamera::Impl::runStream() {
         }
       }
       if (due) {
+        guint32 format = 0;
+        arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_WIDTH, &info.width);
+        arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_HEIGHT, &info.height);
+        arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, &format);
+        render.width = info.width;
+        render.height = info.height;
+        render.bytes_per_pixel = ARV_PIXEL_FORMAT_BIT_PER_PIXEL(format) > 8 ? 2 : 1;
+      }
+    }
+    if (due) {
+      stageFrame(render);
+      std::lock_guard lock(device_mutex);
+      {
         payload = arv_fake_camera_get_payload(camera);
         if (payload > image.size() || buffer == nullptr) {
           if (buffer != nullptr) g_object_unref(buffer);
