@@ -19,6 +19,7 @@ CellConfig virtualCell() {
   c.source = "built-in";
   c.digitizer_virtual = true;
   c.cmm_device_time = true;
+  c.calibration.sphere_diameter_mm = 25.4;  // the virtual cell's reference sphere (sim/scene.hpp)
   return c;
 }
 
@@ -48,13 +49,15 @@ void checkPort(int port, const std::string& file, const std::string& section) {
   if (port < 1 || port > 65535) throw std::runtime_error(file + ": [" + section + "] port " + std::to_string(port) + " is not 1-65535");
 }
 
-// A [machine] number, or the default; must be finite (and positive where asked).
-double number(const toml::table& t, const char* key, double fallback, const std::string& file, bool positive = false) {
-  const toml::node_view<const toml::node> node = t["machine"][key];
+// A number of a section, or the default; must be finite (and positive where asked).
+double number(const toml::table& t, const char* section, const char* key, double fallback, const std::string& file,
+              bool positive = false) {
+  const toml::node_view<const toml::node> node = t[section][key];
   if (!node) return fallback;
   const std::optional<double> v = node.value<double>();
   if (!v || !std::isfinite(*v) || (positive && !(*v > 0)))
-    throw std::runtime_error(file + ": [machine] " + key + (positive ? " must be a positive number" : " must be a number"));
+    throw std::runtime_error(file + ": [" + section + "] " + key +
+                             (positive ? " must be a positive number" : " must be a number"));
   return *v;
 }
 
@@ -79,12 +82,30 @@ void readLimits(const toml::table& t, const std::string& file, MachineLimits& l)
   l.travel_max = triple(t, "travel_max", l.travel_max, file);
   for (std::size_t i = 0; i < 3; ++i)
     if (!(l.travel_min[i] < l.travel_max[i])) throw std::runtime_error(file + ": [machine] travel_min must be below travel_max on every axis");
-  l.min_speed = number(t, "min_speed", l.min_speed, file, true);
-  l.max_speed = number(t, "max_speed", l.max_speed, file, true);
+  l.min_speed = number(t, "machine", "min_speed", l.min_speed, file, true);
+  l.max_speed = number(t, "machine", "max_speed", l.max_speed, file, true);
   if (!(l.min_speed <= l.max_speed)) throw std::runtime_error(file + ": [machine] min_speed is above max_speed");
-  l.acceleration = number(t, "acceleration", l.acceleration, file, true);
-  l.max_tilt = number(t, "max_tilt_deg", l.max_tilt / kDeg, file, true) * kDeg;
-  l.max_turn = number(t, "max_turn_deg", l.max_turn / kDeg, file, true) * kDeg;
+  l.acceleration = number(t, "machine", "acceleration", l.acceleration, file, true);
+  l.max_tilt = number(t, "machine", "max_tilt_deg", l.max_tilt / kDeg, file, true) * kDeg;
+  l.max_turn = number(t, "machine", "max_turn_deg", l.max_turn / kDeg, file, true) * kDeg;
+}
+
+void readCalibrationPolicy(const toml::table& t, const std::string& file, CalibrationPolicy& p) {
+  static constexpr const char* kSection = "calibration";
+  if (const toml::node_view<const toml::node> section = t[kSection]; section && !section.is_table())
+    throw std::runtime_error(file + ": [calibration] must be a table");
+  p.dir = get<std::string>(t, kSection, "dir", p.dir, file);
+  p.validity_days = number(t, kSection, "validity_days", p.validity_days, file, true);
+  p.digitizer_residual_mm = number(t, kSection, "digitizer_residual_mm", p.digitizer_residual_mm, file, true);
+  p.camera_reprojection_px = number(t, kSection, "camera_reprojection_px", p.camera_reprojection_px, file, true);
+  p.head_mount_residual_mm = number(t, kSection, "head_mount_residual_mm", p.head_mount_residual_mm, file, true);
+  p.drift_mount_mm = number(t, kSection, "drift_mount_mm", p.drift_mount_mm, file, true);
+  p.drift_latency_ms = number(t, kSection, "drift_latency_ms", p.drift_latency_ms, file, true);
+  p.drift_baseline_mm = number(t, kSection, "drift_baseline_mm", p.drift_baseline_mm, file, true);
+  p.sphere_diameter_mm = number(t, kSection, "sphere_diameter_mm", p.sphere_diameter_mm, file);
+  if (p.sphere_diameter_mm < 0) throw std::runtime_error(file + ": [calibration] sphere_diameter_mm must not be negative");
+  p.form_mpe_mm = number(t, kSection, "form_mpe_mm", p.form_mpe_mm, file, true);
+  p.size_mpe_mm = number(t, kSection, "size_mpe_mm", p.size_mpe_mm, file, true);
 }
 
 }  // namespace
@@ -136,6 +157,7 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   }
   c.digitizer_required = get<bool>(t, "digitizer", "required", true, file);
   readLimits(t, file, c.limits);
+  readCalibrationPolicy(t, file, c.calibration);
   return c;
 }
 

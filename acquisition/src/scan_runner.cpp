@@ -299,15 +299,15 @@ struct ScanRunner::Impl {
       connect(*dev.right_camera, "the right camera");
       configureCameras(params);
     }
-    checkInterlocks(params);
-
     ScanRunResult result;
-    result.motion_seconds = motionSeconds(plan, params.limits);
     result.devices = {dev.cmm.identity(), dev.plc.identity(), dev.digitizer.identity()};
     if (stereo) {
       result.devices.push_back(dev.left_camera->identity());
       result.devices.push_back(dev.right_camera->identity());
     }
+    if (params.before_motion) params.before_motion(result.devices);
+    checkInterlocks(params);
+    result.motion_seconds = motionSeconds(plan, params.limits);
 
     // The session description, with what the devices say of themselves.
     const drivers::digitizer::ConfigReply config = dev.digitizer.readConfig();

@@ -21,7 +21,11 @@ constexpr const char* kFormat = "stampscan-calibration-record";
 
 json valuesJson(const std::vector<RecordValue>& values) {
   json a = json::array();
-  for (const auto& v : values) a.push_back({{"name", v.name}, {"value", v.value}, {"unit", v.unit}});
+  for (const auto& v : values) {
+    json value = {{"name", v.name}, {"value", v.value}, {"unit", v.unit}};
+    if (v.uncertainty > 0) value["uncertainty"] = v.uncertainty;
+    a.push_back(value);
+  }
   return a;
 }
 
@@ -90,7 +94,8 @@ class Reader {
     const json& a = array(j, key);
     for (std::size_t i = 0; i < a.size(); ++i) {
       const std::string where = key + "[" + std::to_string(i) + "].";
-      out.push_back({text(a[i], "name", where), number(a[i], "value", where), text(a[i], "unit", where)});
+      out.push_back({text(a[i], "name", where), number(a[i], "value", where), text(a[i], "unit", where),
+                     a[i].contains("uncertainty") ? number(a[i], "uncertainty", where) : 0.0});
     }
     return out;
   }
@@ -211,7 +216,9 @@ RecordListing listCalibrationRecords(const fs::path& history) {
   if (!fs::is_directory(history, ec)) return out;
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(history))
-    if (entry.is_regular_file() && entry.path().extension() == ".json") files.push_back(entry.path());
+    // <id>.json; <id>.calibration.json beside it is the calibration the record made, not a record.
+    if (entry.is_regular_file() && entry.path().extension() == ".json" && entry.path().stem().extension() != ".calibration")
+      files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   for (const fs::path& f : files) {
     try {

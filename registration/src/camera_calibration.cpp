@@ -153,7 +153,9 @@ CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const Circ
                                std::to_string(images.size()) + " views; at least " + std::to_string(params.min_views) +
                                " are needed");
     std::vector<cv::Mat> rvecs, tvecs;
-    out.rms_px = cv::calibrateCamera(object, points, size, K, D, rvecs, tvecs, flags);
+    cv::Mat intrinsics_sd, extrinsics_sd, view_errors;
+    out.rms_px = cv::calibrateCamera(object, points, size, K, D, rvecs, tvecs, intrinsics_sd, extrinsics_sd, view_errors, flags);
+    out.intrinsics_sd.assign(intrinsics_sd.begin<double>(), intrinsics_sd.begin<double>() + std::min(9, intrinsics_sd.rows));
     std::vector<double> errors;
     for (std::size_t k = 0; k < index.size(); ++k) {
       std::vector<cv::Point2f> projected;
@@ -208,7 +210,36 @@ StereoCalibration calibrateStereo(const std::vector<cv::Mat>& left, const std::v
     return rvec;
   }(), T);
   out.baseline_mm = cv::norm(T);
+  // The baseline's standard uncertainty by the jackknife over the pairs (each left out once).
+  if (out.pairs_used >= 4) {
+    std::vector<double> baselines;
+    for (std::size_t leave = 0; leave < object.size(); ++leave) {
+      std::vector<std::vector<cv::Point3f>> o;
+      std::vector<std::vector<cv::Point2f>> a, b;
+      for (std::size_t k = 0; k < object.size(); ++k)
+        if (k != leave) {
+          o.push_back(object[k]);
+          a.push_back(l[k]);
+          b.push_back(r[k]);
+        }
+      cv::Mat R2, T2, E2, F2;
+      cv::stereoCalibrate(o, a, b, K1, D1, K2, D2, out.left.model.size, R2, T2, E2, F2, cv::CALIB_FIX_INTRINSIC);
+      baselines.push_back(cv::norm(T2));
+    }
+    out.baseline_sd_mm = jackknifeSd(baselines);
+  }
   return out;
+}
+
+double jackknifeSd(const std::vector<double>& values) {
+  const std::size_t n = values.size();
+  if (n < 2) return 0;
+  double mean = 0;
+  for (double v : values) mean += v;
+  mean /= static_cast<double>(n);
+  double ss = 0;
+  for (double v : values) ss += (v - mean) * (v - mean);
+  return std::sqrt(static_cast<double>(n - 1) / static_cast<double>(n) * ss);
 }
 
 HandEyeResult calibrateHeadToCamera(const std::vector<Eigen::Isometry3d>& machine_from_head,

@@ -69,6 +69,15 @@ trace::RigidPose toRigidPose(const Eigen::Isometry3d& T) {
   return p;
 }
 
+std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
+                                                      std::int64_t clock_offset_ns, std::int64_t latency_ns,
+                                                      double max_track_error_mm) {
+  std::vector<std::vector<Profile>> out;
+  for (const auto& w : trace.sweeps)
+    if (w.is("reference_sphere")) out.push_back(profilesIn(trace, track, w, clock_offset_ns, latency_ns, max_track_error_mm));
+  return out;
+}
+
 ScanMeasurer::ScanMeasurer(MeasureParams params, MeasureObserver* observer) : params_(params), observer_(observer) {}
 
 ScanMeasurer::~ScanMeasurer() = default;
@@ -90,11 +99,8 @@ void ScanMeasurer::calibrateDigitizer(const ScanTrace& trace) {
   const HeadTrack track(trace.head);
   StageClock clock;
   std::vector<Profile> sphere;
-  for (const auto& w : trace.sweeps)
-    if (w.is("reference_sphere")) {
-      auto p = profilesIn(trace, track, w, digitizer_offset, 0, params_.max_track_error_mm);
-      sphere.insert(sphere.end(), p.begin(), p.end());
-    }
+  for (auto& sweep : sphereSweepProfiles(trace, track, digitizer_offset, 0, params_.max_track_error_mm))
+    sphere.insert(sphere.end(), sweep.begin(), sweep.end());
   if (!sphere.empty()) {
     if (!session.reference_sphere_radius_mm)
       throw std::runtime_error("the trace has reference-sphere sweeps but its session description gives no sphere radius");
@@ -118,9 +124,8 @@ void ScanMeasurer::calibrateDigitizer(const ScanTrace& trace) {
   digitizer_ready_ = true;
 }
 
-void ScanMeasurer::calibrateCameras(const ScanTrace& trace) {
-  if (trace.plate_left.size() < params_.min_plate_views || !trace.session || !trace.session->plate) return;
-  StageClock clock;
+std::optional<CameraRigCalibration> calibrateCameraRig(const ScanTrace& trace, std::size_t min_plate_views) {
+  if (trace.plate_left.size() < min_plate_views || !trace.session || !trace.session->plate) return std::nullopt;
   const trace::PlateRecord& plate = *trace.session->plate;
   const CirclePlateSpec spec{plate.columns, plate.rows, plate.pitch_mm};
   std::vector<cv::Mat> left, right;
@@ -128,27 +133,49 @@ void ScanMeasurer::calibrateCameras(const ScanTrace& trace) {
     left.push_back(trace.plate_left[i].image);
     right.push_back(trace.plate_right[i].image);
   }
-  out_.stereo = ::stampscan::registration::calibrateStereo(left, right, spec);
+  CameraRigCalibration rig;
+  rig.stereo = calibrateStereo(left, right, spec);
+  const auto camera_pairs = trace.clock_pairs.find("camera_left");
+  if (camera_pairs == trace.clock_pairs.end() || trace.head.size() < 2) return rig;
+  rig.camera_offset_ns = clockOffset(camera_pairs->second);
+  const HeadTrack track(trace.head);
+  for (std::size_t v = 0; v < left.size(); ++v) {
+    const std::int64_t t = trace.plate_left[v].device_time_ns - rig.camera_offset_ns;
+    if (rig.stereo.left.plate_poses[v] && track.covers(t)) {
+      rig.machine_from_head.push_back(track.poseAt(t));
+      rig.camera_from_plate.push_back(*rig.stereo.left.plate_poses[v]);
+    }
+  }
+  if (rig.machine_from_head.size() >= 3) rig.head_from_left = calibrateHeadToCamera(rig.machine_from_head, rig.camera_from_plate);
+  return rig;
+}
+
+void ScanMeasurer::calibrateCameras(const ScanTrace& trace) {
+  if (trace.plate_left.size() < params_.min_plate_views && params_.cameras) {
+    const auto camera_pairs = trace.clock_pairs.find("camera_left");
+    if (camera_pairs == trace.clock_pairs.end() || camera_pairs->second.empty()) return;
+    const CameraCalibrationFile& stored = *params_.cameras;
+    camera_offset_ = clockOffset(camera_pairs->second);
+    out_.stereo = stored.stereo;
+    out_.head_from_left = stored.head_from_left;
+    out_.rig = StereoRig{stored.stereo.left.model, stored.stereo.right.model, stored.head_from_left.head_from_camera,
+                         stored.stereo.right_from_left};
+    tell("cameras", format("the stored calibration (created %s): baseline %.3f mm", stored.created.c_str(),
+                           stored.stereo.baseline_mm));
+    return;
+  }
+  StageClock clock;
+  const std::optional<CameraRigCalibration> rig = calibrateCameraRig(trace, params_.min_plate_views);
+  if (!rig) return;
+  out_.stereo = rig->stereo;
   const StereoCalibration& stereo = *out_.stereo;
   std::string text = format("calibrated on %zu plate views: reprojection %.3f / %.3f px, baseline %.3f mm",
                             stereo.pairs_used, stereo.left.rms_px, stereo.right.rms_px, stereo.baseline_mm);
-  const auto camera_pairs = trace.clock_pairs.find("camera_left");
-  if (camera_pairs != trace.clock_pairs.end() && trace.head.size() >= 2) {
-    camera_offset_ = clockOffset(camera_pairs->second);
-    const HeadTrack track(trace.head);
-    std::vector<Eigen::Isometry3d> heads, plates;
-    for (std::size_t v = 0; v < left.size(); ++v) {
-      const std::int64_t t = trace.plate_left[v].device_time_ns - camera_offset_;
-      if (stereo.left.plate_poses[v] && track.covers(t)) {
-        heads.push_back(track.poseAt(t));
-        plates.push_back(*stereo.left.plate_poses[v]);
-      }
-    }
-    if (heads.size() >= 3) {
-      out_.head_from_left = calibrateHeadToCamera(heads, plates);
-      text += format(", head mount residual %.3f mm", out_.head_from_left->residual_mm);
-      out_.rig = StereoRig{stereo.left.model, stereo.right.model, out_.head_from_left->head_from_camera, stereo.right_from_left};
-    }
+  if (rig->head_from_left) {
+    camera_offset_ = rig->camera_offset_ns;
+    out_.head_from_left = rig->head_from_left;
+    text += format(", head mount residual %.3f mm", out_.head_from_left->residual_mm);
+    out_.rig = StereoRig{stereo.left.model, stereo.right.model, out_.head_from_left->head_from_camera, stereo.right_from_left};
   }
   tell("cameras", text + format(" (%.2f s)", clock.lap()));
 }
@@ -281,7 +308,8 @@ ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params,
   m.measureSweeps(trace);
   if (params.with_stereo) {
     if (!m.camerasCalibrated())
-      throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
+      throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views and no stored "
+                               "camera calibration was given");
     for (std::size_t v = 0; v < trace.part_left.size(); ++v) m.measureView(trace, v, static_cast<std::uint32_t>(1000 + v));
   }
   return m.finish();

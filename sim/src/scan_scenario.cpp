@@ -287,6 +287,7 @@ CellTruth drawTruth(const ScanParams& p) {
   truth.camera_clock_offset_ns[0] = toNs(10 + 1000 * u(rng));
   truth.camera_clock_offset_ns[1] = toNs(10 + 1000 * u(rng));
   truth.sphere = p.sphere;
+  truth.head_from_digitizer.translation() += p.digitizer_mount_shift;  // after the draws: the seed's cell otherwise
   return truth;
 }
 

@@ -1,5 +1,5 @@
 // `station calibration list|show ID|diff ID1 ID2`: the cell's calibration history, the records that
-// `station verify` (and later `station calibrate`) write (registration/calibration_record.hpp).
+// `station calibrate` and `station verify` write (registration/calibration_record.hpp).
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/station/commands.hpp"
 
@@ -33,7 +33,7 @@ int list(const CalibrationOptions& o) {
   const fs::path history = historyOf(o.calibration_dir);
   const registration::RecordListing listing = registration::listCalibrationRecords(history);
   if (listing.records.empty() && listing.problems.empty()) {
-    std::printf("no calibration records in %s (`station verify` writes one)\n", history.c_str());
+    std::printf("no calibration records in %s (`station calibrate` and `station verify` write them)\n", history.c_str());
     return 0;
   }
   std::printf("%-36s %-13s %-21s %-9s %-11s %s\n", "id", "kind", "created", "verdict", "checks", "cell");
@@ -58,6 +58,8 @@ int show(const CalibrationOptions& o) {
   const auto value = [](const char* what, const registration::RecordValue& v) {
     if (v.unit.empty())
       std::printf("%-11s %-40s %12.0f\n", what, v.name.c_str(), v.value);
+    else if (v.uncertainty > 0)
+      std::printf("%-11s %-40s %12.5f %-3s +- %.5f\n", what, v.name.c_str(), v.value, v.unit.c_str(), v.uncertainty);
     else
       std::printf("%-11s %-40s %12.5f %s\n", what, v.name.c_str(), v.value, v.unit.c_str());
   };

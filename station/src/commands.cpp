@@ -5,7 +5,7 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 13> kCommands{{
+  static constexpr std::array<CommandEntry, 14> kCommands{{
       {"scan", addScanCommand},
       {"process", addProcessCommand},
       {"report", addReportCommand},
@@ -13,6 +13,7 @@ std::span<const CommandEntry> commandTable() {
       {"trend", addTrendCommand},
       {"fit", addFitCommand},
       {"devices", addDevicesCommand},
+      {"calibrate", addCalibrateCommand},
       {"verify", addVerifyCommand},
       {"calibration", addCalibrationCommand},
       {"trace", addTraceCommand},

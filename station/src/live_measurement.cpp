@@ -132,6 +132,10 @@ void LiveMeasurement::advance(std::size_t step) {
 void LiveMeasurement::measureReadyViews() {
   // A view is matched on the laser's surface and registered to all of its elements: only once every
   // part sweep of the plan is in.
+  // A plan without plate views measures with the stored calibration, once the views' clock pairs are in.
+  if (params_.with_stereo && !measurer_.camerasCalibrated() && params_.cameras &&
+      plan_.stereoCount(acquisition::kScenePlate) == 0)
+    measurer_.calibrateCameras(mine_);
   if (!params_.with_stereo || !measurer_.camerasCalibrated() ||
       part_sweeps_measured_ < plan_.sweepCount(acquisition::kScenePart))
     return;

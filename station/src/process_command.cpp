@@ -109,6 +109,9 @@ CommandRunner addProcessCommand(CLI::App& app) {
       const fs::path file = fs::path(opt->calibration_dir) / "digitizer.json";
       if (!fs::exists(file)) throw std::runtime_error(file.string() + " does not exist");
       params.digitizer = registration::loadDigitizerCalibration(file).calibration;
+      // The cameras' too, for a trace recorded without plate views (a scan on the calibration in use).
+      if (const fs::path cameras = fs::path(opt->calibration_dir) / "cameras.json"; fs::exists(cameras))
+        params.cameras = registration::loadCameraCalibration(cameras);
     }
     PrintingObserver observer;
     registration::ScanMeasurement m;
@@ -122,10 +125,10 @@ CommandRunner addProcessCommand(CLI::App& app) {
       std::optional<registration::CameraCalibrationFile> cameras;
       if (m.sphere)
         digitizer = registration::DigitizerCalibrationFile{m.sphere->calibration, m.sphere->rms_mm, m.sphere->inliers,
-                                                           registration::utcNow(), opt->input + " (reference-sphere sweeps)"};
+                                                           registration::utcNow(), opt->input + " (reference-sphere sweeps)", {}};
       if (m.stereo)
         cameras = registration::CameraCalibrationFile{*m.stereo, m.head_from_left.value_or(registration::HandEyeResult{}),
-                                                      registration::utcNow(), opt->input + " (calibration-plate views)"};
+                                                      registration::utcNow(), opt->input + " (calibration-plate views)", {}};
       registration::saveCalibrationSet(opt->save_calibration, digitizer ? &*digitizer : nullptr,
                                        cameras ? &*cameras : nullptr);
     }

@@ -6,15 +6,14 @@
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
+#include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
-#include <thread>
 
 namespace stampscan::station {
 
@@ -22,14 +21,12 @@ namespace {
 
 struct ScanOptions {
   std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
-  std::string material, program;
-  bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false;
+  std::string material, program, calibration_dir;
+  bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false, calibrated = false;
   std::uint64_t seed = 1;
+  std::vector<double> mount_shift;
 };
 
-// Ctrl-C and SIGTERM: the handler only sets a flag; a watcher thread turns it into an operator abort.
-std::atomic<int> g_stop_signal{0};
-extern "C" void onStopSignal(int sig) { g_stop_signal = sig; }
 
 class TerminalObserver final : public ScanJobObserver {
  public:
@@ -108,7 +105,16 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_option("--program", opt->program, "The press program the part comes from, for the report and the history");
   cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
   cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
+  cmd->add_flag("--calibrated", opt->calibrated,
+                "Leave the calibration scenes out of the built-in plan and measure with the calibration in use (from "
+                "`station calibrate`; refused when it is missing, failed, expired or not this cell's)");
+  cmd->add_option("--calibration-dir", opt->calibration_dir,
+                  "The cell's calibration folder (default: the cell's [calibration] dir, else RUNS_DIR/calibration)");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
+  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
+                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
+      ->expected(3)
+      ->delimiter(',');
   cmd->add_option("--replay", opt->replay,
                   "Run a recorded trace again on the virtual cell (the CMM follows its head track, the digitizer and "
                   "the cameras serve its profiles and frames) and compare the result with `station process` on it");
@@ -127,7 +133,11 @@ CommandRunner addScanCommand(CLI::App& app) {
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
     world.seed = opt->seed;
+    world.calibration = !opt->calibrated;
+    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
     ScanJobOptions job;
+    job.calibration_policy = config.calibration;
+    job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
     job.run.limits = config.limits;
     // A replay plays the recording's plan on a cell that serves the recording.
     std::shared_ptr<sim::CellReplay> replay;
@@ -153,7 +163,8 @@ CommandRunner addScanCommand(CLI::App& app) {
     if (opt->plan.empty() && !replay) {
       if (opt->laser_only)
         std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
-      job.plan.name = job.plan.part.kind + (opt->laser_only ? ", laser" : ", laser and stereo") + ", with calibration scenes";
+      job.plan.name = job.plan.part.kind + (opt->laser_only ? ", laser" : ", laser and stereo") +
+                      (opt->calibrated ? ", on the calibration in use" : ", with calibration scenes");
     }
     if (opt->dry_run) {
       const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
@@ -179,41 +190,20 @@ CommandRunner addScanCommand(CLI::App& app) {
     // it yet; the virtual cell's sensors are the simulator's; a replay's are the recording's.)
     if (!replay) job.run.session = sim::describeSession(world);
     job.run.session.part_id = opt->part_id;
+    applySphereCertificate(config.calibration, job.run.session);
 
     std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");
     TerminalObserver observer(opt->quiet);
     ScanJob scan(cell, &observer);
-    g_stop_signal = 0;
-    // The scan's own handlers for as long as it runs: an operator abort ends it cleanly.
-    const auto previous_int = std::signal(SIGINT, onStopSignal);
-    const auto previous_term = std::signal(SIGTERM, onStopSignal);
-    std::atomic<bool> done{false};
-    std::thread watcher([&] {
-      while (!done) {
-        if (g_stop_signal) {
-          scan.abort(g_stop_signal == SIGINT ? "operator abort (Ctrl-C)" : "stopped (SIGTERM)");
-          break;
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      }
-    });
-    const auto stop_watcher = [&] {
-      done = true;
-      watcher.join();
-      std::signal(SIGINT, previous_int);
-      std::signal(SIGTERM, previous_term);
-    };
     ScanJobResult r;
-    try {
+    {
+      const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
       r = scan.run(job);
-    } catch (...) {
-      stop_watcher();
-      throw;
     }
-    stop_watcher();
     std::printf("  measured    %zu grid elements; cloud4d.ply, fitted.ply, mesh.ply (%.2f s after the scan)\n", r.elements,
                 r.measure_seconds);
+    std::printf("  calibration digitizer: %s; cameras: %s\n", r.digitizer_calibration.c_str(), r.camera_calibration.c_str());
     if (r.accuracy && hosted)
       std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "
                   "thickness strain RMS %.4f; latency %.3f ms (true %.3f)\n",

@@ -5,6 +5,7 @@
 #include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/results/run_recording.hpp"
 #include "stampscan/station/fit_runner.hpp"
 #include "live_measurement.hpp"
@@ -131,6 +132,80 @@ std::string recordInHistory(const fs::path& run_dir, const fs::path& runs_dir, c
   }
 }
 
+// The stored calibrations a plan needs (the sensors it does not calibrate itself), loaded and
+// checked against the cell before anything moves; and the measuring parameters that use them.
+struct CalibrationInUse {
+  std::optional<registration::DigitizerCalibrationFile> digitizer;
+  std::optional<registration::CameraCalibrationFile> cameras;
+  fs::path digitizer_file, cameras_file;
+  std::string digitizer_text = "calibrated on this scan's reference-sphere sweeps";
+  std::string cameras_text = "none: the plan has no stereo views";
+};
+
+template <typename File, typename Load>
+File loadInUse(const fs::path& file, const char* sensor, Load load) {
+  const std::string fix = std::string("run `station calibrate ") + sensor + "`";
+  if (!fs::exists(file))
+    throw acquisition::ScanError("no " + std::string(sensor) + " calibration in use: " + file.string() +
+                                 " does not exist, and the plan does not calibrate the " + sensor + " itself; " + fix);
+  try {
+    return load(file);
+  } catch (const std::exception& e) {
+    throw acquisition::ScanError(std::string(e.what()) + "; " + fix);
+  }
+}
+
+CalibrationInUse calibrationFor(const ScanJobOptions& o, registration::MeasureParams& measure) {
+  CalibrationInUse in_use;
+  if (o.plan.sweepCount(acquisition::kSceneSphere) == 0) {
+    in_use.digitizer_file = o.calibration_dir / "digitizer.json";
+    in_use.digitizer = loadInUse<registration::DigitizerCalibrationFile>(in_use.digitizer_file, "digitizer",
+                                                                         registration::loadDigitizerCalibration);
+    measure.digitizer = in_use.digitizer->calibration;
+    in_use.digitizer_text = in_use.digitizer_file.string() + " (record " + in_use.digitizer->provenance.record_id +
+                            ", created " + in_use.digitizer->created + ")";
+  }
+  const bool part_views = o.plan.stereoCount(acquisition::kScenePart) > 0;
+  const bool plate_views = o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views;
+  if (part_views && plate_views) in_use.cameras_text = "calibrated on this scan's plate views";
+  if (part_views && !plate_views) {
+    in_use.cameras_file = o.calibration_dir / "cameras.json";
+    in_use.cameras = loadInUse<registration::CameraCalibrationFile>(in_use.cameras_file, "cameras",
+                                                                    registration::loadCameraCalibration);
+    // The cameras' intrinsics hold for the image size they were calibrated at only.
+    const cv::Size calibrated = in_use.cameras->stereo.left.model.size;
+    if (const auto& nominal = o.run.session.camera_nominal;
+        nominal && (nominal->width != calibrated.width || nominal->height != calibrated.height))
+      throw acquisition::ScanError(in_use.cameras_file.string() + " was calibrated on " + std::to_string(calibrated.width) +
+                                   " x " + std::to_string(calibrated.height) + " images, but this scan takes " +
+                                   std::to_string(nominal->width) + " x " + std::to_string(nominal->height) +
+                                   "; calibrate the cameras at the scan's resolution, or scan without stereo views");
+    measure.cameras = in_use.cameras;
+    in_use.cameras_text = in_use.cameras_file.string() + " (record " + in_use.cameras->provenance.record_id +
+                          ", created " + in_use.cameras->created + ")";
+  }
+  measure.with_stereo = part_views && (plate_views || measure.cameras);
+  return in_use;
+}
+
+// The stored calibrations against the sensors that answer: throws ScanError naming the file and
+// what does not match (before motion: nothing has moved).
+void checkAgainstSensors(const CalibrationInUse& in_use, const std::string& cell, const acquisition::CalibrationPolicy& policy,
+                         const std::vector<drivers::DeviceIdentity>& devices) {
+  registration::CalibrationExpectation expected;
+  expected.cell = cell;
+  expected.validity_days = policy.validity_days;
+  for (const auto& d : devices) expected.sensors.push_back({d.family, d.model, d.serial, d.firmware});
+  const auto check = [&](const fs::path& file, const std::string& created, const registration::CalibrationProvenance& p,
+                         const char* sensor) {
+    if (const auto problem = registration::calibrationProblem(file, created, p, expected))
+      throw acquisition::ScanError("the " + std::string(sensor) + " calibration cannot be used: " + *problem +
+                                   "; run `station calibrate " + sensor + "`");
+  };
+  if (in_use.digitizer) check(in_use.digitizer_file, in_use.digitizer->created, in_use.digitizer->provenance, "digitizer");
+  if (in_use.cameras) check(in_use.cameras_file, in_use.cameras->created, in_use.cameras->provenance, "cameras");
+}
+
 }  // namespace
 
 ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
@@ -169,15 +244,23 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   // Refuse a plan that cannot run before a folder is made for it.
   const auto problems = acquisition::checkPlan(o.plan, o.run.limits);
   if (!problems.empty()) throw acquisition::ScanError("the plan cannot run on this cell: " + problems.front());
+  // The stereo views are measured when the plan has views of the part and the cameras are
+  // calibrated: on the plan's plate views, or by the stored calibration.
+  registration::MeasureParams measure;
+  const CalibrationInUse in_use = calibrationFor(o, measure);
+  result.digitizer_calibration = in_use.digitizer_text;
+  result.camera_calibration = in_use.cameras_text;
   result.run_dir = newRunFolder(o.runs_dir, o.part_id);
   if (observer_) observer_->runFolder(result.run_dir);
   const fs::path trace_file = result.run_dir / "trace.mcap";
-  // The stereo views are measured when the plan has views of the part and enough of the plate to
-  // calibrate the cameras on.
-  registration::MeasureParams measure;
-  measure.with_stereo = o.plan.stereoCount(acquisition::kScenePart) > 0 &&
-                        o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views;
   SerialObserver observer(observer_);
+  acquisition::ScanRunParams run_params = o.run;
+  run_params.before_motion = [&, previous = o.run.before_motion](const std::vector<drivers::DeviceIdentity>& devices) {
+    if (previous) previous(devices);
+    checkAgainstSensors(in_use, cell_.config().name, o.calibration_policy, devices);
+    if (in_use.digitizer || in_use.cameras)
+      observer.checkPassed("calibration in use: made on this cell with these sensors, within its validity");
+  };
   registration::LiveScanTrace live(measure.with_stereo);
   std::optional<LiveMeasurement> measuring;
   measuring.emplace(live, o.plan, measure, &observer);
@@ -194,7 +277,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
       if (pending_abort_) runner.abort(*pending_abort_);
     }
     try {
-      result.run = runner.run(o.plan, o.run);
+      result.run = runner.run(o.plan, run_params);
     } catch (const acquisition::ScanError&) {
       {
         std::lock_guard lock(mutex_);
@@ -220,6 +303,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   observer.measuring(nullptr);
   if (observer_) observer_->scanDone(result.run);
   nlohmann::json record = runRecord(o, cell_, result.run);
+  record["calibration"] = {{"digitizer", result.digitizer_calibration}, {"cameras", result.camera_calibration}};
   if (!result.run.completed) {
     measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);

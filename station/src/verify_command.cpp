@@ -3,12 +3,15 @@
 // history. Exit 0 when every check passes, 2 when one fails, 1 on an error.
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/verify_job.hpp"
+#include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
 
 #include <cstdio>
+#include <optional>
 #include <filesystem>
 #include <memory>
 
@@ -19,11 +22,13 @@ namespace {
 namespace fs = std::filesystem;
 
 struct VerifyOptions {
-  std::string cell, calibration_dir = "stampscan-runs/calibration", calibration;
-  registration::SphereVerificationParams sphere;
+  std::string cell, calibration_dir, calibration;
+  std::optional<double> form_mpe_mm, size_mpe_mm;
   std::uint64_t seed = 1;
+  std::vector<double> mount_shift;
   bool quiet = false;
 };
+
 
 class VerifyObserver final : public acquisition::ScanObserver {
  public:
@@ -56,15 +61,22 @@ CommandRunner addVerifyCommand(CLI::App& app) {
                 "(exit 2 when a check fails)");
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
   cmd->add_option("-o,--calibration-dir", opt->calibration_dir,
-                  "The cell's calibration folder: digitizer.json in use, history/ of records and their traces");
+                  "The cell's calibration folder: digitizer.json in use, history/ of records and their traces (default: "
+                  "the cell's [calibration] dir, else stampscan-runs/calibration)");
   cmd->add_option("--calibration", opt->calibration,
                   "The digitizer calibration to verify (default: digitizer.json in the calibration folder; without "
                   "one, the sweeps calibrate the digitizer themselves)");
-  cmd->add_option("--form-mpe", opt->sphere.form_mpe_mm, "MPE of the probing form error P[Form.Sph.All], mm")
+  cmd->add_option("--form-mpe", opt->form_mpe_mm,
+                  "MPE of the probing form error P[Form.Sph.All], mm (default: the cell's [calibration] form_mpe_mm)")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--size-mpe", opt->sphere.size_mpe_mm, "MPE of the probing size error |P[Size.Sph.All]|, mm")
+  cmd->add_option("--size-mpe", opt->size_mpe_mm,
+                  "MPE of the probing size error |P[Size.Sph.All]|, mm (default: the cell's [calibration] size_mpe_mm)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
+  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
+                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
+      ->expected(3)
+      ->delimiter(',');
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
@@ -74,11 +86,13 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     sim::ScanParams world = sim::ScanParams::quick();
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     world.seed = opt->seed;
+    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
     VerifyJobOptions job;
     job.plan = sphereSweepsOf(sim::planScan(world));
     job.run.limits = config.limits;
-    job.sphere = opt->sphere;
-    const fs::path dir = opt->calibration_dir;
+    job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
+    job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
+    const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
     job.history = dir / "history";
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
     if (!opt->calibration.empty() || fs::exists(stored)) {
@@ -98,6 +112,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     // until a real cell's file carries it).
     job.run.session = sim::describeSession(world);
     job.run.session.part_id = "reference sphere";
+    applySphereCertificate(config.calibration, job.run.session);
 
     std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");
@@ -106,11 +121,14 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     VerifyObserver observer(opt->quiet);
     VerifyJob verify(cell, &observer);
     VerifyJobResult r;
-    try {
-      r = verify.run(job);
-    } catch (...) {
-      observer.finish();
-      throw;
+    {
+      const StopSignalGuard stop([&](const std::string& reason) { verify.abort(reason); });
+      try {
+        r = verify.run(job);
+      } catch (...) {
+        observer.finish();
+        throw;
+      }
     }
     observer.finish();
     const registration::SphereVerification& v = r.digitizer;

@@ -1,7 +1,5 @@
 #include "stampscan/station/verify_job.hpp"
 
-#include "stampscan/acquisition/trace/mcap_writer.hpp"
-#include "stampscan/acquisition/trace/trace_recorder.hpp"
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -17,20 +15,14 @@ using registration::RecordValue;
 
 namespace {
 
-// Profiles exposed within the sphere sweeps, where the head track is to be trusted (the measuring
-// path's own limit: a tenth of the goal for positions).
-std::vector<registration::Profile> sphereProfiles(const registration::ScanTrace& trace, const registration::HeadTrack& track,
-                                                  const registration::DigitizerCalibration& calibration) {
-  const double max_track_error_mm = registration::MeasureParams{}.max_track_error_mm;
+// The profiles of every sphere sweep, placed with `calibration`'s clock offset and latency.
+std::vector<registration::Profile> allSphereProfiles(const registration::ScanTrace& trace,
+                                                     const registration::HeadTrack& track,
+                                                     const registration::DigitizerCalibration& calibration) {
   std::vector<registration::Profile> out;
-  for (const auto& w : trace.sweeps) {
-    if (!w.is(acquisition::kSceneSphere)) continue;
-    for (const auto& p : trace.profiles) {
-      const std::int64_t t = calibration.exposureTime(p);
-      if (t >= w.begin_ns && t <= w.end_ns && track.covers(t) && track.chordError(t) <= max_track_error_mm)
-        out.push_back(p);
-    }
-  }
+  for (auto& sweep : registration::sphereSweepProfiles(trace, track, calibration.clock_offset_ns, calibration.latency_ns,
+                                                       registration::MeasureParams{}.max_track_error_mm))
+    out.insert(out.end(), sweep.begin(), sweep.end());
   return out;
 }
 
@@ -57,15 +49,8 @@ acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan) {
   return out;
 }
 
-VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer) : cell_(cell), observer_(observer) {}
-
-void VerifyJob::abort(const std::string& reason) {
-  std::lock_guard lock(mutex_);
-  if (runner_)
-    runner_->abort(reason);
-  else if (!pending_abort_)
-    pending_abort_ = reason;
-}
+VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer)
+    : cell_(cell), traced_(cell, observer) {}
 
 VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   if (o.plan.stereoCount() > 0 || o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere))
@@ -85,34 +70,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   fs::create_directories(o.history);
   result.trace_file = o.history / (record.id + ".mcap");
   record.traces.push_back(result.trace_file.filename().string());
-  {
-    trace::McapWriter writer(result.trace_file);
-    trace::TraceRecorder recorder(writer);
-    const acquisition::StationClock clock;
-    acquisition::ScanRunner runner(cell_.devices(), recorder, clock, observer_);
-    {
-      std::lock_guard lock(mutex_);
-      runner_ = &runner;
-      if (pending_abort_) runner.abort(*pending_abort_);
-    }
-    try {
-      result.run = runner.run(o.plan, o.run);
-    } catch (...) {
-      {
-        std::lock_guard lock(mutex_);
-        runner_ = nullptr;
-      }
-      writer.close();
-      std::error_code ignored;
-      fs::remove(result.trace_file, ignored);  // refused before motion: nothing to keep
-      throw;
-    }
-    {
-      std::lock_guard lock(mutex_);
-      runner_ = nullptr;
-    }
-    writer.close();
-  }
+  result.run = traced_.run(o.plan, o.run, result.trace_file);
   for (const auto& d : result.run.devices) record.sensors.push_back({d.family, d.model, d.serial, d.firmware});
   if (!result.run.completed)
     throw std::runtime_error("the verification sweeps were aborted: " + result.run.abort_reason + " (the trace is " +
@@ -136,7 +94,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
     sp.nominal.head_from_digitizer = registration::toIsometry(o.run.session.head_from_digitizer_nominal);
     sp.nominal.clock_offset_ns = registration::clockOffset(pairs->second);
     registration::DigitizerCalibration nominal = sp.nominal;
-    result.calibrated = registration::calibrateDigitizer(sphereProfiles(trace, track, nominal), track, sp);
+    result.calibrated = registration::calibrateDigitizer(allSphereProfiles(trace, track, nominal), track, sp);
     calibration = result.calibrated->calibration;
     record.calibration = "calibrated on these sweeps (no calibration in use): the check shows the sensor's noise and "
                          "the calibration model's fit, not a stored calibration";
@@ -145,7 +103,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   calibration.clock_offset_ns = registration::clockOffset(pairs->second);  // changes at every power-up
 
   const std::vector<registration::Vec3> points =
-      registration::spherePoints(sphereProfiles(trace, track, calibration), track, calibration);
+      registration::spherePoints(allSphereProfiles(trace, track, calibration), track, calibration);
   registration::SphereVerificationParams sp = o.sphere;
   sp.certified_diameter_mm = certified_diameter;
   result.digitizer = registration::verifySphere(points, sp);

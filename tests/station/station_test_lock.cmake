@@ -12,5 +12,8 @@ set(_served_cell_tests
   StationTest.MbpollReadsTheServedPlc StationTest.RawTcpClientDrivesTheServedCmm
   # `station scan` hosts the virtual cell with its cameras
   StationTest.ScanOnTheVirtualCellMeasuresThePart StationTest.CtrlCEndsAScanCleanly
-  StationTest.TheLiveTraceOpensInTheReferenceReader StationTest.ScanRefusesAPlanBeforeAnythingMoves)
+  StationTest.TheLiveTraceOpensInTheReferenceReader StationTest.ScanRefusesAPlanBeforeAnythingMoves
+  # `station calibrate` of the cameras
+  StationTest.CalibrateRecoversTheVirtualCellsSensorsAndPutsThemInUse
+  StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

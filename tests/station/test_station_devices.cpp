@@ -239,6 +239,48 @@ TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
   EXPECT_EQ(file.limits.acceleration, built_in.limits.acceleration);
   EXPECT_NEAR(file.limits.max_tilt, built_in.limits.max_tilt, 1e-12);
   EXPECT_NEAR(file.limits.max_turn, built_in.limits.max_turn, 1e-12);
+  EXPECT_EQ(file.calibration.dir, built_in.calibration.dir);
+  EXPECT_EQ(file.calibration.validity_days, built_in.calibration.validity_days);
+  EXPECT_EQ(file.calibration.digitizer_residual_mm, built_in.calibration.digitizer_residual_mm);
+  EXPECT_EQ(file.calibration.camera_reprojection_px, built_in.calibration.camera_reprojection_px);
+  EXPECT_EQ(file.calibration.head_mount_residual_mm, built_in.calibration.head_mount_residual_mm);
+  EXPECT_EQ(file.calibration.drift_mount_mm, built_in.calibration.drift_mount_mm);
+  EXPECT_EQ(file.calibration.drift_latency_ms, built_in.calibration.drift_latency_ms);
+  EXPECT_EQ(file.calibration.drift_baseline_mm, built_in.calibration.drift_baseline_mm);
+  EXPECT_EQ(file.calibration.sphere_diameter_mm, built_in.calibration.sphere_diameter_mm);
+  EXPECT_EQ(file.calibration.form_mpe_mm, built_in.calibration.form_mpe_mm);
+  EXPECT_EQ(file.calibration.size_mpe_mm, built_in.calibration.size_mpe_mm);
+}
+
+// [calibration]: the rules a cell's file sets, and a bad value named with its section and key.
+TEST(StationCells, CalibrationRulesAreReadAndBadOnesNamed) {
+  const fs::path dir = fs::temp_directory_path() / ("stampscan_cell_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path file = dir / "cell.toml";
+  writeFile(file, "name = \"line 3\"\n[calibration]\ndir = \"/var/cal\"\nvalidity_days = 2.5\nform_mpe_mm = 0.02\n"
+                  "sphere_diameter_mm = 30.0\n");
+  const CellConfig c = loadCellConfig(file);
+  EXPECT_EQ(c.calibration.dir, "/var/cal");
+  EXPECT_DOUBLE_EQ(c.calibration.validity_days, 2.5);
+  EXPECT_DOUBLE_EQ(c.calibration.form_mpe_mm, 0.02);
+  EXPECT_DOUBLE_EQ(c.calibration.sphere_diameter_mm, 30.0);
+  EXPECT_DOUBLE_EQ(c.calibration.size_mpe_mm, acquisition::CalibrationPolicy{}.size_mpe_mm);  // the default
+  for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
+           {"[calibration]\nvalidity_days = 0\n", "validity_days must be a positive number"},
+           {"[calibration]\nform_mpe_mm = \"tight\"\n", "form_mpe_mm must be a positive number"},
+           {"[calibration]\ndir = 3\n", "dir has the wrong type"},
+           {"[calibration]\nsphere_diameter_mm = -1\n", "sphere_diameter_mm must not be negative"},
+           {"calibration = 5\n", "[calibration] must be a table"}}) {
+    writeFile(file, text);
+    try {
+      (void)loadCellConfig(file);
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -11,6 +11,28 @@
 
 namespace stampscan::acquisition {
 
+// The cell's calibration rules ([calibration]): where the calibration in use and its history are
+// kept, how long a calibration stays valid, what a new one must reach to be put in use, how far it
+// may move from the one in use before that is reported as drift, and the reference sphere's
+// certificate with the maximum permissible errors of `station verify`. The defaults suit the
+// virtual cell's sensors; a real cell's file gives its manufacturer's figures.
+struct CalibrationPolicy {
+  std::string dir;                        // "" : the calibration folder beside the runs (<runs>/calibration)
+  double validity_days = 7;               // a scan refuses a calibration older than this
+  // Acceptance limits of a new calibration (every figure at or below its limit).
+  double digitizer_residual_mm = 0.015;   // radial RMS of the sphere sweeps about the fitted sphere
+  double camera_reprojection_px = 0.25;   // reprojection RMS of each camera and of the pair
+  double head_mount_residual_mm = 0.05;   // the plate's implied machine position, RMS over the views
+  // Drift: a new calibration that moves this far from the one in use is reported.
+  double drift_mount_mm = 0.05;           // the digitizer's or the cameras' mount on the head
+  double drift_latency_ms = 0.2;          // the digitizer's latency
+  double drift_baseline_mm = 0.05;        // the stereo pair's baseline
+  // The reference sphere: its certified diameter (0: the cell description's) and the verification's
+  // maximum permissible errors (ISO 10360-8 probing form and size).
+  double sphere_diameter_mm = 0;
+  double form_mpe_mm = 0.100, size_mpe_mm = 0.030;
+};
+
 struct CellConfig {
   std::string name = "virtual cell";
   std::string source;  // the file it came from, or "built-in"
@@ -38,6 +60,7 @@ struct CellConfig {
   // digitizer virtual has `station devices` host it in its own process (virtual_digitizer_host.hpp).
   bool digitizer_virtual = false;
   bool digitizer_required = true;
+  CalibrationPolicy calibration;
 };
 
 // The built-in virtual cell (the same as station/cells/virtual.toml).

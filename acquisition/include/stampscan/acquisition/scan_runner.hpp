@@ -6,7 +6,8 @@
 // A run, in order:
 //  1. The plan is checked against the machine's limits: a plan that leaves the travel, asks for a
 //     speed or a head angle the CMM refuses, is refused (ScanError) before anything moves.
-//  2. Checks before motion: every device connects and answers; the PLC reports the door closed, the
+//  2. Checks before motion: every device connects and answers; the caller's own check
+//     (ScanRunParams::before_motion, with the devices' identities); the PLC reports the door closed, the
 //     e-stop chain and the light curtain healthy and the air on; the part is clamped (the runner
 //     asks the PLC to clamp and waits). A failed check is a ScanError with one line naming it.
 //  3. The CMM is homed if it is not; move reports start; for each step the head travels to the
@@ -41,6 +42,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -93,6 +95,10 @@ struct ScanRunParams {
   std::uint64_t max_lost_profiles_per_sweep = 10;
   // A stereo view whose pair of frames has not arrived by then is marked missing.
   std::chrono::milliseconds frame_timeout{10000};
+  // The caller's own check before motion (e.g. that the calibration in use belongs to these
+  // sensors): called once every device answers, with their identities, before the interlocks are
+  // read and the part clamped. It refuses the run by throwing ScanError; nothing has moved then.
+  std::function<void(const std::vector<drivers::DeviceIdentity>& devices)> before_motion;
 };
 
 struct ScanRunResult {

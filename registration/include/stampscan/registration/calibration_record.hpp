@@ -10,7 +10,7 @@
 //                        "sensors": [{"family": "digitizer", "model": ..., "serial": ..., "firmware": ...}],
 //                        "traces": ["20261124-091500-verification.mcap"],
 //                        "calibration": "what the run used or produced, in words",
-//                        "parameters": [{"name": ..., "value": ..., "unit": ...}],
+//                        "parameters": [{"name": ..., "value": ..., "unit": ..., "uncertainty": ...}],
 //                        "residuals":  [{"name": ..., "value": ..., "unit": ...}],
 //                        "checks": [{"name": ..., "value": ..., "limit": ..., "unit": ..., "passed": true}],
 //                        "verdict": "passed" | "failed" | "accepted", "accepted_by": "", "notes": [...]}
@@ -30,6 +30,7 @@ struct RecordValue {
   std::string name;  // e.g. "digitizer latency", "sphere centre x"
   double value = 0;
   std::string unit;  // "mm", "ms", "px", "" for a count
+  double uncertainty = 0;  // standard uncertainty, in the unit; 0 when not estimated
   bool operator==(const RecordValue&) const = default;
 };
 
@@ -91,7 +92,8 @@ struct RecordListing {
   std::vector<CalibrationRecord> records;  // by id, oldest first
   std::vector<std::string> problems;       // one line per file that is not a readable record
 };
-// The records of a history folder; a folder that does not exist holds none.
+// The records of a history folder (<id>.json; <id>.calibration.json files are calibrations, not
+// records); a folder that does not exist holds none.
 RecordListing listCalibrationRecords(const std::filesystem::path& history);
 
 // <history>/<id>.json; throws std::runtime_error naming the folder when there is no such record.

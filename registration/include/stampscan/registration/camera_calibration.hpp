@@ -41,6 +41,9 @@ struct ViewReport {
 struct CameraCalibration {
   CameraModel model;
   double rms_px = 0;                  // over the used views
+  // Standard deviations of fx, fy, cx, cy (px), k1, k2, p1, p2, k3, as the least-squares fit's
+  // Jacobian gives them (cv::calibrateCamera); empty when not estimated.
+  std::vector<double> intrinsics_sd;
   std::vector<ViewReport> views;
   // camera_from_plate of every view, empty for views left out.
   std::vector<std::optional<Eigen::Isometry3d>> plate_poses;
@@ -61,6 +64,7 @@ struct StereoCalibration {
   CameraCalibration left, right;
   Eigen::Isometry3d right_from_left = Eigen::Isometry3d::Identity();
   double baseline_mm = 0;
+  double baseline_sd_mm = 0;  // standard uncertainty, jackknife over the pairs (0 with fewer than 4)
   double rms_px = 0;
   std::size_t pairs_used = 0;
 };
@@ -80,6 +84,10 @@ struct HandEyeResult {
   double residual_mm = 0;    // RMS spread of the plate's implied machine position over the views
   double residual_deg = 0;   // RMS spread of its implied orientation
 };
+// The jackknife's standard error of an estimate from its leave-one-out values θ_i:
+// sqrt((n - 1) / n * Σ (θ_i - mean)²); 0 with fewer than 2 values.
+double jackknifeSd(const std::vector<double>& leave_one_out);
+
 HandEyeResult calibrateHeadToCamera(const std::vector<Eigen::Isometry3d>& machine_from_head,
                                     const std::vector<Eigen::Isometry3d>& camera_from_plate);
 

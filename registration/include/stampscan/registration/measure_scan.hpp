@@ -9,6 +9,7 @@
 // called from the calling thread only.
 #pragma once
 
+#include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/camera_calibration.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
 #include "stampscan/registration/grid_element.hpp"
@@ -27,7 +28,10 @@ namespace stampscan::registration {
 struct MeasureParams {
   // Used when the trace has no reference-sphere sweeps (its clock offset is taken from the trace).
   std::optional<DigitizerCalibration> digitizer;
-  // Also measure the stereo views (needs plate views in the trace to calibrate the cameras).
+  // Used when the trace has too few plate views: the cameras' stored calibration (intrinsics, the
+  // pair's extrinsics, the left camera's mount on the head); their clock offset is the trace's.
+  std::optional<CameraCalibrationFile> cameras;
+  // Also measure the stereo views (needs plate views in the trace, or the stored calibration above).
   bool with_stereo = false;
   // Fewer plate views than this and the cameras are not calibrated from the trace.
   std::size_t min_plate_views = 5;
@@ -35,6 +39,27 @@ struct MeasureParams {
   // (HeadTrack::chordError): a tenth of the goal for positions.
   double max_track_error_mm = 0.005;
 };
+
+// The profiles of each reference-sphere sweep of the trace, in the trace's order: those exposed
+// (device time - clock offset - latency) within the sweep where the head track is to be trusted
+// (HeadTrack::chordError <= max_track_error_mm).
+std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
+                                                      std::int64_t clock_offset_ns, std::int64_t latency_ns,
+                                                      double max_track_error_mm);
+
+// The cameras calibrated on a trace's plate views: each camera and the pair (calibrateStereo) and,
+// when the head track covers at least three views, the left camera's mount on the head (hand-eye,
+// from the head poses at the views' exposures, timed by the cameras' clock pairs).
+struct CameraRigCalibration {
+  StereoCalibration stereo;
+  std::optional<HandEyeResult> head_from_left;
+  std::int64_t camera_offset_ns = 0;  // the left camera's clock minus the station's
+  // The head pose and the left camera's plate pose of each view the hand-eye used.
+  std::vector<Eigen::Isometry3d> machine_from_head, camera_from_plate;
+};
+// Nothing when the trace has fewer plate views than `min_plate_views` or no plate description;
+// throws std::runtime_error when the views do not calibrate (too few show the plate).
+std::optional<CameraRigCalibration> calibrateCameraRig(const ScanTrace& trace, std::size_t min_plate_views);
 
 // What happened, stage by stage, for the operator; `stage` is a short word ("digitizer", "laser",
 // "stereo", "cameras"), `text` one line.
@@ -79,8 +104,9 @@ class ScanMeasurer {
   // From the trace's sphere sweeps, or the stored calibration of the params. Throws
   // std::runtime_error when there is neither, or no session description, or no clock pairs.
   void calibrateDigitizer(const ScanTrace& trace);
-  // From the trace's plate views, when there are enough of them; otherwise the cameras stay
-  // uncalibrated and the stereo views cannot be measured.
+  // From the trace's plate views, when there are enough of them; otherwise from the stored
+  // calibration of the params once the trace has the cameras' clock pairs; otherwise the cameras
+  // stay uncalibrated and the stereo views cannot be measured.
   void calibrateCameras(const ScanTrace& trace);
   // The grid elements of one part sweep (after calibrateDigitizer).
   void measureSweep(const ScanTrace& trace, const SweepWindow& sweep, std::uint32_t sweep_id);

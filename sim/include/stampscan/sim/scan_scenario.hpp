@@ -50,6 +50,10 @@ struct ScanParams {
   int sphere_sweeps = 8;
   CirclePlate plate;
   ReferenceSphere sphere;
+  // A knock to the digitizer's true mount (mm, head frame), on top of the seed's: a sensor that moved
+  // since it was calibrated, for checking that `station verify` sees it and `station calibrate`
+  // recovers from it. The nominal mount (what the station is told) does not move.
+  Vec3 digitizer_mount_shift = Vec3::Zero();
   // Limits the laser strips and stereo poses to a part of the footprint (machine xy); empty = all.
   BlankRect scan_region{Vec2::Zero(), Vec2::Zero()};
 

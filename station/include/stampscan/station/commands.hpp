@@ -30,6 +30,7 @@ CommandRunner addTraceCommand(CLI::App& app);
 CommandRunner addReportCommand(CLI::App& app);
 CommandRunner addHistoryCommand(CLI::App& app);
 CommandRunner addTrendCommand(CLI::App& app);
+CommandRunner addCalibrateCommand(CLI::App& app);
 CommandRunner addVerifyCommand(CLI::App& app);
 CommandRunner addCalibrationCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.

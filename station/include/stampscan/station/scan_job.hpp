@@ -17,6 +17,7 @@
 
 #include "stampscan/report/run_report.hpp"
 #include "stampscan/acquisition/cell.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/scan_runner.hpp"
 #include "stampscan/fitting/cloud.hpp"
 #include "stampscan/registration/measure_scan.hpp"
@@ -44,6 +45,14 @@ struct ScanJobOptions {
   // For the report written at the end (station/report): the sheet's material (empty: the report's
   // default) and the press program; both also go into run.json.
   std::string material, program;
+  // The cell's calibration folder (digitizer.json and cameras.json in use, put there by `station
+  // calibrate`) and the cell's rules for it. A sensor the plan calibrates itself (sphere sweeps for
+  // the digitizer, plate views for the cameras) needs no stored calibration. For any other, the
+  // stored one must exist, be for this cell and these sensors (serials), be accepted, and be within
+  // its validity: otherwise the scan is refused before anything moves (acquisition::ScanError naming
+  // `station calibrate`).
+  std::filesystem::path calibration_dir = "stampscan-runs/calibration";
+  acquisition::CalibrationPolicy calibration_policy;
   // A replay (sim/cell_replay.hpp): the trace it plays. The job then also measures that trace as
   // `station process` does and compares the two Cloud4Ds (ScanJobResult::against_recording).
   std::filesystem::path replayed_trace;
@@ -60,6 +69,8 @@ struct ScanJobResult {
   std::size_t elements = 0;
   double measure_seconds = 0;     // from the end of the scan to the files written
   registration::DigitizerCalibration digitizer;
+  // Which calibration each sensor was measured with, in words (also in run.json as "calibration").
+  std::string digitizer_calibration, camera_calibration;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
   // With ScanJobOptions::replayed_trace: this run's elements against the recording's.

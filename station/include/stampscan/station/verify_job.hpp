@@ -19,9 +19,9 @@
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
 #include "stampscan/registration/sphere_verification.hpp"
+#include "stampscan/station/traced_run.hpp"
 
 #include <filesystem>
-#include <mutex>
 #include <optional>
 #include <string>
 
@@ -58,14 +58,11 @@ class VerifyJob {
   // std::runtime_error for an aborted run (the trace is kept) or sweeps that do not measure the
   // sphere (too few points on it). A verification that fails its limits is a result, not an error.
   VerifyJobResult run(const VerifyJobOptions& options);
-  void abort(const std::string& reason);
+  void abort(const std::string& reason) { traced_.abort(reason); }
 
  private:
   acquisition::Cell& cell_;
-  acquisition::ScanObserver* observer_;
-  std::mutex mutex_;
-  acquisition::ScanRunner* runner_ = nullptr;
-  std::optional<std::string> pending_abort_;
+  TracedRun traced_;
 };
 
 }  // namespace stampscan::station

@@ -1,0 +1,178 @@
+// `station calibrate [digitizer|cameras|all]`: the calibration scenes on the cell (calibrate_job.hpp),
+// per sensor the parameters with their uncertainty, the residuals against the acceptance limits, the
+// change against the calibration in use, and whether the new one is put in use. Exit 0 when every
+// calibration asked for is in use, 2 when one failed its limits (and was not accepted), 1 on error.
+#include "stampscan/sim/scan_scenario.hpp"
+#include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/station/commands.hpp"
+#include "stampscan/station/progress.hpp"
+#include "stop_signals.hpp"
+#include "virtual_digitizer_host.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+
+namespace stampscan::station {
+
+namespace {
+
+struct CalibrateOptions {
+  std::string what = "all", cell, calibration_dir, engineer;
+  bool accept = false, quarter_resolution = false, quiet = false;
+  std::uint64_t seed = 1;
+  std::vector<double> mount_shift;
+};
+
+class CalibrateObserver final : public acquisition::ScanObserver {
+ public:
+  explicit CalibrateObserver(bool quiet) : quiet_(quiet) {}
+  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
+  void progress(const acquisition::ScanProgress& p) override {
+    if (quiet_) return;
+    bar_.update(p.doing, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
+  }
+  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void finish() { bar_.finish(); }
+
+ private:
+  bool quiet_;
+  ProgressBar bar_;
+};
+
+void printSensor(const char* name, const SensorCalibration& s) {
+  const registration::CalibrationRecord& r = s.record;
+  std::printf("\n  %s (record %s)\n", name, r.id.c_str());
+  for (const std::string& l : s.left_out) std::printf("    left out  %s\n", l.c_str());
+  for (const auto& v : r.parameters) {
+    if (v.uncertainty > 0)
+      std::printf("    %-36s %12.5f %-3s +- %.5f\n", v.name.c_str(), v.value, v.unit.c_str(), v.uncertainty);
+    else
+      std::printf("    %-36s %12.5f %s\n", v.name.c_str(), v.value, v.unit.c_str());
+  }
+  for (const auto& v : r.residuals)
+    if (v.unit.empty())
+      std::printf("    %-36s %12.0f\n", v.name.c_str(), v.value);
+    else
+      std::printf("    %-36s %12.5f %s\n", v.name.c_str(), v.value, v.unit.c_str());
+  for (const auto& c : r.checks)
+    std::printf("    %s  %s: %.4f %s (limit %.4f %s)\n", c.passed ? "PASS" : "FAIL", c.name.c_str(), c.value, c.unit.c_str(),
+                c.limit, c.unit.c_str());
+  for (const std::string& d : s.drift) std::printf("    DRIFT %s\n", d.c_str());
+  std::printf("    verdict   %s%s; %s\n", registration::toString(r.verdict),
+              r.accepted_by.empty() ? "" : (" by " + r.accepted_by).c_str(),
+              s.in_use ? ("now in use" + (s.previous.empty() ? std::string() : " (replaces " + s.previous + ", kept in the history)")).c_str()
+                       : "NOT put in use: the calibration in use stays (pass --accept to override)");
+}
+
+std::string loginName() {
+  for (const char* var : {"SUDO_USER", "USER", "LOGNAME"})
+    if (const char* v = std::getenv(var); v != nullptr && *v != '\0') return v;
+  return "unknown";
+}
+
+}  // namespace
+
+CommandRunner addCalibrateCommand(CLI::App& app) {
+  auto opt = std::make_shared<CalibrateOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "calibrate", "Calibrate the cell's sensors on the reference sphere and the plate: parameters with their "
+                   "uncertainty, residuals against the acceptance limits, the change against the calibration in use; a "
+                   "passing calibration is put in use (exit 2 when one fails its limits)");
+  cmd->add_option("what", opt->what, "digitizer, cameras or all")->check(CLI::IsMember({"digitizer", "cameras", "all"}));
+  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  cmd->add_option("-o,--calibration-dir", opt->calibration_dir,
+                  "The cell's calibration folder (default: the cell's [calibration] dir, else stampscan-runs/calibration)");
+  cmd->add_flag("--accept", opt->accept,
+                "Put the new calibration in use even when a check fails, recorded as accepted by --engineer");
+  cmd->add_option("--engineer", opt->engineer, "Who accepts with --accept (default: the login name)");
+  cmd->add_flag("--quarter-resolution", opt->quarter_resolution,
+                "Virtual cell: the cameras at the quarter resolution of the default (region) scan, with its 6 plate "
+                "views, instead of their full resolution; the mount on the head is then known to about a millimetre "
+                "only, and fails the default limit");
+  cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the sensors' true mounts)");
+  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
+                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
+      ->expected(3)
+      ->delimiter(',');
+  cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
+  return [opt]() {
+    const bool virtual_cell = opt->cell.empty();
+    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
+    // The simulator's calibration scenes: every sphere sweep and plate view of a full session, the
+    // cameras at their full resolution (or the quick session's quarter, to match the default scan).
+    sim::ScanParams world = opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{};
+    world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    world.seed = opt->seed;
+    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
+    CalibrateJobOptions job;
+    job.plan = calibrationScenesOf(sim::planScan(world), digitizer, cameras);
+    job.run.limits = config.limits;
+    job.policy = config.calibration;
+    job.digitizer = digitizer;
+    job.cameras = cameras;
+    job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration);
+    if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
+
+    std::unique_ptr<HostedVirtualCell> hosted;
+    if (virtual_cell) {
+      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, cameras);
+      config = hosted->config();
+    }
+    acquisition::Cell cell(config);
+    job.run.session = sim::describeSession(world);
+    job.run.session.part_id = "calibration";
+    applySphereCertificate(config.calibration, job.run.session);
+
+    std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
+                hosted ? " (hosted in this process)" : "");
+    std::printf("  folder      %s\n", job.calibration_dir.c_str());
+    CalibrateObserver observer(opt->quiet);
+    CalibrateJob calibrate(cell, &observer);
+    CalibrateJobResult r;
+    {
+      const StopSignalGuard stop([&](const std::string& reason) { calibrate.abort(reason); });
+      try {
+        r = calibrate.run(job);
+      } catch (...) {
+        observer.finish();
+        throw;
+      }
+    }
+    observer.finish();
+    std::printf("  scenes      %zu sphere sweeps, %zu plate views in %.1f s; %llu profiles (%llu lost); trace %s\n",
+                r.run.sweeps_done, r.run.views_done, r.run.wall_seconds, static_cast<unsigned long long>(r.run.profiles),
+                static_cast<unsigned long long>(r.run.lost_profiles), r.trace_file.c_str());
+    bool all_in_use = true;
+    if (r.digitizer) {
+      printSensor("digitizer", *r.digitizer);
+      all_in_use = all_in_use && r.digitizer->in_use;
+    }
+    if (r.cameras) {
+      printSensor("cameras", *r.cameras);
+      all_in_use = all_in_use && r.cameras->in_use;
+    }
+    if (hosted && r.digitizer_file) {
+      const auto& truth = hosted->cell().truth();
+      const Eigen::Vector3d off = r.digitizer_file->calibration.head_from_digitizer.translation() -
+                                  truth.head_from_digitizer.translation();
+      std::printf("\n  truth       the virtual cell's digitizer mount is recovered to %.4f mm; latency %.3f ms (true %.3f)\n",
+                  off.norm(), static_cast<double>(r.digitizer_file->calibration.latency_ns) * 1e-6,
+                  static_cast<double>(truth.digitizer_latency_ns) * 1e-6);
+    }
+    if (hosted && r.cameras_file) {
+      const auto& truth = hosted->cell().truth();
+      const registration::StereoCalibration& s = r.cameras_file->stereo;
+      const Eigen::Vector3d off = r.cameras_file->head_from_left.head_from_camera.translation() - truth.head_from_left.translation();
+      const double true_baseline = (truth.head_from_right.translation() - truth.head_from_left.translation()).norm();
+      std::printf("  truth       the cameras: left fx %.2f px (true %.2f), baseline %.4f mm (true %.4f), left mount "
+                  "recovered to %.4f mm\n", s.left.model.matrix(0, 0), truth.left.fx, s.baseline_mm, true_baseline,
+                  off.norm());
+    }
+    std::printf("\n  %s\n", all_in_use ? "calibration in use updated" : "a calibration failed its limits and was not put in use");
+    return all_in_use ? 0 : 2;
+  };
+}
+
+}  // namespace stampscan::station
