@@ -158,6 +158,7 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   c.digitizer_required = get<bool>(t, "digitizer", "required", true, file);
   readLimits(t, file, c.limits);
   readCalibrationPolicy(t, file, c.calibration);
+  c.results_database = get<std::string>(t, "results", "database", "", file);
   return c;
 }
 

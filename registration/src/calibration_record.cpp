@@ -150,6 +150,8 @@ std::string newRecordId(const fs::path& history, const std::string& kind) {
   }
 }
 
+std::string calibrationRecordJson(const CalibrationRecord& record) { return recordJson(record).dump(2) + "\n"; }
+
 fs::path saveCalibrationRecord(const fs::path& history, const CalibrationRecord& record) {
   if (record.id.empty() || record.kind.empty())
     throw std::invalid_argument("a calibration record needs an id and a kind before it is saved");
@@ -158,7 +160,7 @@ fs::path saveCalibrationRecord(const fs::path& history, const CalibrationRecord&
   fs::create_directories(history, ec);
   if (ec) throw std::runtime_error(history.string() + ": cannot create the calibration history folder: " + ec.message());
   const fs::path file = history / (record.id + ".json");
-  fitting::writeFileAtomically(file, recordJson(record).dump(2) + "\n");
+  fitting::writeFileAtomically(file, calibrationRecordJson(record));
   return file;
 }
 

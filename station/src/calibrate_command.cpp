@@ -4,6 +4,7 @@
 // calibration asked for is in use, 2 when one failed its limits (and was not accepted), 1 on error.
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stop_signals.hpp"
@@ -113,6 +114,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     job.digitizer = digitizer;
     job.cameras = cameras;
     job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration);
+    job.results_database = calibrationResultsDatabase(config.results_database, job.calibration_dir);
     if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
 
     std::unique_ptr<HostedVirtualCell> hosted;
@@ -170,6 +172,11 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
                   "recovered to %.4f mm\n", s.left.model.matrix(0, 0), truth.left.fx, s.baseline_mm, true_baseline,
                   off.norm());
     }
+    if (r.history_error.empty())
+      std::printf("  history     recorded in the results database of %s\n", job.results_database.c_str());
+    else
+      std::fprintf(stderr, "station: warning: the records are in %s but not in the results database: %s\n",
+                   (job.calibration_dir / "history").c_str(), r.history_error.c_str());
     std::printf("\n  %s\n", all_in_use ? "calibration in use updated" : "a calibration failed its limits and was not put in use");
     return all_in_use ? 0 : 2;
   };

@@ -1,5 +1,7 @@
 #include "stampscan/station/calibrate_job.hpp"
 
+#include "stampscan/station/calibration_results.hpp"
+
 #include "stampscan/registration/digitizer_calibration.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -437,7 +439,11 @@ CalibrateJobResult CalibrateJob::run(const CalibrateJobOptions& o) {
   // The records first (a record names what it made whether or not it is used), then the ones that
   // passed or were accepted replace theirs in use, together.
   for (auto* sensor : {&result.digitizer, &result.cameras})
-    if (*sensor) (*sensor)->record_file = registration::saveCalibrationRecord(history, (*sensor)->record);
+    if (*sensor) {
+      (*sensor)->record_file = registration::saveCalibrationRecord(history, (*sensor)->record);
+      if (!o.results_database.empty() && result.history_error.empty())
+        result.history_error = recordCalibrationInResults((*sensor)->record, (*sensor)->record_file, o.results_database);
+    }
   registration::putCalibrationsInUse(o.calibration_dir,
                                      result.digitizer && result.digitizer->in_use ? &*result.digitizer_file : nullptr,
                                      result.cameras && result.cameras->in_use ? &*result.cameras_file : nullptr);

@@ -1,6 +1,7 @@
 // `station calibration list|show ID|diff ID1 ID2`: the cell's calibration history, the records that
 // `station calibrate` and `station verify` write (registration/calibration_record.hpp).
 #include "stampscan/registration/calibration_record.hpp"
+#include "stampscan/results/results_store.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <cmath>
@@ -17,7 +18,8 @@ using registration::CalibrationRecord;
 
 struct CalibrationOptions {
   std::string calibration_dir = "stampscan-runs/calibration";
-  std::string id, other;
+  std::string id, other, database, kind;
+  std::size_t last = 0;
 };
 
 // The records' sub-folder of a calibration folder (see verify_job.hpp).
@@ -42,6 +44,23 @@ int list(const CalibrationOptions& o) {
                 registration::toString(r.verdict), checksSummary(r).c_str(), r.cell.c_str());
   for (const auto& p : listing.problems) std::fprintf(stderr, "station: warning: %s\n", p.c_str());
   return listing.problems.empty() ? 0 : 1;
+}
+
+// The rows of a results database (every cell that writes to it), rather than one cell's folder.
+int listDatabase(const CalibrationOptions& o) {
+  results::StoreOptions read_only;
+  read_only.read_only = true;
+  const auto rows = results::openResultsStore(o.database, read_only)->queryCalibrations(o.kind, o.last);
+  if (rows.empty()) {
+    std::printf("no calibration records in the results database of %s\n", o.database.c_str());
+    return 0;
+  }
+  std::printf("%-36s %-13s %-21s %-9s %-16s %s\n", "id", "kind", "created", "verdict", "cell", "checks");
+  for (const auto& r : rows)
+    std::printf("%-36s %-13s %-21s %-9s %-16s %s%s\n", r.record_id.c_str(), r.kind.c_str(), r.created_utc.c_str(),
+                r.verdict.c_str(), r.cell.c_str(), r.summary.c_str(),
+                r.accepted_by.empty() ? "" : ("; accepted by " + r.accepted_by).c_str());
+  return 0;
 }
 
 int show(const CalibrationOptions& o) {
@@ -113,13 +132,18 @@ CommandRunner addCalibrationCommand(CLI::App& app) {
   cmd->fallthrough();  // -d may come after the subcommand too
   cmd->add_option("-d,--calibration-dir", opt->calibration_dir, "The cell's calibration folder (records in its history/)");
   CLI::App* list_cmd = cmd->add_subcommand("list", "The records, oldest first");
+  list_cmd->add_option("--db", opt->database,
+                       "List the rows of a results database instead (a runs folder or a postgresql:// URL): every "
+                       "cell that records there");
+  list_cmd->add_option("--kind", opt->kind, "With --db: only this kind (digitizer, cameras, verification)");
+  list_cmd->add_option("--last", opt->last, "With --db: only the newest N");
   CLI::App* show_cmd = cmd->add_subcommand("show", "One record in full");
   show_cmd->add_option("ID", opt->id, "The record's id (see `station calibration list`)")->required();
   CLI::App* diff_cmd = cmd->add_subcommand("diff", "Two records side by side: what changed, value by value");
   diff_cmd->add_option("ID1", opt->id, "The earlier record")->required();
   diff_cmd->add_option("ID2", opt->other, "The later record")->required();
   return [opt, list_cmd, show_cmd, diff_cmd]() {
-    if (list_cmd->parsed()) return list(*opt);
+    if (list_cmd->parsed()) return opt->database.empty() ? list(*opt) : listDatabase(*opt);
     if (show_cmd->parsed()) return show(*opt);
     if (diff_cmd->parsed()) return diff(*opt);
     return 2;

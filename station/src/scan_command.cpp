@@ -184,6 +184,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     acquisition::Cell cell(config);
     job.part_id = opt->part_id;
     job.runs_dir = opt->runs;
+    job.results_database = config.results_database;
     job.material = opt->material;
     job.program = opt->program;
     // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry

@@ -123,9 +123,9 @@ class SerialObserver final : public ScanJobObserver {
 
 // Records the run folder in the results database of its runs folder; returns what went wrong, or
 // nothing. A history that cannot be written never loses the run itself: its folder is complete.
-std::string recordInHistory(const fs::path& run_dir, const fs::path& runs_dir, const std::string& failure) {
+std::string recordInHistory(const fs::path& run_dir, const std::string& database, const std::string& failure) {
   try {
-    results::recordRunInResults(run_dir, runs_dir.string(), failure);
+    results::recordRunInResults(run_dir, database, failure);
     return {};
   } catch (const std::exception& e) {
     return e.what();
@@ -250,6 +250,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   const CalibrationInUse in_use = calibrationFor(o, measure);
   result.digitizer_calibration = in_use.digitizer_text;
   result.camera_calibration = in_use.cameras_text;
+  const std::string database = o.results_database.empty() ? o.runs_dir.string() : o.results_database;
   result.run_dir = newRunFolder(o.runs_dir, o.part_id);
   if (observer_) observer_->runFolder(result.run_dir);
   const fs::path trace_file = result.run_dir / "trace.mcap";
@@ -307,7 +308,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   if (!result.run.completed) {
     measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);
-    recordInHistory(result.run_dir, o.runs_dir, "");  // as aborted, with its reason from run.json
+    recordInHistory(result.run_dir, database, "");  // as aborted, with its reason from run.json
     throw std::runtime_error("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
                              trace_file.string() + ")");
   }
@@ -370,7 +371,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     result.report_error = e.what();
   }
   // Every run is a row of the results history, a failed report included (as failed, with why).
-  result.history_error = recordInHistory(result.run_dir, o.runs_dir, result.report_error);
+  result.history_error = recordInHistory(result.run_dir, database, result.report_error);
   return result;
 }
 

@@ -3,6 +3,7 @@
 // station/results/.
 #include "stampscan/results/results_store.hpp"
 #include "stampscan/results/trend.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
 
 #include <cctype>
@@ -14,7 +15,7 @@ namespace stampscan::station {
 
 namespace {
 struct TrendCommandOptions {
-  std::string runs = "stampscan-runs", db, program, png;
+  std::string runs = "stampscan-runs", db, cell, program, png;
   std::size_t window = results::TrendParams{}.window;
 };
 
@@ -34,7 +35,10 @@ CommandRunner addTrendCommand(CLI::App& app) {
   cmd->add_option("--program", opt->program, "The press program")->required();
   CLI::Option* runs = cmd->add_option("-o,--runs", opt->runs, "Folder of run folders, holding results.sqlite")
                           ->capture_default_str();
-  cmd->add_option("--db", opt->db, "A PostgreSQL results database instead (postgresql://...)")->excludes(runs);
+  CLI::Option* db = cmd->add_option("--db", opt->db, "A PostgreSQL results database instead (postgresql://...)")->excludes(runs);
+  cmd->add_option("--cell", opt->cell, "The results database the cell file names ([results] database)")
+      ->excludes(runs)
+      ->excludes(db);
   cmd->add_option("--png", opt->png,
                   "The image to write (default: trend-<program>.png in the runs folder; with --db, here)");
   cmd->add_option("--window", opt->window, "Parts the drift rule looks back (and ahead)")
@@ -43,6 +47,12 @@ CommandRunner addTrendCommand(CLI::App& app) {
   return [opt]() {
     if (!opt->db.empty() && !results::isDatabaseUrl(opt->db))
       throw std::runtime_error("trend: --db " + opt->db + ": expected a postgresql:// URL");
+    if (!opt->cell.empty()) {
+      const std::string configured = acquisition::loadCellConfig(opt->cell).results_database;
+      if (configured.empty())
+        throw std::runtime_error(opt->cell + ": names no results database ([results] database): pass -o RUNS_DIR");
+      (results::isDatabaseUrl(configured) ? opt->db : opt->runs) = configured;
+    }
     results::StoreOptions store_options;
     store_options.read_only = true;
     const auto store = results::openResultsStore(opt->db.empty() ? opt->runs : opt->db, store_options);

@@ -4,6 +4,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/verify_job.hpp"
@@ -94,6 +95,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
     const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
     job.history = dir / "history";
+    job.results_database = calibrationResultsDatabase(config.results_database, dir);
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
     if (!opt->calibration.empty() || fs::exists(stored)) {
       const registration::DigitizerCalibrationFile file = registration::loadDigitizerCalibration(stored);
@@ -145,6 +147,11 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     for (const auto& c : r.record.checks) printCheck(c);
     std::printf("  not yet     the stereo pair's probing errors; the length check between two spheres\n");
     std::printf("  record      %s (%s)\n", r.record.id.c_str(), r.record_file.c_str());
+    if (r.history_error.empty())
+      std::printf("  history     recorded in the results database of %s\n", job.results_database.c_str());
+    else
+      std::fprintf(stderr, "station: warning: the verification is recorded in %s but not in the results database: %s\n",
+                   r.record_file.c_str(), r.history_error.c_str());
     std::printf("  verdict     %s\n", v.passed() ? "PASSED" : "FAILED");
     return v.passed() ? 0 : 2;
   };

@@ -1,5 +1,7 @@
 #include "stampscan/station/verify_job.hpp"
 
+#include "stampscan/station/calibration_results.hpp"
+
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -125,6 +127,8 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   if (result.run.lost_profiles > 0)
     record.notes.push_back(std::to_string(result.run.lost_profiles) + " digitizer profiles were lost during the sweeps");
   result.record_file = registration::saveCalibrationRecord(o.history, record);
+  if (!o.results_database.empty())
+    result.history_error = recordCalibrationInResults(record, result.record_file, o.results_database);
   return result;
 }
 

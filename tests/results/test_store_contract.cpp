@@ -21,6 +21,8 @@ class Backend {
   // A runs folder or URL of an empty database; empty (with the reason) when unavailable.
   virtual std::string fresh(std::string& skip_reason) = 0;
   virtual void setStoredVersion(const std::string& where, int version) = 0;
+  // Runs one statement on the database, outside any store.
+  virtual void execute(const std::string& where, const std::string& sql) = 0;
   // Another connection that holds a write transaction on the runs table until destroyed.
   virtual std::shared_ptr<void> holdWriteLock(const std::string& where) = 0;
 };
@@ -29,8 +31,11 @@ class SqliteBackend final : public Backend {
  public:
   std::string fresh(std::string&) override { return dir_.path().string(); }
   void setStoredVersion(const std::string& where, int version) override {
+    execute(where, "UPDATE schema_version SET version = " + std::to_string(version));
+  }
+  void execute(const std::string& where, const std::string& sql) override {
     SQLite::Database db(where + "/" + kSqliteFileName, SQLite::OPEN_READWRITE);
-    db.exec("UPDATE schema_version SET version = " + std::to_string(version));
+    db.exec(sql);
   }
   std::shared_ptr<void> holdWriteLock(const std::string& where) override {
     auto db = std::make_shared<SQLite::Database>(where + "/" + kSqliteFileName, SQLite::OPEN_READWRITE);
@@ -50,9 +55,12 @@ class PostgresBackend final : public Backend {
     return server ? server->freshDatabase() : std::string();
   }
   void setStoredVersion(const std::string& where, int version) override {
+    execute(where, "UPDATE schema_version SET version = " + std::to_string(version));
+  }
+  void execute(const std::string& where, const std::string& sql) override {
     pqxx::connection c(where);
     pqxx::work w(c);
-    w.exec("UPDATE schema_version SET version = " + std::to_string(version));
+    w.exec(sql);
     w.commit();
   }
   std::shared_ptr<void> holdWriteLock(const std::string& where) override {
@@ -112,6 +120,57 @@ TEST_P(StoreContract, RefusesADatabaseOfANewerSchema) {
       EXPECT_NE(message.find("version " + std::to_string(kSchemaVersion + 1)), std::string::npos) << message;
     }
   }
+}
+
+// A database of version 1 (runs only, before calibrations were rows) is migrated on opening: its
+// runs are kept and calibrations can be recorded.
+TEST_P(StoreContract, MigratesAVersionOneDatabaseKeepingItsRuns) {
+  open()->recordRun(makeRun("P1", "door-outer", 1, 8));
+  backend_->execute(where_, "DROP TABLE calibrations");
+  backend_->setStoredVersion(where_, 1);
+  const auto store = open();
+  EXPECT_EQ(store->schemaVersion(), kSchemaVersion);
+  ASSERT_EQ(store->queryRuns().size(), 1u);
+  EXPECT_TRUE(store->queryCalibrations().empty());
+  CalibrationRow row{"20261124-080000-digitizer", "digitizer", "2026-11-24T08:00:00Z", "virtual cell", "passed", "",
+                     "1 of 1 checks passed", "cal/history/20261124-080000-digitizer.json", "{}"};
+  store->recordCalibration(row);
+  EXPECT_EQ(store->queryCalibrations().size(), 1u);
+}
+
+TEST_P(StoreContract, RecordsCalibrationsReplacesThemByIdAndListsThemByKind) {
+  const auto store = open();
+  CalibrationRow digitizer{"20261124-080000-digitizer", "digitizer", "2026-11-24T08:00:00Z", "virtual cell", "failed",
+                           "", "0 of 1 checks passed; failed: sphere residual RMS", "h/20261124-080000-digitizer.json",
+                           "{\"id\": \"it's \\\"quoted\\\"\"}"};
+  CalibrationRow cameras{"20261124-080001-cameras", "cameras", "2026-11-24T08:00:01Z", "virtual cell", "accepted",
+                         "J. O'Neill", "3 of 4 checks passed", "h/20261124-080001-cameras.json", "{}"};
+  CalibrationRow verification{"20261125-070000-verification", "verification", "2026-11-25T07:00:00Z", "virtual cell",
+                              "passed", "", "2 of 2 checks passed", "h/20261125-070000-verification.json", "{}"};
+  store->recordCalibration(verification);
+  store->recordCalibration(digitizer);
+  store->recordCalibration(cameras);
+  digitizer.verdict = "accepted";
+  digitizer.accepted_by = "J. Smith";
+  store->recordCalibration(digitizer);  // the same record again: its row is replaced
+  const auto all = store->queryCalibrations();
+  ASSERT_EQ(all.size(), 3u);
+  EXPECT_EQ(all[0], digitizer);  // oldest first, every field as written
+  EXPECT_EQ(all[1], cameras);
+  EXPECT_EQ(all[2], verification);
+  const auto verifications = store->queryCalibrations("verification");
+  ASSERT_EQ(verifications.size(), 1u);
+  EXPECT_EQ(verifications[0].record_id, verification.record_id);
+  const auto newest = store->queryCalibrations("", 1);
+  ASSERT_EQ(newest.size(), 1u);
+  EXPECT_EQ(newest[0].record_id, verification.record_id);
+
+  CalibrationRow bad = verification;
+  bad.verdict = "maybe";
+  EXPECT_THROW(store->recordCalibration(bad), ResultsError);
+  bad = verification;
+  bad.record_id.clear();
+  EXPECT_THROW(store->recordCalibration(bad), ResultsError);
 }
 
 TEST_P(StoreContract, RecordsARunAndUpdatesItWhenRecordedAgain) {

@@ -138,6 +138,11 @@ TEST_F(StationTest, TheCalibrationInUseIsCheckedByScanAndVerifyAndRenewedByCalib
 
   const RunResult calibrated = run("calibrate digitizer -q -o " + quote(cal), 600);
   ASSERT_EQ(calibrated.exit_code, 0) << calibrated.out << calibrated.err;
+  // The record is also a row of the runs folder's results database, beside the scans.
+  const RunResult rows = run("calibration list --db " + quote(runs));
+  ASSERT_EQ(rows.exit_code, 0) << rows.out << rows.err;
+  EXPECT_NE(rows.out.find(onlyRecord(cal / "history", "digitizer").id), std::string::npos) << rows.out;
+  EXPECT_NE(rows.out.find("1 of 1 checks passed"), std::string::npos) << rows.out;
   const RunResult measured = run(scan, 300);
   ASSERT_EQ(measured.exit_code, 0) << measured.out << measured.err;
   EXPECT_NE(measured.out.find("calibration in use: made on this cell with these sensors"), std::string::npos) << measured.out;
@@ -194,6 +199,9 @@ TEST_F(StationTest, TheCalibrationInUseIsCheckedByScanAndVerifyAndRenewedByCalib
       EXPECT_TRUE(fs::exists(cal / "history" / (r.id + ".calibration.json"))) << r.id;
     }
   EXPECT_EQ(digitizer_records, 2u);
+  const RunResult verifications = run("calibration list --db " + quote(runs) + " --kind verification");
+  EXPECT_NE(verifications.out.find("failed"), std::string::npos) << verifications.out;
+  EXPECT_NE(verifications.out.find("passed"), std::string::npos) << verifications.out;
 }
 
 }  // namespace

@@ -40,6 +40,25 @@ std::string literal(const std::optional<double>& v) {
   return text;
 }
 
+// The values of a query are only known once its SQL is built: the placeholders are numbered
+// first (\x01 i \x02), then each is filled with its value, quoted.
+std::string numberedPlaceholder(std::size_t i) { return std::string("\x01").append(std::to_string(i)).append("\x02"); }
+
+std::string fillPlaceholders(pqxx::transaction_base& transaction, const std::string& numbered,
+                             const std::vector<std::string>& values) {
+  std::string sql;
+  for (std::size_t at = 0; at < numbered.size();) {
+    if (numbered[at] != '\x01') {
+      sql += numbered[at++];
+      continue;
+    }
+    const std::size_t end = numbered.find('\x02', at);
+    sql += quoted(transaction, values.at(std::stoul(numbered.substr(at + 1, end - at - 1))));
+    at = end + 1;
+  }
+  return sql;
+}
+
 class PostgresStore final : public ResultsStore {
  public:
   PostgresStore(const std::string& url, const StoreOptions& options)
@@ -107,20 +126,8 @@ class PostgresStore final : public ResultsStore {
     try {
       pqxx::read_transaction transaction(*connection_);
       std::vector<std::string> values;
-      // The values are only known after the SQL is built: number the placeholders, then fill them.
-      const std::string numbered =
-          schema::selectSql(filter, [](std::size_t i) { return std::string("\x01").append(std::to_string(i)).append("\x02"); }, values);
-      std::string sql;
-      for (std::size_t at = 0; at < numbered.size();) {
-        if (numbered[at] != '\x01') {
-          sql += numbered[at++];
-          continue;
-        }
-        const std::size_t end = numbered.find('\x02', at);
-        sql += quoted(transaction, values.at(std::stoul(numbered.substr(at + 1, end - at - 1))));
-        at = end + 1;
-      }
-      const pqxx::result rows = transaction.exec(sql);
+      const std::string numbered = schema::selectSql(filter, numberedPlaceholder, values);
+      const pqxx::result rows = transaction.exec(fillPlaceholders(transaction, numbered, values));
       runs.reserve(rows.size());
       for (const pqxx::row& row : rows) {
         RunRecord& r = runs.emplace_back();
@@ -157,6 +164,40 @@ class PostgresStore final : public ResultsStore {
     } catch (const std::exception& e) {
       fail("cannot be read", e);
     }
+  }
+
+  void upsertCalibration(const CalibrationRow& row) override {
+    try {
+      pqxx::work transaction(*connection_);
+      std::vector<std::string> v;
+      for (const std::string& value : schema::calibrationValues(row)) v.push_back(quoted(transaction, value));
+      v.push_back(quoted(transaction, schema::nowUtc()));
+      transaction.exec(schema::calibrationUpsertSql([&v](std::size_t i) { return v.at(i); }));
+      transaction.commit();
+    } catch (const std::exception& e) {
+      fail("calibration " + row.record_id + " not recorded", e);
+    }
+  }
+
+  std::vector<CalibrationRow> selectCalibrations(const std::string& kind, std::size_t limit) const override {
+    std::vector<CalibrationRow> out;
+    try {
+      pqxx::read_transaction transaction(*connection_);
+      std::vector<std::string> values;
+      const std::string numbered = schema::calibrationSelectSql(kind, limit, numberedPlaceholder, values);
+      for (const pqxx::row& row : transaction.exec(fillPlaceholders(transaction, numbered, values))) {
+        CalibrationRow& r = out.emplace_back();
+        pqxx::row::size_type c = 0;
+        for (std::string* field : {&r.record_id, &r.kind, &r.created_utc, &r.cell, &r.verdict, &r.accepted_by, &r.summary,
+                                   &r.record_file, &r.record_json}) {
+          const pqxx::field f = row[c++];
+          *field = f.is_null() ? std::string() : std::string(f.c_str());
+        }
+      }
+    } catch (const std::exception& e) {
+      fail("cannot be queried", e);
+    }
+    return out;
   }
 
  private:

@@ -57,6 +57,19 @@ std::vector<RunRecord> ResultsStore::queryRuns(const RunFilter& filter) const {
 
 int ResultsStore::schemaVersion() const { return storedSchemaVersion(); }
 
+void ResultsStore::recordCalibration(const CalibrationRow& c) {
+  if (c.record_id.empty() || c.kind.empty() || c.created_utc.empty())
+    throw ResultsError(location_ + ": a calibration record needs an id, a kind and a creation time");
+  if (c.verdict != "passed" && c.verdict != "failed" && c.verdict != "accepted")
+    throw ResultsError(location_ + ": calibration " + c.record_id + " has the verdict \"" + c.verdict +
+                       "\" (expected passed, failed or accepted)");
+  upsertCalibration(c);
+}
+
+std::vector<CalibrationRow> ResultsStore::queryCalibrations(const std::string& kind, std::size_t limit) const {
+  return selectCalibrations(kind, limit);
+}
+
 bool isDatabaseUrl(const std::string& runs_dir_or_url) {
   return runs_dir_or_url.starts_with("postgresql://") || runs_dir_or_url.starts_with("postgres://");
 }

@@ -32,6 +32,20 @@ const std::vector<Migration>& migrations() {
         "CREATE INDEX runs_program_started ON runs (program, started_utc, run_id)",
         "CREATE INDEX runs_part_started ON runs (part_id, started_utc, run_id)",
         "CREATE INDEX runs_started ON runs (started_utc, run_id)"}},
+      {2,
+       "calibrations",
+       {"CREATE TABLE calibrations ("
+        " record_id TEXT PRIMARY KEY,"
+        " kind TEXT NOT NULL,"
+        " created_utc TEXT NOT NULL,"
+        " cell TEXT NOT NULL DEFAULT '',"
+        " verdict TEXT NOT NULL CHECK (verdict IN ('passed', 'failed', 'accepted')),"
+        " accepted_by TEXT NOT NULL DEFAULT '',"
+        " summary TEXT NOT NULL DEFAULT '',"
+        " record_file TEXT NOT NULL DEFAULT '',"
+        " record_json TEXT NOT NULL,"
+        " recorded_utc TEXT NOT NULL)",
+        "CREATE INDEX calibrations_kind_created ON calibrations (kind, created_utc, record_id)"}},
   };
   return kMigrations;
 }
@@ -81,6 +95,42 @@ std::string selectSql(const RunFilter& filter, const std::function<std::string(s
   return "SELECT " + columns + " FROM (SELECT " + columns + " FROM runs" + where +
          " ORDER BY started_utc DESC, run_id DESC LIMIT " + std::to_string(filter.limit) +
          ") AS newest ORDER BY started_utc, run_id";
+}
+
+std::string calibrationUpsertSql(const std::function<std::string(std::size_t)>& placeholder) {
+  std::string names, values, updates;
+  for (std::size_t i = 0; i < kCalibrationColumnCount; ++i) {
+    const std::string name = kCalibrationColumns[i];
+    if (i > 0) names += ", ", values += ", ";
+    names += name;
+    values += placeholder(i);
+    if (i > 1) updates += ", ";
+    if (i > 0) updates.append(name).append(" = excluded.").append(name);
+  }
+  return "INSERT INTO calibrations (" + names + ", recorded_utc) VALUES (" + values + ", " +
+         placeholder(kCalibrationColumnCount) + ") ON CONFLICT (record_id) DO UPDATE SET " + updates +
+         ", recorded_utc = excluded.recorded_utc";
+}
+
+std::string calibrationSelectSql(const std::string& kind, std::size_t limit,
+                                 const std::function<std::string(std::size_t)>& placeholder,
+                                 std::vector<std::string>& values) {
+  std::string columns;
+  for (std::size_t i = 0; i < kCalibrationColumnCount; ++i)
+    columns += std::string(i ? ", " : "") + kCalibrationColumns[i];
+  std::string where;
+  if (!kind.empty()) {
+    where = " WHERE kind = " + placeholder(values.size());
+    values.push_back(kind);
+  }
+  if (limit == 0) return "SELECT " + columns + " FROM calibrations" + where + " ORDER BY created_utc, record_id";
+  return "SELECT " + columns + " FROM (SELECT " + columns + " FROM calibrations" + where +
+         " ORDER BY created_utc DESC, record_id DESC LIMIT " + std::to_string(limit) +
+         ") AS newest ORDER BY created_utc, record_id";
+}
+
+std::vector<std::string> calibrationValues(const CalibrationRow& r) {
+  return {r.record_id, r.kind, r.created_utc, r.cell, r.verdict, r.accepted_by, r.summary, r.record_file, r.record_json};
 }
 
 std::string newerSchemaMessage(const std::string& location, int found) {

@@ -43,6 +43,21 @@ std::string upsertSql(const std::function<std::string(std::size_t)>& placeholder
 std::string selectSql(const RunFilter& filter, const std::function<std::string(std::size_t)>& placeholder,
                       std::vector<std::string>& values);
 
+// The calibration columns (all text) in the order the statements below bind and read them.
+inline constexpr const char* kCalibrationColumns[] = {"record_id", "kind",    "created_utc", "cell",       "verdict",
+                                                      "accepted_by", "summary", "record_file", "record_json"};
+inline constexpr std::size_t kCalibrationColumnCount = sizeof kCalibrationColumns / sizeof kCalibrationColumns[0];
+// The upsert of one calibration row, placeholder(i) for column i and placeholder(count) for the
+// time it was recorded.
+std::string calibrationUpsertSql(const std::function<std::string(std::size_t)>& placeholder);
+// The calibrations of a kind ("" for all), oldest first; with `limit`, the newest `limit`. The kind's
+// value, when there is one, is appended to `values`.
+std::string calibrationSelectSql(const std::string& kind, std::size_t limit,
+                                 const std::function<std::string(std::size_t)>& placeholder,
+                                 std::vector<std::string>& values);
+// The row's values in kCalibrationColumns order.
+std::vector<std::string> calibrationValues(const CalibrationRow& row);
+
 // The error message for a database newer than this program.
 std::string newerSchemaMessage(const std::string& location, int found);
 

@@ -150,6 +150,39 @@ class SqliteStore final : public ResultsStore {
     }
   }
 
+  void upsertCalibration(const CalibrationRow& row) override {
+    try {
+      WriteTransaction transaction(*db_);
+      SQLite::Statement insert(*db_, schema::calibrationUpsertSql([](std::size_t) { return std::string("?"); }));
+      int k = 1;
+      for (const std::string& value : schema::calibrationValues(row)) insert.bind(k++, value);
+      insert.bind(k, schema::nowUtc());
+      insert.exec();
+      transaction.commit();
+    } catch (const SQLite::Exception& e) {
+      fail("calibration " + row.record_id + " not recorded", e);
+    }
+  }
+
+  std::vector<CalibrationRow> selectCalibrations(const std::string& kind, std::size_t limit) const override {
+    std::vector<CalibrationRow> rows;
+    try {
+      std::vector<std::string> values;
+      SQLite::Statement query(*db_, schema::calibrationSelectSql(kind, limit, [](std::size_t) { return std::string("?"); }, values));
+      for (std::size_t i = 0; i < values.size(); ++i) query.bind(static_cast<int>(i + 1), values[i]);
+      while (query.executeStep()) {
+        CalibrationRow& r = rows.emplace_back();
+        int c = 0;
+        for (std::string* field : {&r.record_id, &r.kind, &r.created_utc, &r.cell, &r.verdict, &r.accepted_by, &r.summary,
+                                   &r.record_file, &r.record_json})
+          *field = query.getColumn(c++).getString();
+      }
+    } catch (const SQLite::Exception& e) {
+      fail("cannot be queried", e);
+    }
+    return rows;
+  }
+
  private:
   // 0 for an empty database (no schema_version table, or no row in it).
   int readVersion() const {

@@ -61,6 +61,9 @@ struct CellConfig {
   bool digitizer_virtual = false;
   bool digitizer_required = true;
   CalibrationPolicy calibration;
+  // The results database ([results] database): a runs folder (its results.sqlite) or a PostgreSQL
+  // URL when several cells write to one place. Empty: the runs folder of each command.
+  std::string results_database;
 };
 
 // The built-in virtual cell (the same as station/cells/virtual.toml).

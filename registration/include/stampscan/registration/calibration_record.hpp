@@ -80,6 +80,9 @@ struct CalibrationRecord {
 // with "-2", "-3", ... when a record of that name exists.
 std::string newRecordId(const std::filesystem::path& history, const std::string& kind);
 
+// The record as its file holds it (JSON text), for a database that keeps it whole.
+std::string calibrationRecordJson(const CalibrationRecord& record);
+
 // Writes <history>/<id>.json atomically, creating the folder. Throws std::invalid_argument for a
 // record without id or kind, std::runtime_error naming the file when it cannot be written.
 std::filesystem::path saveCalibrationRecord(const std::filesystem::path& history, const CalibrationRecord& record);

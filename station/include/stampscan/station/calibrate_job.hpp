@@ -23,6 +23,7 @@
 //   DIR/history/<time>-calibration.mcap        the calibration scenes, every device message as it arrived
 //   DIR/history/<id>.json                      one record per sensor (registration/calibration_record.hpp)
 //   DIR/history/<id>.calibration.json          the calibration that record made, whether used or not
+//   and each record as a row of the results database (calibration_results.hpp).
 //
 // Thread safety: run() blocks; abort() may be called from any other thread.
 #pragma once
@@ -62,6 +63,8 @@ struct CalibrateJobOptions {
   bool digitizer = true, cameras = true;  // which sensors to calibrate
   // Not empty: a calibration that fails a check is put in use anyway, recorded as accepted by them.
   std::string accepted_by;
+  // The results database the records also go to as rows (calibration_results.hpp); "" for none.
+  std::string results_database;
 };
 
 struct SensorCalibration {
@@ -79,6 +82,7 @@ struct CalibrateJobResult {
   std::optional<SensorCalibration> digitizer, cameras;
   std::optional<registration::DigitizerCalibrationFile> digitizer_file;  // what was calibrated
   std::optional<registration::CameraCalibrationFile> cameras_file;
+  std::string history_error;  // why the records are not rows of the results database ("" when they are)
 };
 
 class CalibrateJob {

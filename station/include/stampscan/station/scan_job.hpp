@@ -40,6 +40,8 @@ struct ScanJobOptions {
   acquisition::ScanRunParams run;  // the session description's cell geometry, limits
   std::string part_id = "part";
   std::filesystem::path runs_dir = "stampscan-runs";
+  // The results database the run is recorded in: a runs folder or a PostgreSQL URL; "" for runs_dir's.
+  std::string results_database;
   // When the cell is simulated: the job then reports its accuracy against the truth.
   std::optional<SimulationTruth> truth;
   // For the report written at the end (station/report): the sheet's material (empty: the report's

@@ -7,6 +7,7 @@
 //
 //   HISTORY/<id>.mcap   the sweeps, every device message as it arrived
 //           <id>.json   the verification record (registration/calibration_record.hpp)
+// and the record as a row of the results database (calibration_results.hpp).
 //
 // Not done yet: the stereo pair's probing errors (the plate and part views of ISO 10360-8 need a
 // sphere seen by the cameras) and the length check between two spheres of a known distance.
@@ -41,6 +42,8 @@ struct VerifyJobOptions {
   std::string calibration_source;
   // The certified diameter is taken from the session description (the cell's sphere).
   registration::SphereVerificationParams sphere;
+  // The results database the record also goes to as a row (calibration_results.hpp); "" for none.
+  std::string results_database;
 };
 
 struct VerifyJobResult {
@@ -49,6 +52,7 @@ struct VerifyJobResult {
   std::optional<registration::SphereCalibrationResult> calibrated;  // when the sweeps calibrated the digitizer
   registration::CalibrationRecord record;
   std::filesystem::path record_file, trace_file;
+  std::string history_error;  // why the record is not a row of the results database ("" when it is)
 };
 
 class VerifyJob {

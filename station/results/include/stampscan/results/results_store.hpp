@@ -1,4 +1,4 @@
-// The results history: one row per run in one database. By default SQLite in the runs folder
+// The results history: one row per run, and one per calibration or verification of the cell, in one database. By default SQLite in the runs folder
 // (RUNS/results.sqlite); PostgreSQL when given a URL (postgresql://...), for a plant whose cells
 // write to one place. Both implement ResultsStore with the same versioned schema:
 //   - opening a database migrates it to this program's schema version, in one transaction;
@@ -22,7 +22,7 @@
 namespace stampscan::results {
 
 // The schema version this program writes (see src/schema.cpp for the migrations).
-inline constexpr int kSchemaVersion = 1;
+inline constexpr int kSchemaVersion = 2;
 // The file name of the SQLite database inside a runs folder.
 inline constexpr const char* kSqliteFileName = "results.sqlite";
 
@@ -65,6 +65,19 @@ struct RunFilter {
   std::size_t limit = 0;  // 0: all; otherwise the newest `limit` runs (still oldest first)
 };
 
+// One calibration or verification of the cell (registration/calibration_record.hpp, which the
+// station turns into a row): the fields a listing needs, and the whole record as its file holds it.
+struct CalibrationRow {
+  std::string record_id;    // unique
+  std::string kind;         // "digitizer", "cameras", "verification"
+  std::string created_utc;  // ISO 8601, UTC
+  std::string cell, verdict, accepted_by;  // verdict: passed, failed or accepted
+  std::string summary;      // one line: the checks and their outcome
+  std::string record_file;  // where the record's file (and its traces) are kept
+  std::string record_json;  // the record as its file holds it
+  bool operator==(const CalibrationRow&) const = default;
+};
+
 struct StoreOptions {
   // History and trend only read: the database is opened read-only and must exist already.
   bool read_only = false;
@@ -86,6 +99,12 @@ class ResultsStore {
   // The run as failed, with its reason (which must not be empty); verdict and figures as given.
   void recordFailedRun(RunRecord run, const std::string& reason);
   std::vector<RunRecord> queryRuns(const RunFilter& filter = {}) const;
+  // Inserts the calibration, or replaces the row with the same record id. Throws ResultsError when
+  // the row lacks an id, kind or creation time, has another verdict than passed, failed or
+  // accepted, or the database cannot be written.
+  void recordCalibration(const CalibrationRow& calibration);
+  // Oldest first; `kind` "" for every kind; `limit` 0 for all, else the newest `limit`.
+  std::vector<CalibrationRow> queryCalibrations(const std::string& kind = "", std::size_t limit = 0) const;
   int schemaVersion() const;
   // The database, for messages: the file, or the URL without its password.
   const std::string& location() const { return location_; }
@@ -97,6 +116,8 @@ class ResultsStore {
   virtual void upsertRuns(const std::vector<RunRecord>& runs) = 0;
   virtual std::vector<RunRecord> selectRuns(const RunFilter& normalized) const = 0;
   virtual int storedSchemaVersion() const = 0;
+  virtual void upsertCalibration(const CalibrationRow& calibration) = 0;
+  virtual std::vector<CalibrationRow> selectCalibrations(const std::string& kind, std::size_t limit) const = 0;
 
  private:
   void check(const RunRecord& run) const;
