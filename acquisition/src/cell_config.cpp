@@ -19,7 +19,9 @@ CellConfig virtualCell() {
   c.source = "built-in";
   c.digitizer_virtual = true;
   c.cmm_device_time = true;
-  c.calibration.sphere_diameter_mm = 25.4;  // the virtual cell's reference sphere (sim/scene.hpp)
+  c.calibration.sphere_diameter_mm = 25.4;  // the virtual cell's ball bar (sim/scan_scenario.hpp)
+  c.calibration.second_sphere_diameter_mm = 25.4;
+  c.calibration.sphere_distance_mm = 120.0;
   return c;
 }
 
@@ -106,6 +108,13 @@ void readCalibrationPolicy(const toml::table& t, const std::string& file, Calibr
   if (p.sphere_diameter_mm < 0) throw std::runtime_error(file + ": [calibration] sphere_diameter_mm must not be negative");
   p.form_mpe_mm = number(t, kSection, "form_mpe_mm", p.form_mpe_mm, file, true);
   p.size_mpe_mm = number(t, kSection, "size_mpe_mm", p.size_mpe_mm, file, true);
+  p.second_sphere_diameter_mm = number(t, kSection, "second_sphere_diameter_mm", p.second_sphere_diameter_mm, file);
+  p.sphere_distance_mm = number(t, kSection, "sphere_distance_mm", p.sphere_distance_mm, file);
+  p.length_mpe_mm = number(t, kSection, "length_mpe_mm", p.length_mpe_mm, file, true);
+  if (p.second_sphere_diameter_mm < 0 || p.sphere_distance_mm < 0)
+    throw std::runtime_error(file + ": [calibration] second_sphere_diameter_mm and sphere_distance_mm must not be negative");
+  if (p.sphere_distance_mm > 0 && p.second_sphere_diameter_mm <= 0)
+    throw std::runtime_error(file + ": [calibration] sphere_distance_mm needs second_sphere_diameter_mm (the second sphere's certificate)");
 }
 
 }  // namespace

@@ -237,8 +237,8 @@ ScanPlan parseScanPlan(const std::string& text, const std::string& source) {
     if (!s) in.fail(&(*list)[k], prefix, "must be a table");
     const std::string kind = in.text(*s, "kind", prefix + "kind", "", true);
     const std::string scene = in.text(*s, "scene", prefix + "scene", kScenePart);
-    if (scene != kScenePart && scene != kSceneSphere && scene != kScenePlate)
-      in.fail(s->get("scene"), prefix + "scene", "must be part, reference_sphere or calibration_plate");
+    if (scene != kScenePart && scene != kSceneSphere && scene != kScenePlate && scene != kSceneSecondSphere)
+      in.fail(s->get("scene"), prefix + "scene", "must be part, reference_sphere, second_sphere or calibration_plate");
     const double index = in.number(*s, "index", prefix + "index", -1);
     if (kind == "sweep") {
       in.onlyKeys(*s, prefix, {"kind", "scene", "index", "start", "end", "head", "speed"});

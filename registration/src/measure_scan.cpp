@@ -71,10 +71,10 @@ trace::RigidPose toRigidPose(const Eigen::Isometry3d& T) {
 
 std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
                                                       std::int64_t clock_offset_ns, std::int64_t latency_ns,
-                                                      double max_track_error_mm) {
+                                                      double max_track_error_mm, const std::string& scene) {
   std::vector<std::vector<Profile>> out;
   for (const auto& w : trace.sweeps)
-    if (w.is("reference_sphere")) out.push_back(profilesIn(trace, track, w, clock_offset_ns, latency_ns, max_track_error_mm));
+    if (w.is(scene)) out.push_back(profilesIn(trace, track, w, clock_offset_ns, latency_ns, max_track_error_mm));
   return out;
 }
 

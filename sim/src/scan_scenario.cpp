@@ -107,8 +107,9 @@ class Planner {
     plan_.park = {{0, 0, 450}, 0, 0};
     if (p_.calibration) {
       planPlate();
-      planSphere();
+      planSphere(p_.sphere, acquisition::kSceneSphere, p_.sphere_sweeps);
     }
+    if (p_.second_sphere_sweeps > 0) planSphere(p_.second_sphere, acquisition::kSceneSecondSphere, p_.second_sphere_sweeps);
     if (p_.laser) planLaserStrips();
     if (p_.stereo) planStereo();
     return std::move(plan_);
@@ -163,7 +164,7 @@ class Planner {
     }
   }
 
-  void planSphere() {
+  void planSphere(const ReferenceSphere& s, const char* scene, int count) {
     // Sweeps that look different from the sensor: the ball passes through the left, middle and right
     // of the fan and near and far in the measuring range (otherwise a turn of the mount could not be
     // told from a shift); the head turns and tilts between sweeps (otherwise the mount's offset could
@@ -177,16 +178,14 @@ class Planner {
                                {0, -0.3, 40, 1, 0, 15},         {quarter, 0, 10, -1, 0, -15},
                                {0, 0.3, 10, -1, 8, -8},         {quarter, -0.3, 40, 1, -8, 0},
                                {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
-    const ReferenceSphere& s = p_.sphere;
-    for (int k = 0; k < p_.sphere_sweeps; ++k) {
+    for (int k = 0; k < count; ++k) {
       const SweepPlan& plan = plans[k % 8];
       const HeadState h{Vec3::Zero(), plan.a, plan.b, 0};
       const Eigen::Matrix3d R = h.pose().linear();  // the nominal mount does not turn the sensor
       // The mirror above the ball, offset across the fan and along the view.
       const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
       const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
-      sweep(acquisition::kSceneSphere, static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a, plan.b,
-            plan.speed);
+      sweep(scene, static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a, plan.b, plan.speed);
     }
   }
 
@@ -343,6 +342,7 @@ class SessionGenerator {
     part_ = makePart(p_);
     part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
+    second_sphere_scene_ = std::make_unique<SphereScene>(p_.second_sphere);
     plate_scene_ = std::make_unique<PlateScene>(p_.plate, platePose(p_.plate));
     makeTruth();
     const acquisition::ScanPlan plan = planScan(p_);
@@ -370,6 +370,7 @@ class SessionGenerator {
   const Scene* sceneNamed(const std::string& name) const {
     if (name == acquisition::kScenePart) return part_scene_.get();
     if (name == acquisition::kSceneSphere) return sphere_scene_.get();
+    if (name == acquisition::kSceneSecondSphere) return second_sphere_scene_.get();
     return plate_scene_.get();
   }
 
@@ -605,7 +606,7 @@ class SessionGenerator {
   std::mt19937_64 rng_;
   std::unique_ptr<FormedPart> part_;
   std::unique_ptr<PartScene> part_scene_;
-  std::unique_ptr<SphereScene> sphere_scene_;
+  std::unique_ptr<SphereScene> sphere_scene_, second_sphere_scene_;
   std::unique_ptr<PlateScene> plate_scene_;
   std::unique_ptr<CameraRenderer> renderers_[2];  // made at the first frame: the pixel rays are cached
   CellTruth truth_;

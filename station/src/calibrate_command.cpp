@@ -9,6 +9,7 @@
 #include "stampscan/station/progress.hpp"
 #include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
+#include "virtual_world_options.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -21,8 +22,7 @@ namespace {
 struct CalibrateOptions {
   std::string what = "all", cell, calibration_dir, engineer;
   bool accept = false, quarter_resolution = false, quiet = false;
-  std::uint64_t seed = 1;
-  std::vector<double> mount_shift;
+  VirtualWorldOptions world;
 };
 
 class CalibrateObserver final : public acquisition::ScanObserver {
@@ -91,11 +91,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
                 "Virtual cell: the cameras at the quarter resolution of the default (region) scan, with its 6 plate "
                 "views, instead of their full resolution; the mount on the head is then known to about a millimetre "
                 "only, and fails the default limit");
-  cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the sensors' true mounts)");
-  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
-                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
-      ->expected(3)
-      ->delimiter(',');
+  opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
@@ -105,8 +101,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     // cameras at their full resolution (or the quick session's quarter, to match the default scan).
     sim::ScanParams world = opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{};
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
-    world.seed = opt->seed;
-    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
+    opt->world.applyTo(world);
     CalibrateJobOptions job;
     job.plan = calibrationScenesOf(sim::planScan(world), digitizer, cameras);
     job.run.limits = config.limits;

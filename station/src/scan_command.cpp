@@ -10,8 +10,10 @@
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
+#include "scan_terminal.hpp"
 #include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
+#include "virtual_world_options.hpp"
 
 #include <cstdio>
 
@@ -23,69 +25,9 @@ struct ScanOptions {
   std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
   std::string material, program, calibration_dir;
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false, calibrated = false;
-  std::uint64_t seed = 1;
-  std::vector<double> mount_shift;
+  VirtualWorldOptions world;
 };
 
-
-class TerminalObserver final : public ScanJobObserver {
- public:
-  explicit TerminalObserver(bool quiet) : quiet_(quiet) {}
-  void runFolder(const std::filesystem::path& dir) override {
-    std::printf("  run folder  %s\n", dir.c_str());
-    std::fflush(stdout);
-  }
-  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
-  void progress(const acquisition::ScanProgress& p) override {
-    if (quiet_) return;
-    char text[160];
-    std::snprintf(text, sizeof text, "%s  %llu profiles, ETA %.0f s", p.doing.c_str(),
-                  static_cast<unsigned long long>(p.profiles), p.remaining_s);
-    bar_.update(text, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
-  }
-  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
-  void scanDone(const acquisition::ScanRunResult& r) override {
-    bar_.finish();
-    std::printf("  scan        %zu sweeps and %zu stereo views in %.1f s (the plan's motion: %.1f s); %llu profiles "
-                "(%llu lost), %llu positions%s\n",
-                r.sweeps_done, r.views_done, r.wall_seconds, r.motion_seconds, static_cast<unsigned long long>(r.profiles),
-                static_cast<unsigned long long>(r.lost_profiles), static_cast<unsigned long long>(r.positions),
-                r.views_missing ? (", " + std::to_string(r.views_missing) + " views missing").c_str() : "");
-  }
-  void stageDone(std::string_view stage, const std::string& text) override {
-    bar_.finish();
-    std::printf("  %-11.*s %s\n", static_cast<int>(stage.size()), stage.data(), text.c_str());
-  }
-
- private:
-  bool quiet_;
-  ProgressBar bar_;
-};
-
-void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfig& cell,
-                 const acquisition::MachineLimits& limits, const std::vector<std::string>& problems) {
-  std::printf("station scan --dry-run: plan '%s' on %s\n", plan.name.c_str(), cell.name.c_str());
-  std::printf("  part        %s, %s grid\n", plan.part.kind.c_str(), plan.part.grid.c_str());
-  std::printf("  steps       %zu sweeps (%zu on the part, %zu on the reference sphere), %zu stereo views\n",
-              plan.sweepCount(), plan.sweepCount(acquisition::kScenePart), plan.sweepCount(acquisition::kSceneSphere),
-              plan.stereoCount());
-  std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
-  for (const std::string& p : problems) std::printf("  problem     %s\n", p.c_str());
-  std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
-}
-
-// What the replay served, and its result against `station process` on the recording (ScanJob
-// measured both).
-void printReplay(const sim::CellReplay& replay, const ScanJobResult& r) {
-  const sim::ReplayStats s = replay.stats();
-  std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "
-              "(%zu ticks without one), %zu frames\n",
-              s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
-  if (const auto& a = r.against_recording)
-    std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
-                "thickness strain RMS %.5f\n",
-                r.recording_elements, a->matched, r.elements, a->position_rms_mm, a->strain_rms);
-}
 
 }  // namespace
 
@@ -110,11 +52,7 @@ CommandRunner addScanCommand(CLI::App& app) {
                 "`station calibrate`; refused when it is missing, failed, expired or not this cell's)");
   cmd->add_option("--calibration-dir", opt->calibration_dir,
                   "The cell's calibration folder (default: the cell's [calibration] dir, else RUNS_DIR/calibration)");
-  cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
-  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
-                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
-      ->expected(3)
-      ->delimiter(',');
+  opt->world.addTo(cmd);
   cmd->add_option("--replay", opt->replay,
                   "Run a recorded trace again on the virtual cell (the CMM follows its head track, the digitizer and "
                   "the cameras serve its profiles and frames) and compare the result with `station process` on it");
@@ -132,9 +70,8 @@ CommandRunner addScanCommand(CLI::App& app) {
     sim::ScanParams world = opt->whole_part ? sim::ScanParams{} : sim::ScanParams::quick();
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
-    world.seed = opt->seed;
+    opt->world.applyTo(world);
     world.calibration = !opt->calibrated;
-    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
     ScanJobOptions job;
     job.calibration_policy = config.calibration;
     job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
@@ -144,18 +81,12 @@ CommandRunner addScanCommand(CLI::App& app) {
     if (!opt->replay.empty()) {
       if (!virtual_cell) throw std::runtime_error("--replay runs on the built-in virtual cell: leave --cell out");
       if (!opt->dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
-      sim::RecordedSession recorded = sim::loadRecordedSession(opt->replay);
-      if (const auto loss = stampscan::trace::describeDataLoss(recorded.health); loss && !opt->accept_damaged)
-        throw std::runtime_error(opt->replay + " is damaged: " + *loss + "; pass --accept-damaged to replay what remains");
-      if (recorded.session.plan_toml.empty() && opt->plan.empty())
-        throw std::runtime_error(opt->replay + " does not carry its scan plan (recorded before traces kept it): pass "
-                                               "--plan with the plan it was recorded with");
-      job.plan = opt->plan.empty() ? acquisition::parseScanPlan(recorded.session.plan_toml, opt->replay + " (its plan)")
-                                   : acquisition::loadScanPlan(opt->plan);
-      world.part = recorded.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-      job.run.session = recorded.session;
-      if (opt->part_id == "sample" && !recorded.session.part_id.empty()) opt->part_id = recorded.session.part_id;
-      replay = std::make_shared<sim::CellReplay>(std::move(recorded));
+      sim::PreparedReplay prepared = sim::prepareReplay(opt->replay, opt->accept_damaged, opt->plan);
+      job.plan = std::move(prepared.plan);
+      job.run.session = prepared.session;
+      world.part = prepared.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+      if (opt->part_id == "sample" && !prepared.session.part_id.empty()) opt->part_id = prepared.session.part_id;
+      replay = std::move(prepared.replay);
       job.replayed_trace = opt->replay;
     } else {
       job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);

@@ -10,6 +10,7 @@
 #include "stampscan/station/verify_job.hpp"
 #include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
+#include "virtual_world_options.hpp"
 
 #include <cstdio>
 #include <optional>
@@ -25,8 +26,7 @@ namespace fs = std::filesystem;
 struct VerifyOptions {
   std::string cell, calibration_dir, calibration;
   std::optional<double> form_mpe_mm, size_mpe_mm;
-  std::uint64_t seed = 1;
-  std::vector<double> mount_shift;
+  VirtualWorldOptions world;
   bool quiet = false;
 };
 
@@ -73,11 +73,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   cmd->add_option("--size-mpe", opt->size_mpe_mm,
                   "MPE of the probing size error |P[Size.Sph.All]|, mm (default: the cell's [calibration] size_mpe_mm)")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--seed", opt->seed, "The virtual cell's seed (sensor noise, the digitizer mount's deviation)");
-  cmd->add_option("--shift-digitizer-mount", opt->mount_shift,
-                  "Virtual cell: knock the digitizer's true mount by X,Y,Z mm (head frame), as if it had moved")
-      ->expected(3)
-      ->delimiter(',');
+  opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
@@ -86,13 +82,16 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     // angle, speed and direction of the calibration sweeps, so that the check sees what calibration saw.
     sim::ScanParams world = sim::ScanParams::quick();
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
-    world.seed = opt->seed;
-    if (!opt->mount_shift.empty()) world.digitizer_mount_shift = sim::Vec3(opt->mount_shift[0], opt->mount_shift[1], opt->mount_shift[2]);
+    opt->world.applyTo(world);
     VerifyJobOptions job;
-    job.plan = sphereSweepsOf(sim::planScan(world));
     job.run.limits = config.limits;
     job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
     job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
+    if (config.calibration.sphere_distance_mm > 0) {
+      job.ball_bar = VerifyJobOptions::BallBar{config.calibration.second_sphere_diameter_mm,
+                                               config.calibration.sphere_distance_mm, config.calibration.length_mpe_mm};
+      world.second_sphere_sweeps = 4;
+    }
     const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
     job.history = dir / "history";
     job.results_database = calibrationResultsDatabase(config.results_database, dir);
@@ -103,6 +102,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       job.calibration_source = stored.string() + " (created " + file.created + ")";
     }
 
+    job.plan = sphereSweepsOf(sim::planScan(world));
     // The embedded virtual cell first (it may re-execute this program); no cameras: no stereo views.
     std::unique_ptr<HostedVirtualCell> hosted;
     if (virtual_cell) {
@@ -145,15 +145,18 @@ CommandRunner addVerifyCommand(CLI::App& app) {
                 v.points_on_sphere, v.points_measured, 2 * v.fit.radius, 2 * v.fit.radius - v.size_error_mm,
                 v.fit.rms_mm);
     for (const auto& c : r.record.checks) printCheck(c);
-    std::printf("  not yet     the stereo pair's probing errors; the length check between two spheres\n");
+    if (r.second_sphere)
+      std::printf("  ball bar    second sphere: %zu points, fitted diameter %.4f mm; centre distance %.4f mm (certified %.4f)\n",
+                  r.second_sphere->points_on_sphere, 2 * r.second_sphere->fit.radius, *r.distance_mm, job.ball_bar->distance_mm);
+    std::printf("  not done    the stereo pair's probing errors (a passive stereo pair sees no points on a plain sphere)\n");
     std::printf("  record      %s (%s)\n", r.record.id.c_str(), r.record_file.c_str());
     if (r.history_error.empty())
       std::printf("  history     recorded in the results database of %s\n", job.results_database.c_str());
     else
       std::fprintf(stderr, "station: warning: the verification is recorded in %s but not in the results database: %s\n",
                    r.record_file.c_str(), r.history_error.c_str());
-    std::printf("  verdict     %s\n", v.passed() ? "PASSED" : "FAILED");
-    return v.passed() ? 0 : 2;
+    std::printf("  verdict     %s\n", r.passed() ? "PASSED" : "FAILED");
+    return r.passed() ? 0 : 2;
   };
 }
 

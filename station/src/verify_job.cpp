@@ -45,9 +45,9 @@ acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan) {
   out.name = "reference sphere, verification";
   std::erase_if(out.steps, [](const acquisition::PlanStep& s) {
     const auto* sweep = std::get_if<acquisition::SweepStep>(&s);
-    return !sweep || sweep->scene != acquisition::kSceneSphere;
+    return !sweep || (sweep->scene != acquisition::kSceneSphere && sweep->scene != acquisition::kSceneSecondSphere);
   });
-  if (out.steps.empty()) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
+  if (out.sweepCount(acquisition::kSceneSphere) == 0) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
   return out;
 }
 
@@ -55,9 +55,13 @@ VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observe
     : cell_(cell), traced_(cell, observer) {}
 
 VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
-  if (o.plan.stereoCount() > 0 || o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere))
-    throw acquisition::ScanError("a verification plan holds reference-sphere sweeps only; '" + o.plan.name +
-                                 "' has other steps");
+  const std::size_t second_sweeps = o.plan.sweepCount(acquisition::kSceneSecondSphere);
+  if (o.plan.stereoCount() > 0 || o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere) + second_sweeps)
+    throw acquisition::ScanError("a verification plan holds sweeps over the reference sphere and the ball bar only; '" +
+                                 o.plan.name + "' has other steps");
+  if (o.ball_bar && second_sweeps == 0)
+    throw acquisition::ScanError("the length check needs sweeps over the ball bar's second sphere; '" + o.plan.name +
+                                 "' has none");
   if (!o.run.session.reference_sphere_radius_mm)
     throw acquisition::ScanError("the cell's description gives no reference-sphere radius: nothing to verify against");
   if (const auto problems = acquisition::checkPlan(o.plan, o.run.limits); !problems.empty())
@@ -122,8 +126,31 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   record.residuals.push_back({"points measured", static_cast<double>(v.points_measured), ""});
   record.checks.push_back({"probing form error P[Form.Sph.All] (digitizer)", v.form_error_mm, sp.form_mpe_mm, "mm", v.form_passed});
   record.checks.push_back({"probing size error P[Size.Sph.All] (digitizer)", v.size_error_mm, sp.size_mpe_mm, "mm", v.size_passed});
-  record.verdict = v.passed() ? registration::RecordVerdict::Passed : registration::RecordVerdict::Failed;
-  record.notes.push_back("not checked yet: the stereo pair's probing errors and the length between two spheres");
+  if (o.ball_bar) {
+    // The second sphere is located and fitted like the first, with its own certified diameter; the
+    // length is between the two least-squares centres.
+    registration::SphereVerificationParams second = sp;
+    second.certified_diameter_mm = o.ball_bar->second_diameter_mm;
+    std::vector<registration::Profile> profiles;
+    for (auto& sweep : registration::sphereSweepProfiles(trace, track, calibration.clock_offset_ns, calibration.latency_ns,
+                                                         registration::MeasureParams{}.max_track_error_mm,
+                                                         acquisition::kSceneSecondSphere))
+      profiles.insert(profiles.end(), sweep.begin(), sweep.end());
+    result.second_sphere = registration::verifySphere(registration::spherePoints(profiles, track, calibration), second);
+    result.distance_mm = (result.second_sphere->fit.centre - v.fit.centre).norm();
+    result.length_error_mm = *result.distance_mm - o.ball_bar->distance_mm;
+    record.parameters.push_back({"certified sphere distance", o.ball_bar->distance_mm, "mm"});
+    record.parameters.push_back({"measured sphere distance", *result.distance_mm, "mm"});
+    record.residuals.push_back({"second sphere radial deviation RMS", result.second_sphere->fit.rms_mm, "mm"});
+    record.checks.push_back({"length measurement error E (digitizer, ball bar)", *result.length_error_mm,
+                             o.ball_bar->mpe_mm, "mm", std::abs(*result.length_error_mm) <= o.ball_bar->mpe_mm});
+  } else {
+    record.notes.push_back("no length check: the cell gives no ball bar ([calibration] sphere_distance_mm)");
+  }
+  const bool all_passed =
+      std::all_of(record.checks.begin(), record.checks.end(), [](const RecordCheck& c) { return c.passed; });
+  record.verdict = all_passed ? registration::RecordVerdict::Passed : registration::RecordVerdict::Failed;
+  record.notes.push_back("not checked: the stereo pair's probing errors (a passive stereo pair sees no points on a plain sphere)");
   if (result.run.lost_profiles > 0)
     record.notes.push_back(std::to_string(result.run.lost_profiles) + " digitizer profiles were lost during the sweeps");
   result.record_file = registration::saveCalibrationRecord(o.history, record);

@@ -250,6 +250,9 @@ TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
   EXPECT_EQ(file.calibration.sphere_diameter_mm, built_in.calibration.sphere_diameter_mm);
   EXPECT_EQ(file.calibration.form_mpe_mm, built_in.calibration.form_mpe_mm);
   EXPECT_EQ(file.calibration.size_mpe_mm, built_in.calibration.size_mpe_mm);
+  EXPECT_EQ(file.calibration.second_sphere_diameter_mm, built_in.calibration.second_sphere_diameter_mm);
+  EXPECT_EQ(file.calibration.sphere_distance_mm, built_in.calibration.sphere_distance_mm);
+  EXPECT_EQ(file.calibration.length_mpe_mm, built_in.calibration.length_mpe_mm);
 }
 
 // [calibration]: the rules a cell's file sets, and a bad value named with its section and key.

@@ -47,6 +47,8 @@ TEST_F(StationTest, VerifyOnTheVirtualCellWritesARecordTheHistoryShows) {
   EXPECT_NE(r.out.find("PASS  probing form error P[Form.Sph.All] (digitizer)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("PASS  probing size error P[Size.Sph.All] (digitizer)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("verdict     PASSED"), std::string::npos) << r.out;
+  // The ball bar of the virtual cell: the two spheres' centres 120 mm apart, as its certificate says.
+  EXPECT_NE(r.out.find("PASS  length measurement error E (digitizer, ball bar)"), std::string::npos) << r.out;
 
   const auto ids = historyIds(cal / "history");
   ASSERT_EQ(ids.size(), 1u);
@@ -62,6 +64,10 @@ TEST_F(StationTest, VerifyOnTheVirtualCellWritesARecordTheHistoryShows) {
   EXPECT_FALSE(digitizer->serial.empty());
   ASSERT_NE(record.parameter("fitted sphere diameter"), nullptr);
   EXPECT_NEAR(record.parameter("fitted sphere diameter")->value, 25.4, 0.01);
+  ASSERT_NE(record.parameter("measured sphere distance"), nullptr);
+  EXPECT_NEAR(record.parameter("measured sphere distance")->value, 120.0, 0.01);
+  ASSERT_NE(record.check("length measurement error E (digitizer, ball bar)"), nullptr);
+  EXPECT_TRUE(record.check("length measurement error E (digitizer, ball bar)")->passed);
   // The sweeps' own calibration recovers the simulated latency, to within the 0.3 ms that `station
   // scan` holds it to on the cell (the head track comes from 10 Hz move reports).
   ASSERT_NE(record.parameter("digitizer latency"), nullptr);

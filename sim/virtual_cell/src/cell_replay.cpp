@@ -257,4 +257,21 @@ ReplayStats CellReplay::stats() const {
   return stats_;
 }
 
+PreparedReplay prepareReplay(const std::filesystem::path& trace_file, bool accept_damaged,
+                             const std::filesystem::path& plan_file) {
+  const std::string name = trace_file.string();
+  RecordedSession recorded = loadRecordedSession(trace_file);
+  if (const auto loss = trace::describeDataLoss(recorded.health); loss && !accept_damaged)
+    throw std::runtime_error(name + " is damaged: " + *loss + "; pass --accept-damaged to replay what remains");
+  if (recorded.session.plan_toml.empty() && plan_file.empty())
+    throw std::runtime_error(name + " does not carry its scan plan (recorded before traces kept it): pass --plan with "
+                                    "the plan it was recorded with");
+  PreparedReplay out;
+  out.plan = plan_file.empty() ? acquisition::parseScanPlan(recorded.session.plan_toml, name + " (its plan)")
+                               : acquisition::loadScanPlan(plan_file);
+  out.session = recorded.session;
+  out.replay = std::make_shared<CellReplay>(std::move(recorded));
+  return out;
+}
+
 }  // namespace stampscan::sim

@@ -10,16 +10,17 @@
 
 namespace stampscan::sim {
 
-// Everything on the table at once: the nearest hit among the part, the sphere and the plate.
+// Everything on the table at once: the nearest hit among the part, the ball bar's two spheres and
+// the plate.
 class VirtualCell::WorldScene final : public Scene {
  public:
   WorldScene(const FormedPart& part, const ScanParams& p)
-      : part_(part, p.grid), sphere_(p.sphere), plate_(p.plate, platePose(p.plate)) {}
+      : part_(part, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p.plate)) {}
 
   std::optional<Hit> cast(const Ray& ray, double footprint_per_mm, double t_hint) const override {
     std::optional<Hit> best;
     for (const Scene* s : {static_cast<const Scene*>(&part_), static_cast<const Scene*>(&sphere_),
-                           static_cast<const Scene*>(&plate_)}) {
+                           static_cast<const Scene*>(&second_sphere_), static_cast<const Scene*>(&plate_)}) {
       std::optional<Hit> h = s->cast(ray, footprint_per_mm, t_hint);
       if (h && (!best || h->t < best->t)) best = h;
     }
@@ -28,7 +29,7 @@ class VirtualCell::WorldScene final : public Scene {
 
  private:
   PartScene part_;
-  SphereScene sphere_;
+  SphereScene sphere_, second_sphere_;
   PlateScene plate_;
 };
 

@@ -31,6 +31,11 @@ struct CalibrationPolicy {
   // maximum permissible errors (ISO 10360-8 probing form and size).
   double sphere_diameter_mm = 0;
   double form_mpe_mm = 0.100, size_mpe_mm = 0.030;
+  // The ball bar: a second sphere (its certified diameter) at a certified centre distance from the
+  // reference sphere, for the length check of `station verify`; a distance of 0 means the cell has
+  // none. The MPE of the length measurement error.
+  double second_sphere_diameter_mm = 0, sphere_distance_mm = 0;
+  double length_mpe_mm = 0.050;
 };
 
 struct CellConfig {

@@ -54,6 +54,9 @@ struct HeadPose {
 inline constexpr const char* kScenePart = "part";
 inline constexpr const char* kSceneSphere = "reference_sphere";
 inline constexpr const char* kScenePlate = "calibration_plate";
+// The ball bar's second sphere, at a certified distance from the reference sphere: the length check
+// of `station verify` (ISO 10360-8's length measurement error).
+inline constexpr const char* kSceneSecondSphere = "second_sphere";
 
 struct SweepStep {
   std::string scene = kScenePart;

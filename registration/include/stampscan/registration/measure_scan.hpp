@@ -40,12 +40,13 @@ struct MeasureParams {
   double max_track_error_mm = 0.005;
 };
 
-// The profiles of each reference-sphere sweep of the trace, in the trace's order: those exposed
-// (device time - clock offset - latency) within the sweep where the head track is to be trusted
-// (HeadTrack::chordError <= max_track_error_mm).
+// The profiles of each sweep of a sphere scene (the reference sphere's, or the ball bar's second
+// sphere's) in the trace's order: those exposed (device time - clock offset - latency) within the
+// sweep where the head track is to be trusted (HeadTrack::chordError <= max_track_error_mm).
 std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
                                                       std::int64_t clock_offset_ns, std::int64_t latency_ns,
-                                                      double max_track_error_mm);
+                                                      double max_track_error_mm,
+                                                      const std::string& scene = "reference_sphere");
 
 // The cameras calibrated on a trace's plate views: each camera and the pair (calibrateStereo) and,
 // when the head track covers at least three views, the left camera's mount on the head (hand-eye,

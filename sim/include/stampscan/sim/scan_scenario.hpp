@@ -48,8 +48,13 @@ struct ScanParams {
   int stereo_rows = 3, stereo_columns = 3;  // poses over the part
   int plate_poses = 12;
   int sphere_sweeps = 8;
+  // Sweeps over the ball bar's second sphere (the length check of `station verify`); none in a scan.
+  int second_sphere_sweeps = 0;
   CirclePlate plate;
   ReferenceSphere sphere;
+  // The second sphere of the ball bar, 120 mm from the reference sphere's centre (its certificate in
+  // station/cells/virtual.toml).
+  ReferenceSphere second_sphere{Vec3(250, -120, 40), 12.7, 0.6};
   // A knock to the digitizer's true mount (mm, head frame), on top of the seed's: a sensor that moved
   // since it was calibrated, for checking that `station verify` sees it and `station calibrate`
   // recovers from it. The nominal mount (what the station is told) does not move.

@@ -9,8 +9,13 @@
 //           <id>.json   the verification record (registration/calibration_record.hpp)
 // and the record as a row of the results database (calibration_results.hpp).
 //
-// Not done yet: the stereo pair's probing errors (the plate and part views of ISO 10360-8 need a
-// sphere seen by the cameras) and the length check between two spheres of a known distance.
+// With a ball bar (a second sphere at a certified centre distance, swept too), the length
+// measurement error E of ISO 10360-8: the distance between the two least-squares spheres' centres
+// minus the certified one, against its MPE.
+//
+// Not done: the stereo pair's probing errors. The stereo path measures the printed grid's marks,
+// and a sphere has none; ISO 10360-8's check of an optical sensor needs points on the sphere, which
+// a passive stereo pair only gives with a targeted (printed) sphere.
 //
 // Thread safety: run() blocks; abort() may be called from any other thread.
 #pragma once
@@ -28,8 +33,8 @@
 
 namespace stampscan::station {
 
-// The plan's reference-sphere sweeps alone, named for verification. Throws std::runtime_error when
-// the plan has none.
+// The plan's sweeps over the reference sphere and the ball bar's second sphere alone, named for
+// verification. Throws std::runtime_error when the plan has no reference-sphere sweep.
 acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan);
 
 struct VerifyJobOptions {
@@ -42,6 +47,12 @@ struct VerifyJobOptions {
   std::string calibration_source;
   // The certified diameter is taken from the session description (the cell's sphere).
   registration::SphereVerificationParams sphere;
+  // The ball bar's second sphere and its certified distance from the reference sphere; the plan
+  // must sweep it (acquisition::kSceneSecondSphere). Absent: no length check.
+  struct BallBar {
+    double second_diameter_mm = 25.4, distance_mm = 0, mpe_mm = 0.05;
+  };
+  std::optional<BallBar> ball_bar;
   // The results database the record also goes to as a row (calibration_results.hpp); "" for none.
   std::string results_database;
 };
@@ -49,6 +60,10 @@ struct VerifyJobOptions {
 struct VerifyJobResult {
   acquisition::ScanRunResult run;
   registration::SphereVerification digitizer;
+  // With a ball bar: the second sphere, the measured centre distance and the length error.
+  std::optional<registration::SphereVerification> second_sphere;
+  std::optional<double> distance_mm, length_error_mm;
+  bool passed() const { return record.verdict == registration::RecordVerdict::Passed; }
   std::optional<registration::SphereCalibrationResult> calibrated;  // when the sweeps calibrated the digitizer
   registration::CalibrationRecord record;
   std::filesystem::path record_file, trace_file;

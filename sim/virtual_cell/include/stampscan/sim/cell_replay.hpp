@@ -19,6 +19,8 @@
 // and the cameras' threads).
 #pragma once
 
+#include "stampscan/acquisition/scan_plan.hpp"
+
 #include "stampscan/acquisition/trace/mcap_reader.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
@@ -107,5 +109,17 @@ class CellReplay {
   std::atomic<bool>* shared_known_ = nullptr;
   ReplayStats stats_;
 };
+
+// A recording made ready to run again (`station scan --replay`): the replay that serves it, the
+// plan to play (the one the trace carries, or `plan_file` when given) and the session it records.
+struct PreparedReplay {
+  std::shared_ptr<CellReplay> replay;
+  acquisition::ScanPlan plan;
+  trace::SessionDescription session;
+};
+// Throws std::runtime_error naming the trace when it is damaged (unless `accept_damaged`: what
+// remains is replayed) or carries no plan and none is given.
+PreparedReplay prepareReplay(const std::filesystem::path& trace, bool accept_damaged,
+                             const std::filesystem::path& plan_file = {});
 
 }  // namespace stampscan::sim

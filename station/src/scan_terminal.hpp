@@ -1,0 +1,75 @@
+// What `station scan` shows on a terminal: the checks, a progress bar with the step, the live
+// counts and the ETA, the scan's summary and each measuring stage; the dry run's plan; a replay's
+// comparison with its recording.
+#pragma once
+
+#include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/sim/cell_replay.hpp"
+#include "stampscan/station/progress.hpp"
+#include "stampscan/station/scan_job.hpp"
+
+#include <string>
+#include <vector>
+
+namespace stampscan::station {
+
+class TerminalObserver final : public ScanJobObserver {
+ public:
+  explicit TerminalObserver(bool quiet) : quiet_(quiet) {}
+  void runFolder(const std::filesystem::path& dir) override {
+    std::printf("  run folder  %s\n", dir.c_str());
+    std::fflush(stdout);
+  }
+  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
+  void progress(const acquisition::ScanProgress& p) override {
+    if (quiet_) return;
+    char text[160];
+    std::snprintf(text, sizeof text, "%s  %llu profiles, ETA %.0f s", p.doing.c_str(),
+                  static_cast<unsigned long long>(p.profiles), p.remaining_s);
+    bar_.update(text, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
+  }
+  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void scanDone(const acquisition::ScanRunResult& r) override {
+    bar_.finish();
+    std::printf("  scan        %zu sweeps and %zu stereo views in %.1f s (the plan's motion: %.1f s); %llu profiles "
+                "(%llu lost), %llu positions%s\n",
+                r.sweeps_done, r.views_done, r.wall_seconds, r.motion_seconds, static_cast<unsigned long long>(r.profiles),
+                static_cast<unsigned long long>(r.lost_profiles), static_cast<unsigned long long>(r.positions),
+                r.views_missing ? (", " + std::to_string(r.views_missing) + " views missing").c_str() : "");
+  }
+  void stageDone(std::string_view stage, const std::string& text) override {
+    bar_.finish();
+    std::printf("  %-11.*s %s\n", static_cast<int>(stage.size()), stage.data(), text.c_str());
+  }
+
+ private:
+  bool quiet_;
+  ProgressBar bar_;
+};
+
+inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfig& cell,
+                 const acquisition::MachineLimits& limits, const std::vector<std::string>& problems) {
+  std::printf("station scan --dry-run: plan '%s' on %s\n", plan.name.c_str(), cell.name.c_str());
+  std::printf("  part        %s, %s grid\n", plan.part.kind.c_str(), plan.part.grid.c_str());
+  std::printf("  steps       %zu sweeps (%zu on the part, %zu on the reference sphere), %zu stereo views\n",
+              plan.sweepCount(), plan.sweepCount(acquisition::kScenePart), plan.sweepCount(acquisition::kSceneSphere),
+              plan.stereoCount());
+  std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
+  for (const std::string& p : problems) std::printf("  problem     %s\n", p.c_str());
+  std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
+}
+
+// What the replay served, and its result against `station process` on the recording (ScanJob
+// measured both).
+inline void printReplay(const sim::CellReplay& replay, const ScanJobResult& r) {
+  const sim::ReplayStats s = replay.stats();
+  std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "
+              "(%zu ticks without one), %zu frames\n",
+              s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
+  if (const auto& a = r.against_recording)
+    std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
+                "thickness strain RMS %.5f\n",
+                r.recording_elements, a->matched, r.elements, a->position_rms_mm, a->strain_rms);
+}
+
+}  // namespace stampscan::station
