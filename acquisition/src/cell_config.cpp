@@ -168,6 +168,9 @@ CellConfig loadCellConfig(const std::filesystem::path& path) {
   readLimits(t, file, c.limits);
   readCalibrationPolicy(t, file, c.calibration);
   c.results_database = get<std::string>(t, "results", "database", "", file);
+  c.materials_file = get<std::string>(t, "report", "materials", "", file);
+  if (!c.materials_file.empty() && std::filesystem::path(c.materials_file).is_relative())
+    c.materials_file = (path.parent_path() / c.materials_file).string();
   return c;
 }
 

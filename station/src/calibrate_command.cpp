@@ -6,8 +6,7 @@
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/progress.hpp"
-#include "stop_signals.hpp"
+#include "terminal_run.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
@@ -20,26 +19,11 @@ namespace stampscan::station {
 namespace {
 
 struct CalibrateOptions {
-  std::string what = "all", cell, calibration_dir, engineer;
+  std::string what = "all", cell, plan, calibration_dir, engineer;
   bool accept = false, quarter_resolution = false, quiet = false;
   VirtualWorldOptions world;
 };
 
-class CalibrateObserver final : public acquisition::ScanObserver {
- public:
-  explicit CalibrateObserver(bool quiet) : quiet_(quiet) {}
-  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
-  void progress(const acquisition::ScanProgress& p) override {
-    if (quiet_) return;
-    bar_.update(p.doing, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
-  }
-  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
-  void finish() { bar_.finish(); }
-
- private:
-  bool quiet_;
-  ProgressBar bar_;
-};
 
 void printSensor(const char* name, const SensorCalibration& s) {
   const registration::CalibrationRecord& r = s.record;
@@ -82,6 +66,9 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
                    "passing calibration is put in use (exit 2 when one fails its limits)");
   cmd->add_option("what", opt->what, "digitizer, cameras or all")->check(CLI::IsMember({"digitizer", "cameras", "all"}));
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  cmd->add_option("--plan", opt->plan,
+                  "The calibration plan (TOML; its sphere sweeps and plate views are used); default: the built-in one "
+                  "of the virtual cell");
   cmd->add_option("-o,--calibration-dir", opt->calibration_dir,
                   "The cell's calibration folder (default: the cell's [calibration] dir, else stampscan-runs/calibration)");
   cmd->add_flag("--accept", opt->accept,
@@ -103,7 +90,8 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     opt->world.applyTo(world);
     CalibrateJobOptions job;
-    job.plan = calibrationScenesOf(sim::planScan(world), digitizer, cameras);
+    job.plan = calibrationScenesOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan),
+                                   digitizer, cameras);
     job.run.limits = config.limits;
     job.policy = config.calibration;
     job.digitizer = digitizer;
@@ -125,19 +113,10 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");
     std::printf("  folder      %s\n", job.calibration_dir.c_str());
-    CalibrateObserver observer(opt->quiet);
+    TerminalRunObserver observer(opt->quiet);
     CalibrateJob calibrate(cell, &observer);
-    CalibrateJobResult r;
-    {
-      const StopSignalGuard stop([&](const std::string& reason) { calibrate.abort(reason); });
-      try {
-        r = calibrate.run(job);
-      } catch (...) {
-        observer.finish();
-        throw;
-      }
-    }
-    observer.finish();
+    const CalibrateJobResult r = runAbortable(
+        observer, [&] { return calibrate.run(job); }, [&](const std::string& reason) { calibrate.abort(reason); });
     std::printf("  scenes      %zu sphere sweeps, %zu plate views in %.1f s; %llu profiles (%llu lost); trace %s\n",
                 r.run.sweeps_done, r.run.views_done, r.run.wall_seconds, static_cast<unsigned long long>(r.run.profiles),
                 static_cast<unsigned long long>(r.run.lost_profiles), r.trace_file.c_str());

@@ -229,7 +229,7 @@ CameraOutcome calibrateCamerasOn(const registration::ScanTrace& trace) {
     for (const registration::ViewReport& v : camera->views)
       if (!v.used)
         out.left_out.push_back(format("%s camera, plate view %zu: %s", camera == &rig->stereo.left ? "left" : "right",
-                                      v.view + 1, v.note.c_str()));
+                                      v.view, v.note.c_str()));
   std::vector<std::vector<double>> jack;
   std::vector<double> turned;
   const std::size_t n = rig->machine_from_head.size();

@@ -1,5 +1,6 @@
 // `station report RUN_DIR`: the forming-limit analysis and report of a run folder, written into it.
 // A thin caller of report::writeRunReport (station/report/), which `station scan` calls as well.
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/report/run_report.hpp"
 #include "stampscan/results/run_recording.hpp"
 #include "stampscan/station/commands.hpp"
@@ -12,12 +13,12 @@ namespace stampscan::station {
 
 namespace {
 struct ReportCommandOptions {
-  std::string run_dir, material, program;
+  std::string run_dir, material, program, cell;
   bool list_materials = false;
 };
 
-void printMaterials() {
-  for (const report::Material& m : report::builtInMaterials().materials())
+void printMaterials(const report::MaterialLibrary& library) {
+  for (const report::Material& m : library.materials())
     std::printf("  %-10s %-9s t %.2f mm  n %.2f  FLC %s, margin %.0f%%\n", m.name.c_str(), report::toString(m.family),
                 m.thickness_mm, m.n, m.flc.describe().c_str(), m.safety_margin_percent);
 }
@@ -33,16 +34,22 @@ CommandRunner addReportCommand(CLI::App& app) {
       "--material", opt->material,
       std::string("Sheet material (default: run.json's \"material\", else ") + report::kDefaultMaterial + ")");
   cmd->add_option("--program", opt->program, "The press program, for the report (default: run.json's \"program\")");
-  cmd->add_flag("--list-materials", opt->list_materials, "List the built-in materials and exit");
+  cmd->add_flag("--list-materials", opt->list_materials, "List the materials and exit");
+  cmd->add_option("--cell", opt->cell,
+                  "The cell file: its [report] materials are added to the built-in ones, and the run is recorded in "
+                  "its [results] database");
   return [opt]() {
+    const acquisition::CellConfig cell = opt->cell.empty() ? acquisition::CellConfig{} : acquisition::loadCellConfig(opt->cell);
+    const report::MaterialLibrary materials = report::materialsWith(cell.materials_file);
     if (opt->list_materials) {
-      printMaterials();
+      printMaterials(materials);
       return 0;
     }
     if (opt->run_dir.empty()) throw std::runtime_error("report: give the run folder (or --list-materials)");
     report::ReportOptions options;
     options.material = opt->material;
     options.program = opt->program;
+    options.materials = &materials;
     const report::ReportSummary s = report::writeRunReport(opt->run_dir, options);
     std::printf("station report %s\n", s.run_dir.c_str());
     std::printf("  material    %s%s\n", s.material.c_str(),
@@ -60,7 +67,11 @@ CommandRunner addReportCommand(CLI::App& app) {
     std::printf("\n  figures     max thinning %.1f%%, min safety margin %s\n", s.max_thinning_percent, margin);
     std::printf("  verdict     %s: %s\n", report::toString(s.verdict), s.verdict_reason.c_str());
     std::printf("  time        %.2f s (images, PDF and HTML %.2f s)\n", s.seconds, s.drawing_seconds);
-    std::printf("  recorded    %s\n", results::recordRunInResults(s.run_dir).run_id.c_str());  // in RUNS/results.sqlite
+    // In the cell's results database, else in the results.sqlite of the runs folder that holds the run.
+    const results::RunRecord recorded = cell.results_database.empty()
+                                            ? results::recordRunInResults(s.run_dir)
+                                            : results::recordRunInResults(s.run_dir, cell.results_database);
+    std::printf("  recorded    %s\n", recorded.run_id.c_str());
     return 0;
   };
 }

@@ -62,9 +62,10 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     const bool virtual_cell = opt->cell.empty();
-    // An unknown material is refused before anything moves (the report at the end would fail).
-    if (!opt->material.empty()) (void)report::builtInMaterials().find(opt->material);
     acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    // An unknown material is refused before anything moves (the report at the end would fail).
+    const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
+    if (!opt->material.empty()) (void)materials.find(opt->material);
 
     // The virtual world, and the built-in plan for its part (or the plan file).
     sim::ScanParams world = opt->whole_part ? sim::ScanParams{} : sim::ScanParams::quick();
@@ -117,6 +118,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     job.runs_dir = opt->runs;
     job.results_database = config.results_database;
     job.material = opt->material;
+    job.materials = &materials;
     job.program = opt->program;
     // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry
     // it yet; the virtual cell's sensors are the simulator's; a replay's are the recording's.)

@@ -366,6 +366,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     report::ReportOptions options;
     options.material = o.material;
     options.program = o.program;
+    options.materials = o.materials;
     result.report = report::writeRunReport(result.run_dir, options);
   } catch (const std::exception& e) {
     result.report_error = e.what();

@@ -6,9 +6,8 @@
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/progress.hpp"
 #include "stampscan/station/verify_job.hpp"
-#include "stop_signals.hpp"
+#include "terminal_run.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
@@ -24,28 +23,13 @@ namespace {
 namespace fs = std::filesystem;
 
 struct VerifyOptions {
-  std::string cell, calibration_dir, calibration;
+  std::string cell, plan, calibration_dir, calibration;
   std::optional<double> form_mpe_mm, size_mpe_mm;
   VirtualWorldOptions world;
   bool quiet = false;
 };
 
 
-class VerifyObserver final : public acquisition::ScanObserver {
- public:
-  explicit VerifyObserver(bool quiet) : quiet_(quiet) {}
-  void checkPassed(const std::string& what) override { std::printf("  check       %s\n", what.c_str()); }
-  void progress(const acquisition::ScanProgress& p) override {
-    if (quiet_) return;
-    bar_.update(p.doing, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
-  }
-  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
-  void finish() { bar_.finish(); }
-
- private:
-  bool quiet_;
-  ProgressBar bar_;
-};
 
 void printCheck(const registration::RecordCheck& c) {
   std::printf("  %s  %s: %+.4f %s (MPE %.4f %s)\n", c.passed ? "PASS" : "FAIL", c.name.c_str(), c.value, c.unit.c_str(),
@@ -61,6 +45,9 @@ CommandRunner addVerifyCommand(CLI::App& app) {
                 "errors of ISO 10360-8 against their MPE, one line each, and a record in the calibration history "
                 "(exit 2 when a check fails)");
   cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  cmd->add_option("--plan", opt->plan,
+                  "The verification plan (TOML; its sweeps over the reference sphere and the ball bar are used); "
+                  "default: the built-in one of the virtual cell");
   cmd->add_option("-o,--calibration-dir", opt->calibration_dir,
                   "The cell's calibration folder: digitizer.json in use, history/ of records and their traces (default: "
                   "the cell's [calibration] dir, else stampscan-runs/calibration)");
@@ -102,7 +89,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       job.calibration_source = stored.string() + " (created " + file.created + ")";
     }
 
-    job.plan = sphereSweepsOf(sim::planScan(world));
+    job.plan = sphereSweepsOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan));
     // The embedded virtual cell first (it may re-execute this program); no cameras: no stereo views.
     std::unique_ptr<HostedVirtualCell> hosted;
     if (virtual_cell) {
@@ -120,19 +107,10 @@ CommandRunner addVerifyCommand(CLI::App& app) {
                 hosted ? " (hosted in this process)" : "");
     std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
                                                       : "none in use: the sweeps calibrate the digitizer themselves");
-    VerifyObserver observer(opt->quiet);
+    TerminalRunObserver observer(opt->quiet);
     VerifyJob verify(cell, &observer);
-    VerifyJobResult r;
-    {
-      const StopSignalGuard stop([&](const std::string& reason) { verify.abort(reason); });
-      try {
-        r = verify.run(job);
-      } catch (...) {
-        observer.finish();
-        throw;
-      }
-    }
-    observer.finish();
+    const VerifyJobResult r = runAbortable(
+        observer, [&] { return verify.run(job); }, [&](const std::string& reason) { verify.abort(reason); });
     const registration::SphereVerification& v = r.digitizer;
     std::printf("  sweeps      %zu over the sphere, %llu profiles (%llu lost) in %.1f s\n", r.run.sweeps_done,
                 static_cast<unsigned long long>(r.run.profiles), static_cast<unsigned long long>(r.run.lost_profiles),

@@ -31,6 +31,32 @@ TEST_F(ReportCommand, ReportPrintsTheVerdictTheFilesAndTheTime) {
   EXPECT_NE(list.out.find("AA6016-T4"), std::string::npos) << list.out;
 }
 
+// A plant's own materials, named by the cell file, join the built-in ones (one of the same name
+// replaces it); the run is recorded in the cell's results database.
+TEST_F(ReportCommand, TheCellFilesMaterialsExtendTheBuiltInOnes) {
+  const fs::path run_dir = work() / "runs" / "20260105-101500-plate-8";
+  report::test::writePlateRun(run_dir, report::test::makePlate());
+  writeFile(work() / "plant-materials.toml",
+            "[[material]]\nname = \"PLANT-X\"\nfamily = \"steel\"\nthickness_mm = 0.8\nn = 0.24\n"
+            "[[material]]\nname = \"DC04\"\nfamily = \"steel\"\nthickness_mm = 1.5\nn = 0.22\n");
+  const fs::path db = work() / "plant-db";
+  fs::create_directories(db);
+  writeFile(work() / "cell.toml", "name = \"line 3\"\n[report]\nmaterials = \"plant-materials.toml\"\n[results]\n"
+                                  "database = \"" + db.string() + "\"\n");
+  expectCleanFailure(run("report " + quote(run_dir) + " --material PLANT-X"), "PLANT-X");
+  const RunResult list = run("report --list-materials --cell " + quote(work() / "cell.toml"));
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_NE(list.out.find("PLANT-X"), std::string::npos) << list.out;
+  EXPECT_NE(list.out.find("t 1.50 mm"), std::string::npos) << "the plant's DC04 replaces the built-in one:\n" << list.out;
+  const RunResult r = run("report " + quote(run_dir) + " --material PLANT-X --cell " + quote(work() / "cell.toml"), 60);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("material    PLANT-X"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(db / "results.sqlite"));
+  EXPECT_FALSE(fs::exists(run_dir.parent_path() / "results.sqlite"));
+  const RunResult missing = run("report --list-materials --cell " + quote(work() / "no-cell.toml"));
+  expectCleanFailure(missing, "no-cell.toml");
+}
+
 TEST_F(ReportCommand, ReportOnBadInputExitsOneAndWritesNothing) {
   const fs::path run_dir = work() / "run";
   report::test::writePlateRun(run_dir, report::test::makePlate());

@@ -15,5 +15,5 @@ set(_served_cell_tests
   StationTest.TheLiveTraceOpensInTheReferenceReader StationTest.ScanRefusesAPlanBeforeAnythingMoves
   # `station calibrate` of the cameras
   StationTest.CalibrateRecoversTheVirtualCellsSensorsAndPutsThemInUse
-  StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted)
+  StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted StationTest.CalibrateLeavesOutTheViewsThatSpoilAFit)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

@@ -181,4 +181,13 @@ const MaterialLibrary& builtInMaterials() {
   return library;
 }
 
+MaterialLibrary materialsWith(const std::filesystem::path& file) {
+  MaterialLibrary library = builtInMaterials();
+  if (!file.empty()) {
+    const MaterialLibrary plant = loadMaterials(file);
+    for (const Material& m : plant.materials()) library.add(m);
+  }
+  return library;
+}
+
 }  // namespace stampscan::report

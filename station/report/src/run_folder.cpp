@@ -29,8 +29,16 @@ bool parseFolderName(const std::string& name, std::string& date, std::string& pa
 }
 
 std::string calibrationText(const nlohmann::json& run) {
-  if (const auto it = run.find("calibration"); it != run.end() && !it->is_null())
-    return it->is_string() ? it->get<std::string>() : it->dump();
+  if (const auto it = run.find("calibration"); it != run.end() && !it->is_null()) {
+    if (it->is_string()) return it->get<std::string>();
+    // {"digitizer": "...", "cameras": "..."}: which calibration each sensor was measured with.
+    std::string out;
+    if (it->is_object())
+      for (const auto& [sensor, text] : it->items())
+        if (text.is_string()) out += (out.empty() ? "" : "; ") + sensor + ": " + text.get<std::string>();
+    if (!out.empty()) return out;
+    return it->dump();
+  }
   // Runs of the built-in plans calibrate in the run itself: the digitizer on the reference sphere,
   // the cameras on the plate.
   const auto measurement = run.find("measurement");

@@ -69,6 +69,10 @@ struct CellConfig {
   // The results database ([results] database): a runs folder (its results.sqlite) or a PostgreSQL
   // URL when several cells write to one place. Empty: the runs folder of each command.
   std::string results_database;
+  // The plant's own materials ([report] materials): a material library file (station/materials.toml's
+  // format) whose entries are added to, or replace, the built-in ones. A path relative to the cell
+  // file is taken from the cell file's folder. Empty: the built-in library alone.
+  std::string materials_file;
 };
 
 // The built-in virtual cell (the same as station/cells/virtual.toml).

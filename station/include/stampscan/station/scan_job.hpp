@@ -47,6 +47,8 @@ struct ScanJobOptions {
   // For the report written at the end (station/report): the sheet's material (empty: the report's
   // default) and the press program; both also go into run.json.
   std::string material, program;
+  // The material library of the report: null for the built-in one (borrowed for run()).
+  const report::MaterialLibrary* materials = nullptr;
   // The cell's calibration folder (digitizer.json and cameras.json in use, put there by `station
   // calibrate`) and the cell's rules for it. A sensor the plan calibrates itself (sphere sweeps for
   // the digitizer, plate views for the cameras) needs no stored calibration. For any other, the

@@ -57,6 +57,9 @@ MaterialLibrary parseMaterials(const std::string& toml_text, const std::string& 
 MaterialLibrary loadMaterials(const std::filesystem::path& file);
 // The library shipped with the project (station/materials.toml, built into the program).
 const MaterialLibrary& builtInMaterials();
+// The built-in library with a plant's own file's entries added (or replacing theirs); the built-in
+// one alone when `file` is empty. Throws MaterialError naming the file when it cannot be read.
+MaterialLibrary materialsWith(const std::filesystem::path& file);
 // The built-in library's text, as shipped.
 const std::string& builtInMaterialsText();
 
