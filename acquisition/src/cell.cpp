@@ -4,16 +4,19 @@
 
 namespace stampscan::acquisition {
 
-Cell::Cell(const CellConfig& config) : config_(config) {
+Cell::Cell(const CellConfig& config, CellUse use) : config_(config) {
+  const bool check = use == CellUse::Check;
   drivers::cmm::IppCmmOptions cmm;
   cmm.host = config.cmm.host;
   cmm.port = static_cast<std::uint16_t>(config.cmm.port);
   cmm.device_time_in_reports = config.cmm_device_time;
+  if (check) cmm.connect_timeout = std::chrono::milliseconds(1500);
   cmm_ = std::make_unique<drivers::cmm::IppCmm>(cmm);
   drivers::plc::ModbusPlcOptions plc;
   plc.host = config.plc.host;
   plc.port = config.plc.port;
   plc.unit_id = config.plc_unit_id;
+  plc.watchdog = !check;
   plc_ = std::make_unique<drivers::plc::ModbusPlc>(plc);
   drivers::digitizer::UsbDigitizerOptions digitizer;
   digitizer.vendor_id = config.digitizer_vendor;
@@ -25,6 +28,7 @@ Cell::Cell(const CellConfig& config) : config_(config) {
     drivers::camera::GigECameraOptions o;
     o.serial = config_of->serial;
     o.address = config_of->address;
+    o.auto_reconnect = !check;
     *camera = std::make_unique<drivers::camera::GigECamera>(name, o);
   }
 }

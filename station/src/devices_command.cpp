@@ -7,6 +7,7 @@
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/acquisition/cell.hpp"
 #include "stampscan/station/commands.hpp"
 #include "virtual_digitizer_host.hpp"
 
@@ -67,41 +68,16 @@ CommandRunner addDevicesCommand(CLI::App& app) {
     const std::unique_ptr<sim::VirtualDigitizer> virtual_digitizer = hostVirtualDigitizer(cell);
     std::printf("station devices: %s (%s)\n", cell.name.c_str(), cell.source.c_str());
     std::vector<Row> rows;
-    {
-      drivers::cmm::IppCmmOptions o;
-      o.host = cell.cmm.host;
-      o.port = static_cast<std::uint16_t>(cell.cmm.port);
-      o.connect_timeout = std::chrono::milliseconds(1500);
-      drivers::cmm::IppCmm cmm(o);
-      rows.push_back(probe(cmm, o.host + ":" + std::to_string(o.port), true));
-    }
-    {
-      drivers::plc::ModbusPlcOptions o;
-      o.host = cell.plc.host;
-      o.port = cell.plc.port;
-      o.unit_id = cell.plc_unit_id;
-      o.watchdog = false;  // a check, not a session: the PLC's watchdog must not see a heartbeat start
-      drivers::plc::ModbusPlc plc(o);
-      rows.push_back(probe(plc, o.host + ":" + std::to_string(o.port), true));
-    }
-    for (const auto& [name, cam] : {std::pair{"camera_l", cell.left_camera}, std::pair{"camera_r", cell.right_camera}}) {
-      drivers::camera::GigECameraOptions o;
-      o.serial = cam.serial;
-      o.address = cam.address;
-      o.auto_reconnect = false;
-      drivers::camera::GigECamera camera(name, o);
-      rows.push_back(probe(camera, cam.address.empty() ? "serial " + cam.serial : cam.address, true));
-    }
-    {
-      drivers::digitizer::UsbDigitizerOptions o;
-      o.vendor_id = cell.digitizer_vendor;
-      o.product_id = cell.digitizer_product;
-      o.serial = cell.digitizer_serial;
-      drivers::digitizer::UsbDigitizer digitizer(o);
-      char address[32];
-      std::snprintf(address, sizeof address, "usb %04x:%04x", o.vendor_id, o.product_id);
-      rows.push_back(probe(digitizer, address, cell.digitizer_required));
-    }
+    // The same drivers a scan uses, built for a check (acquisition::CellUse::Check).
+    acquisition::Cell devices(cell, acquisition::CellUse::Check);
+    rows.push_back(probe(devices.cmm(), cell.cmm.host + ":" + std::to_string(cell.cmm.port), true));
+    rows.push_back(probe(devices.plc(), cell.plc.host + ":" + std::to_string(cell.plc.port), true));
+    for (const auto& [camera, config] : {std::pair{&devices.leftCamera(), cell.left_camera},
+                                         std::pair{&devices.rightCamera(), cell.right_camera}})
+      rows.push_back(probe(*camera, config.address.empty() ? "serial " + config.serial : config.address, true));
+    char usb[32];
+    std::snprintf(usb, sizeof usb, "usb %04x:%04x", cell.digitizer_vendor, cell.digitizer_product);
+    rows.push_back(probe(devices.digitizer(), usb, cell.digitizer_required));
     // The identity and firmware columns widen to their longest entry, so that the table stays aligned.
     int identity_width = 28, firmware_width = 10;
     for (const Row& r : rows) {

@@ -14,11 +14,18 @@
 
 namespace stampscan::acquisition {
 
+// What the drivers are built for.
+enum class CellUse {
+  Session,  // a scan, calibration or verification: the PLC's watchdog heartbeat, cameras that reconnect
+  Check,    // a look at the devices (`station devices`, the panel's cell view): no heartbeat for the
+            // PLC's watchdog to see start, no reconnecting, and a CMM that does not answer given up in 1.5 s
+};
+
 class Cell {
  public:
   // Builds the drivers (nothing is connected yet). Throws std::invalid_argument for a config the
   // drivers refuse.
-  explicit Cell(const CellConfig& config);
+  explicit Cell(const CellConfig& config, CellUse use = CellUse::Session);
   ~Cell();
   Cell(const Cell&) = delete;
   Cell& operator=(const Cell&) = delete;

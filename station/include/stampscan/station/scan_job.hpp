@@ -1,15 +1,20 @@
 // A scan job: what `station scan` does, and what the operator's panel will start. A plan on a cell
 // into a run folder: the trace recorded live by the ScanRunner and, at the same time, measured as
 // its steps complete (live_measurement.hpp: the calibrations after their scenes, each sweep while
-// the next is scanned), then fitted and written with a run.json summary. The command and the panel
-// differ only in how they show progress (the observer) and how they abort (abort()).
+// the next is scanned), then fitted and written with a run.json summary, the forming-limit report
+// and a row of the results history. A sensor the plan does not calibrate itself is measured with
+// the calibration in use (`station calibrate`), checked against the cell and its sensors before
+// anything moves. The command and the panel differ only in how they show progress (the observer)
+// and how they abort (abort()).
 //
 //   RUNS/<UTC time>-<part id>/trace.mcap   every device message as it arrived
 //                            cloud4d.ply   the grid elements with their strains
 //                            fitted.ply    the fitted surface, one point per element, coloured by thinning
 //                            mesh.ply      the fitted surface as a mesh
-//                            run.json      part id, plan, cell, devices, counts, times, outcome (and the
-//                                          accuracy against the truth when the cell is simulated)
+//                            run.json      part id, plan, cell, devices, calibration used, counts, times,
+//                                          outcome (and the accuracy against the truth when the cell is
+//                                          simulated)
+//                            report.pdf, report.html, fld.png, strain maps, elements.csv, report.json
 //
 // A plan or check refused before motion (acquisition::ScanError) leaves no run folder. An aborted
 // run keeps its trace and a run.json saying why, and run() throws naming both.
