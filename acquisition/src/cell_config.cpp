@@ -111,6 +111,8 @@ void readCalibrationPolicy(const toml::table& t, const std::string& file, Calibr
   p.second_sphere_diameter_mm = number(t, kSection, "second_sphere_diameter_mm", p.second_sphere_diameter_mm, file);
   p.sphere_distance_mm = number(t, kSection, "sphere_distance_mm", p.sphere_distance_mm, file);
   p.length_mpe_mm = number(t, kSection, "length_mpe_mm", p.length_mpe_mm, file, true);
+  p.stereo_form_mpe_mm = number(t, kSection, "stereo_form_mpe_mm", p.stereo_form_mpe_mm, file, true);
+  p.stereo_length_mpe_mm = number(t, kSection, "stereo_length_mpe_mm", p.stereo_length_mpe_mm, file, true);
   if (p.second_sphere_diameter_mm < 0 || p.sphere_distance_mm < 0)
     throw std::runtime_error(file + ": [calibration] second_sphere_diameter_mm and sphere_distance_mm must not be negative");
   if (p.sphere_distance_mm > 0 && p.second_sphere_diameter_mm <= 0)

@@ -25,6 +25,7 @@ namespace fs = std::filesystem;
 struct VerifyOptions {
   std::string cell, plan, calibration_dir, calibration;
   std::optional<double> form_mpe_mm, size_mpe_mm;
+  bool no_stereo = false;
   VirtualWorldOptions world;
   bool quiet = false;
 };
@@ -54,6 +55,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   cmd->add_option("--calibration", opt->calibration,
                   "The digitizer calibration to verify (default: digitizer.json in the calibration folder; without "
                   "one, the sweeps calibrate the digitizer themselves)");
+  cmd->add_flag("--no-stereo", opt->no_stereo, "Leave the stereo pair's check on the plate out");
   cmd->add_option("--form-mpe", opt->form_mpe_mm,
                   "MPE of the probing form error P[Form.Sph.All], mm (default: the cell's [calibration] form_mpe_mm)")
       ->check(CLI::PositiveNumber);
@@ -89,11 +91,19 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       job.calibration_source = stored.string() + " (created " + file.created + ")";
     }
 
-    job.plan = sphereSweepsOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan));
-    // The embedded virtual cell first (it may re-execute this program); no cameras: no stereo views.
+    // The stereo pair too when its calibration is in use: three views of the plate, the virtual
+    // cameras at the resolution they were calibrated at.
+    if (const fs::path cameras = dir / "cameras.json"; fs::exists(cameras) && !opt->no_stereo) {
+      job.cameras = registration::loadCameraCalibration(cameras);
+      job.stereo = {config.calibration.stereo_form_mpe_mm, config.calibration.stereo_length_mpe_mm};
+      world.image_scale = static_cast<double>(job.cameras->stereo.left.model.size.width) / sim::CameraIntrinsics{}.width;
+    }
+    job.plan = verificationStepsOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan),
+                                   job.cameras ? 3 : 0);
+    // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
     std::unique_ptr<HostedVirtualCell> hosted;
     if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, false);
+      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, job.plan.stereoCount() > 0);
       config = hosted->config();
     }
     acquisition::Cell cell(config);
@@ -112,7 +122,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     const VerifyJobResult r = runAbortable(
         observer, [&] { return verify.run(job); }, [&](const std::string& reason) { verify.abort(reason); });
     const registration::SphereVerification& v = r.digitizer;
-    std::printf("  sweeps      %zu over the sphere, %llu profiles (%llu lost) in %.1f s\n", r.run.sweeps_done,
+    std::printf("  sweeps      %zu over the spheres, %llu profiles (%llu lost) in %.1f s\n", r.run.sweeps_done,
                 static_cast<unsigned long long>(r.run.profiles), static_cast<unsigned long long>(r.run.lost_profiles),
                 r.run.wall_seconds);
     if (r.calibrated)
@@ -122,11 +132,14 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     std::printf("  sphere      %zu of %zu points on it; fitted diameter %.4f mm (certified %.4f), radial RMS %.4f mm\n",
                 v.points_on_sphere, v.points_measured, 2 * v.fit.radius, 2 * v.fit.radius - v.size_error_mm,
                 v.fit.rms_mm);
+    if (r.stereo)
+      std::printf("  stereo      %zu plate views, %zu dots; lengths up to %.1f mm, RMS error %.4f mm\n", r.stereo->views,
+                  r.stereo->dots, r.stereo->longest_length_mm, r.stereo->rms_length_error_mm);
     for (const auto& c : r.record.checks) printCheck(c);
     if (r.second_sphere)
       std::printf("  ball bar    second sphere: %zu points, fitted diameter %.4f mm; centre distance %.4f mm (certified %.4f)\n",
                   r.second_sphere->points_on_sphere, 2 * r.second_sphere->fit.radius, *r.distance_mm, job.ball_bar->distance_mm);
-    std::printf("  not done    the stereo pair's probing errors (a passive stereo pair sees no points on a plain sphere)\n");
+
     std::printf("  record      %s (%s)\n", r.record.id.c_str(), r.record_file.c_str());
     if (r.history_error.empty())
       std::printf("  history     recorded in the results database of %s\n", job.results_database.c_str());

@@ -40,12 +40,15 @@ std::vector<RecordValue> calibrationValues(const registration::DigitizerCalibrat
 
 }  // namespace
 
-acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan) {
+acquisition::ScanPlan verificationStepsOf(const acquisition::ScanPlan& plan, std::size_t plate_views) {
   acquisition::ScanPlan out = plan;
-  out.name = "reference sphere, verification";
-  std::erase_if(out.steps, [](const acquisition::PlanStep& s) {
-    const auto* sweep = std::get_if<acquisition::SweepStep>(&s);
-    return !sweep || (sweep->scene != acquisition::kSceneSphere && sweep->scene != acquisition::kSceneSecondSphere);
+  out.name = plate_views ? "reference sphere, ball bar and plate, verification" : "reference sphere, verification";
+  std::size_t kept_views = 0;
+  std::erase_if(out.steps, [&](const acquisition::PlanStep& s) {
+    if (const auto* view = std::get_if<acquisition::StereoStep>(&s))
+      return view->scene != acquisition::kScenePlate || kept_views++ >= plate_views;
+    const auto& sweep = std::get<acquisition::SweepStep>(s);
+    return sweep.scene != acquisition::kSceneSphere && sweep.scene != acquisition::kSceneSecondSphere;
   });
   if (out.sweepCount(acquisition::kSceneSphere) == 0) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
   return out;
@@ -56,9 +59,12 @@ VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observe
 
 VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   const std::size_t second_sweeps = o.plan.sweepCount(acquisition::kSceneSecondSphere);
-  if (o.plan.stereoCount() > 0 || o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere) + second_sweeps)
-    throw acquisition::ScanError("a verification plan holds sweeps over the reference sphere and the ball bar only; '" +
-                                 o.plan.name + "' has other steps");
+  if (o.plan.stereoCount() != o.plan.stereoCount(acquisition::kScenePlate) ||
+      o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere) + second_sweeps)
+    throw acquisition::ScanError("a verification plan holds sweeps over the reference sphere and the ball bar and views "
+                                 "of the plate only; '" + o.plan.name + "' has other steps");
+  if (o.plan.stereoCount() > 0 && !o.cameras)
+    throw acquisition::ScanError("the plan has views of the plate, but no camera calibration is in use to verify");
   if (o.ball_bar && second_sweeps == 0)
     throw acquisition::ScanError("the length check needs sweeps over the ball bar's second sphere; '" + o.plan.name +
                                  "' has none");
@@ -147,10 +153,31 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   } else {
     record.notes.push_back("no length check: the cell gives no ball bar ([calibration] sphere_distance_mm)");
   }
+  if (o.cameras && !trace.plate_left.empty()) {
+    if (!o.run.session.plate) throw std::runtime_error("the cell's description gives no calibration plate to verify on");
+    const trace::PlateRecord& plate = *o.run.session.plate;
+    std::vector<cv::Mat> left, right;
+    for (std::size_t i = 0; i < trace.plate_left.size() && i < trace.plate_right.size(); ++i) {
+      left.push_back(trace.plate_left[i].image);
+      right.push_back(trace.plate_right[i].image);
+    }
+    result.stereo = registration::verifyStereoOnPlate(left, right, o.cameras->stereo,
+                                                      {plate.columns, plate.rows, plate.pitch_mm}, o.stereo);
+    const registration::StereoPlateCheck& s = *result.stereo;
+    record.parameters.push_back({"plate length checked (longest)", s.longest_length_mm, "mm"});
+    record.residuals.push_back({"plate length error RMS (stereo pair)", s.rms_length_error_mm, "mm"});
+    record.residuals.push_back({"plate views (stereo pair)", static_cast<double>(s.views), ""});
+    record.checks.push_back({"flat form error F[Form.Pla] (stereo pair, plate)", s.form_error_mm, o.stereo.form_mpe_mm,
+                             "mm", s.form_passed});
+    record.checks.push_back({"length measurement error E (stereo pair, plate dots)", s.length_error_mm,
+                             o.stereo.length_mpe_mm, "mm", s.length_passed});
+  } else {
+    record.notes.push_back("no stereo check: no camera calibration in use, or no plate views in the plan");
+  }
   const bool all_passed =
       std::all_of(record.checks.begin(), record.checks.end(), [](const RecordCheck& c) { return c.passed; });
   record.verdict = all_passed ? registration::RecordVerdict::Passed : registration::RecordVerdict::Failed;
-  record.notes.push_back("not checked: the stereo pair's probing errors (a passive stereo pair sees no points on a plain sphere)");
+
   if (result.run.lost_profiles > 0)
     record.notes.push_back(std::to_string(result.run.lost_profiles) + " digitizer profiles were lost during the sweeps");
   result.record_file = registration::saveCalibrationRecord(o.history, record);

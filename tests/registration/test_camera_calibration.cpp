@@ -2,6 +2,7 @@
 // simulator's true intrinsics, baseline and mount.
 #include "session_support.hpp"
 #include "stampscan/registration/camera_calibration.hpp"
+#include "stampscan/registration/stereo_verification.hpp"
 
 #include <gtest/gtest.h>
 
@@ -114,6 +115,35 @@ TEST(CameraCalibration, ViewsWithoutThePlateAreLeftOutWithAReason) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("found in 3 of 3 views"), std::string::npos) << e.what();
   }
+}
+
+// The stereo pair verified on the plate's dots: calibrated on ten of the views, checked on the
+// other four, the dots lie on a plane and keep their certified distances; a baseline 0.1 % off
+// (0.12 mm) stretches the 60 mm diagonal by about 0.06 mm, beyond the 0.05 mm MPE.
+TEST(StereoVerification, ThePlatesDotsKeepTheirFormAndLengthsUnlessTheBaselineIsOff) {
+  const PlateSession& s = plateSession();
+  const std::vector<cv::Mat> cal_left(s.left.begin(), s.left.begin() + 10), cal_right(s.right.begin(), s.right.begin() + 10);
+  const std::vector<cv::Mat> check_left(s.left.begin() + 10, s.left.end()), check_right(s.right.begin() + 10, s.right.end());
+  registration::StereoCalibration stereo = registration::calibrateStereo(cal_left, cal_right, plateSpec());
+  const registration::StereoPlateCheck good = registration::verifyStereoOnPlate(check_left, check_right, stereo, plateSpec());
+  std::printf("stereo on the plate: %zu views, flat form %.4f mm, length error %+.4f mm (RMS %.4f) up to %.1f mm\n",
+              good.views, good.form_error_mm, good.length_error_mm, good.rms_length_error_mm, good.longest_length_mm);
+  EXPECT_GE(good.views, 3u);
+  EXPECT_EQ(good.dots, good.views * 63);
+  EXPECT_NEAR(good.longest_length_mm, std::hypot(8 * 6.0, 6 * 6.0), 1e-9);
+  EXPECT_TRUE(good.passed());  // within the 0.05 mm MPEs, at this session's half resolution
+  EXPECT_LT(std::abs(good.length_error_mm), 0.02);
+
+  stereo.right_from_left.translation() *= 1.001;
+  const registration::StereoPlateCheck stretched =
+      registration::verifyStereoOnPlate(check_left, check_right, stereo, plateSpec());
+  std::printf("baseline 0.1 %% long: length error %+.4f mm\n", stretched.length_error_mm);
+  EXPECT_FALSE(stretched.length_passed);
+  EXPECT_GT(stretched.length_error_mm, 0.05);
+
+  EXPECT_THROW(registration::verifyStereoOnPlate({cv::Mat::zeros(100, 100, CV_8U)}, {cv::Mat::zeros(100, 100, CV_8U)},
+                                                 stereo, plateSpec()),
+               std::runtime_error);
 }
 
 }  // namespace

@@ -101,6 +101,18 @@ TEST_F(StationTest, CalibrateRecoversTheVirtualCellsSensorsAndPutsThemInUse) {
   EXPECT_EQ(list.exit_code, 0) << list.out << list.err;
   EXPECT_NE(list.out.find(d.id), std::string::npos) << list.out;
   EXPECT_NE(list.out.find(c.id), std::string::npos) << list.out;
+
+  // Verified with both calibrations in use: the digitizer on the ball bar, the stereo pair on the
+  // plate's dots (their flat form and the lengths between them, up to the 60 mm diagonal).
+  const RunResult verified = run("verify -q -o " + quote(cal), 600);
+  ASSERT_EQ(verified.exit_code, 0) << verified.out << verified.err;
+  EXPECT_NE(verified.out.find("PASS  flat form error F[Form.Pla] (stereo pair, plate)"), std::string::npos) << verified.out;
+  EXPECT_NE(verified.out.find("PASS  length measurement error E (stereo pair, plate dots)"), std::string::npos)
+      << verified.out;
+  EXPECT_NE(verified.out.find("lengths up to 60.0 mm"), std::string::npos) << verified.out;
+  const registration::CalibrationRecord v = onlyRecord(cal / "history", "verification");
+  EXPECT_EQ(v.verdict, registration::RecordVerdict::Passed);
+  EXPECT_TRUE(std::any_of(v.sensors.begin(), v.sensors.end(), [](const auto& s) { return s.family == "camera"; }));
 }
 
 // Views that spoil a fit are named and left out, and the rest still calibrate the sensors: a sphere

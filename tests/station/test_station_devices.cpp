@@ -253,6 +253,8 @@ TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
   EXPECT_EQ(file.calibration.second_sphere_diameter_mm, built_in.calibration.second_sphere_diameter_mm);
   EXPECT_EQ(file.calibration.sphere_distance_mm, built_in.calibration.sphere_distance_mm);
   EXPECT_EQ(file.calibration.length_mpe_mm, built_in.calibration.length_mpe_mm);
+  EXPECT_EQ(file.calibration.stereo_form_mpe_mm, built_in.calibration.stereo_form_mpe_mm);
+  EXPECT_EQ(file.calibration.stereo_length_mpe_mm, built_in.calibration.stereo_length_mpe_mm);
 }
 
 // [calibration]: the rules a cell's file sets, and a bad value named with its section and key.

@@ -36,6 +36,8 @@ struct CalibrationPolicy {
   // none. The MPE of the length measurement error.
   double second_sphere_diameter_mm = 0, sphere_distance_mm = 0;
   double length_mpe_mm = 0.050;
+  // The stereo pair's MPEs on the calibration plate's dots (flat form, length between dots).
+  double stereo_form_mpe_mm = 0.050, stereo_length_mpe_mm = 0.050;
 };
 
 struct CellConfig {

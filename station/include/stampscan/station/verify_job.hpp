@@ -13,9 +13,10 @@
 // measurement error E of ISO 10360-8: the distance between the two least-squares spheres' centres
 // minus the certified one, against its MPE.
 //
-// Not done: the stereo pair's probing errors. The stereo path measures the printed grid's marks,
-// and a sphere has none; ISO 10360-8's check of an optical sensor needs points on the sphere, which
-// a passive stereo pair only gives with a targeted (printed) sphere.
+// With the cameras' calibration in use and views of the calibration plate in the plan, the stereo
+// pair too (registration/stereo_verification.hpp): a passive stereo pair measures marks, which a
+// plain sphere does not have, so its checks are the flat form error and the length error on the
+// plate's dots at their certified pitch.
 //
 // Thread safety: run() blocks; abort() may be called from any other thread.
 #pragma once
@@ -24,7 +25,9 @@
 #include "stampscan/acquisition/scan_runner.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
+#include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/sphere_verification.hpp"
+#include "stampscan/registration/stereo_verification.hpp"
 #include "stampscan/station/traced_run.hpp"
 
 #include <filesystem>
@@ -33,9 +36,10 @@
 
 namespace stampscan::station {
 
-// The plan's sweeps over the reference sphere and the ball bar's second sphere alone, named for
-// verification. Throws std::runtime_error when the plan has no reference-sphere sweep.
-acquisition::ScanPlan sphereSweepsOf(const acquisition::ScanPlan& plan);
+// The plan's sweeps over the reference sphere and the ball bar's second sphere, and its first
+// `plate_views` views of the plate, named for verification. Throws std::runtime_error when the plan
+// has no reference-sphere sweep.
+acquisition::ScanPlan verificationStepsOf(const acquisition::ScanPlan& plan, std::size_t plate_views = 0);
 
 struct VerifyJobOptions {
   acquisition::ScanPlan plan;      // sphere sweeps (other steps are refused)
@@ -53,6 +57,10 @@ struct VerifyJobOptions {
     double second_diameter_mm = 25.4, distance_mm = 0, mpe_mm = 0.05;
   };
   std::optional<BallBar> ball_bar;
+  // The cameras' calibration in use: the plan's plate views then check the stereo pair. Absent: no
+  // stereo check (the plan must then have no views).
+  std::optional<registration::CameraCalibrationFile> cameras;
+  registration::StereoPlateParams stereo;
   // The results database the record also goes to as a row (calibration_results.hpp); "" for none.
   std::string results_database;
 };
@@ -63,6 +71,7 @@ struct VerifyJobResult {
   // With a ball bar: the second sphere, the measured centre distance and the length error.
   std::optional<registration::SphereVerification> second_sphere;
   std::optional<double> distance_mm, length_error_mm;
+  std::optional<registration::StereoPlateCheck> stereo;
   bool passed() const { return record.verdict == registration::RecordVerdict::Passed; }
   std::optional<registration::SphereCalibrationResult> calibrated;  // when the sweeps calibrated the digitizer
   registration::CalibrationRecord record;
