@@ -146,7 +146,8 @@ std::string newRecordId(const fs::path& history, const std::string& kind) {
   const std::string base = utcStamp() + "-" + kind;
   for (int k = 1;; ++k) {
     const std::string id = k == 1 ? base : base + "-" + std::to_string(k);
-    if (!fs::exists(history / (id + ".json"))) return id;
+    // Neither a record nor a trace of that name (a calibration's trace is named like a record).
+    if (!fs::exists(history / (id + ".json")) && !fs::exists(history / (id + ".mcap"))) return id;
   }
 }
 

@@ -1,9 +1,13 @@
-// `station calibration list|show ID|diff ID1 ID2`: the cell's calibration history, the records that
-// `station calibrate` and `station verify` write (registration/calibration_record.hpp).
+// `station calibration status|list|show ID|diff ID1 ID2`: the calibration in use, and the cell's
+// calibration history, the records that `station calibrate` and `station verify` write
+// (registration/calibration_record.hpp).
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/registration/calibration_record.hpp"
+#include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/results/results_store.hpp"
 #include "stampscan/station/commands.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,7 +22,7 @@ using registration::CalibrationRecord;
 
 struct CalibrationOptions {
   std::string calibration_dir = "stampscan-runs/calibration";
-  std::string id, other, database, kind;
+  std::string id, other, database, kind, cell;
   std::size_t last = 0;
 };
 
@@ -123,6 +127,64 @@ int diff(const CalibrationOptions& o) {
   return 0;
 }
 
+// The calibration in use, sensor by sensor: which record, its verdict, its age against the cell's
+// validity, and the last verification. Exit 2 when a sensor has none that a scan would accept.
+int status(const CalibrationOptions& o) {
+  const acquisition::CellConfig cell = o.cell.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(o.cell);
+  const fs::path dir = o.calibration_dir;
+  const auto now = std::chrono::system_clock::now();
+  bool usable = true;
+  const auto report = [&](const char* sensor, const fs::path& file, const std::string& created,
+                          const registration::CalibrationProvenance& p) {
+    registration::CalibrationExpectation e;
+    e.cell = cell.name;
+    e.sensors = p.sensors;  // the sensors are not asked here: `station scan` compares their serials
+    e.validity_days = cell.calibration.validity_days;
+    e.now = now;
+    const auto problem = registration::calibrationProblem(file, created, p, e);
+    const auto when = registration::parseUtc(created);
+    const double age = when ? std::chrono::duration<double>(now - *when).count() / 86400.0 : 0.0;
+    if (problem) {
+      usable = false;
+      std::printf("  %-11s NOT USABLE: %s; run `station calibrate %s`\n", sensor, problem->c_str(), sensor);
+    } else {
+      std::printf("  %-11s record %s (%s), created %s: %.1f days old, valid %.1f days more\n", sensor,
+                  p.record_id.c_str(), p.verdict.c_str(), created.c_str(), age, cell.calibration.validity_days - age);
+    }
+  };
+  std::printf("calibration in use in %s (cell '%s', valid %g days)\n", dir.c_str(), cell.name.c_str(),
+              cell.calibration.validity_days);
+  for (const char* sensor : {"digitizer", "cameras"}) {
+    const fs::path file = dir / (std::string(sensor) + ".json");
+    if (!fs::exists(file)) {
+      usable = false;
+      std::printf("  %-11s none in use; run `station calibrate %s`\n", sensor, sensor);
+      continue;
+    }
+    try {
+      if (std::string(sensor) == "digitizer") {
+        const auto d = registration::loadDigitizerCalibration(file);
+        report(sensor, file, d.created, d.provenance);
+      } else {
+        const auto c = registration::loadCameraCalibration(file);
+        report(sensor, file, c.created, c.provenance);
+      }
+    } catch (const std::exception& e) {
+      usable = false;
+      std::printf("  %-11s NOT USABLE: %s; run `station calibrate %s`\n", sensor, e.what(), sensor);
+    }
+  }
+  const registration::RecordListing listing = registration::listCalibrationRecords(historyOf(o.calibration_dir));
+  const registration::CalibrationRecord* last = nullptr;
+  for (const auto& r : listing.records)
+    if (r.kind == "verification") last = &r;
+  if (last)
+    std::printf("  %-11s last %s: %s\n", "verified", last->id.c_str(), registration::toString(last->verdict));
+  else
+    std::printf("  %-11s never (`station verify` checks the calibration in use)\n", "verified");
+  return usable ? 0 : 2;
+}
+
 }  // namespace
 
 CommandRunner addCalibrationCommand(CLI::App& app) {
@@ -137,13 +199,19 @@ CommandRunner addCalibrationCommand(CLI::App& app) {
                        "cell that records there");
   list_cmd->add_option("--kind", opt->kind, "With --db: only this kind (digitizer, cameras, verification)");
   list_cmd->add_option("--last", opt->last, "With --db: only the newest N");
+  CLI::App* status_cmd = cmd->add_subcommand(
+      "status", "The calibration in use: each sensor's record, verdict and age against the cell's validity, and the last "
+                "verification (exit 2 when a sensor has none a scan would accept)");
+  status_cmd->add_option("--cell", opt->cell, "Cell configuration (its name and [calibration] validity_days); default: "
+                                              "the built-in virtual cell");
   CLI::App* show_cmd = cmd->add_subcommand("show", "One record in full");
   show_cmd->add_option("ID", opt->id, "The record's id (see `station calibration list`)")->required();
   CLI::App* diff_cmd = cmd->add_subcommand("diff", "Two records side by side: what changed, value by value");
   diff_cmd->add_option("ID1", opt->id, "The earlier record")->required();
   diff_cmd->add_option("ID2", opt->other, "The later record")->required();
-  return [opt, list_cmd, show_cmd, diff_cmd]() {
+  return [opt, list_cmd, status_cmd, show_cmd, diff_cmd]() {
     if (list_cmd->parsed()) return opt->database.empty() ? list(*opt) : listDatabase(*opt);
+    if (status_cmd->parsed()) return status(*opt);
     if (show_cmd->parsed()) return show(*opt);
     if (diff_cmd->parsed()) return diff(*opt);
     return 2;

@@ -197,6 +197,13 @@ TEST_F(StationTest, TheCalibrationInUseIsCheckedByScanAndVerifyAndRenewedByCalib
 
   const RunResult calibrated = run("calibrate digitizer -q -o " + quote(cal), 600);
   ASSERT_EQ(calibrated.exit_code, 0) << calibrated.out << calibrated.err;
+  // The status names the digitizer's record and its validity, and that the cameras have none.
+  const RunResult state = run("calibration status -d " + quote(cal));
+  EXPECT_EQ(state.exit_code, 2) << state.out << state.err;
+  EXPECT_NE(state.out.find("record " + onlyRecord(cal / "history", "digitizer").id + " (passed)"), std::string::npos)
+      << state.out;
+  EXPECT_NE(state.out.find("valid 7.0 days more"), std::string::npos) << state.out;
+  EXPECT_NE(state.out.find("cameras     none in use; run `station calibrate cameras`"), std::string::npos) << state.out;
   // The record is also a row of the runs folder's results database, beside the scans.
   const RunResult rows = run("calibration list --db " + quote(runs));
   ASSERT_EQ(rows.exit_code, 0) << rows.out << rows.err;

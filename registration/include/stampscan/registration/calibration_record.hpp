@@ -77,7 +77,7 @@ struct CalibrationRecord {
 };
 
 // A fresh record id for `kind` in `history`: the UTC time and the kind ("20261124-091500-verification"),
-// with "-2", "-3", ... when a record of that name exists.
+// with "-2", "-3", ... when a record or a trace of that name exists.
 std::string newRecordId(const std::filesystem::path& history, const std::string& kind);
 
 // The record as its file holds it (JSON text), for a database that keeps it whole.
