@@ -9,6 +9,7 @@ if [ "${1:-}" = "--sanitize" ]; then
   # (-Wmaybe-uninitialized inside std::regex).
   STAMPSCAN_BUILD_TYPE=RelWithDebInfo scripts/setup.sh "$build_dir" -DSTAMPSCAN_SANITIZE=ON -DSTAMPSCAN_WERROR=OFF
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp"
 else
   build_dir=build
   scripts/setup.sh "$build_dir"
