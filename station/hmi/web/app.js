@@ -124,9 +124,10 @@ function showFault(text, advice) {
 $('start').addEventListener('click', async () => {
   if (!$('scan-form').reportValidity()) return;
   $('fault').classList.add('hidden');
+  $('log').innerHTML = '';
+  delete document.body.dataset.finished;
   const r = await api('/api/scan/start', { body: { part_id: $('part-id').value.trim(), program: $('program').value.trim(), material: $('material').value } });
   if (!r.ok) { showFault(r.body.error || `refused (${r.status})`, r.body.advice); return; }
-  $('log').innerHTML = '';
   setBusy(true, r.body.job);
 });
 $('abort').addEventListener('click', async () => {
@@ -191,6 +192,7 @@ function resize3d() {
   view.renderer.setSize(el.clientWidth, el.clientHeight);
   view.camera.aspect = el.clientWidth / Math.max(el.clientHeight, 1);
   view.camera.updateProjectionMatrix();
+  view.draw();
 }
 window.addEventListener('resize', resize3d);
 function init3d() {
@@ -216,12 +218,21 @@ function init3d() {
   marker.visible = false;
   scene.add(marker);
   view = { renderer, scene, camera, controls, marker, mesh: null, elements: [] };
-  const loop = () => { controls.update(); renderer.render(scene, camera); requestAnimationFrame(loop); };
-  loop();
+  // Drawn when something changes, not every frame: the panel PC also runs the scan.
+  let queued = false;
+  view.draw = () => {
+    if (queued) return;
+    queued = true;
+    requestAnimationFrame(() => { queued = false; renderer.render(scene, camera); });
+  };
+  controls.addEventListener('change', view.draw);
   resize3d();
+  // A tap picks; a drag turns the view (OrbitControls) and picks nothing.
+  let down = null;
+  renderer.domElement.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
   renderer.domElement.addEventListener('pointerup', (e) => {
-    if (Math.abs(e.movementX) + Math.abs(e.movementY) > 4) return;
-    pick(e);
+    if (down && Math.abs(e.clientX - down[0]) + Math.abs(e.clientY - down[1]) <= 6) pick(e);
+    down = null;
   });
   return view;
 }
@@ -235,6 +246,7 @@ function pick(e) {
   if (!hit) return;
   view.marker.position.copy(hit.point);
   view.marker.visible = true;
+  view.draw();
   let best = null, bestD = Infinity;
   for (const el of view.elements) {
     const d = (el.x - hit.point.x) ** 2 + (el.y - hit.point.y) ** 2 + (el.z - hit.point.z) ** 2;
