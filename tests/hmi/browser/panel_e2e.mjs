@@ -22,6 +22,8 @@ const puppeteer = (await import('puppeteer-core')).default;
 
 const fail = (why) => { throw new Error(why); };
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+// A fresh runs folder each time, so the history shows this test's run alone.
+fs.rmSync(path.join(workDir, 'runs'), { recursive: true, force: true });
 fs.mkdirSync(workDir, { recursive: true });
 if (shotDir) fs.mkdirSync(shotDir, { recursive: true });
 const readyFile = path.join(workDir, 'ready.txt');
