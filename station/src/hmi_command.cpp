@@ -29,6 +29,10 @@ struct HmiCommandOptions {
 
 std::atomic<int> g_hmi_stop{0};
 extern "C" void onHmiStop(int sig) { g_hmi_stop = sig; }
+// On the built-in virtual cell: SIGUSR1 opens the cell's door, SIGUSR2 closes it, so that a fault
+// can be rehearsed (and tested) on the panel. The handler only records which; the watcher acts.
+std::atomic<int> g_virtual_door{0};
+extern "C" void onVirtualDoor(int sig) { g_virtual_door = sig; }
 
 // [hmi] users = "FILE" in the cell config, relative to the config's folder.
 std::string usersFromCellConfig(const std::string& cell_file) {
@@ -71,6 +75,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
   cmd->add_option("--web", opt->web, "Serve the page from this folder instead of the built-in copy (development)");
   cmd->add_option("--ready-file", opt->ready_file, "Write the panel's URL into this file once it serves (for scripts)");
   cmd->add_option("--seed", opt->seed, "The virtual cell's seed");
+  cmd->footer("On the built-in virtual cell, SIGUSR1 opens the cell door and SIGUSR2 closes it (to rehearse a fault).");
   cmd->add_flag("--hash-password", opt->hash_password,
                 "Read a password on standard input, print its hash for the users file, and exit");
   return [opt]() {
@@ -125,8 +130,20 @@ CommandRunner addHmiCommand(CLI::App& app) {
     const auto previous_int = std::signal(SIGINT, onHmiStop);
     const auto previous_term = std::signal(SIGTERM, onHmiStop);
     std::atomic<bool> done{false};
+    if (hosted) {
+      std::signal(SIGUSR1, onVirtualDoor);
+      std::signal(SIGUSR2, onVirtualDoor);
+    }
     std::thread watcher([&] {
-      while (!done && !g_hmi_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      while (!done && !g_hmi_stop) {
+        if (const int door = g_virtual_door.exchange(0); door != 0 && hosted) {
+          if (door == SIGUSR1) hosted->cell().plc().openDoor();
+          else hosted->cell().plc().closeDoor();
+          std::printf("station hmi: the virtual cell's door is %s\n", door == SIGUSR1 ? "open" : "closed");
+          std::fflush(stdout);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
       server.stop();
     });
     server.run();

@@ -126,18 +126,32 @@ try {
   } else if (pdfResponse.status() !== 200) fail(`the PDF tab answered ${pdfResponse.status()}`);
   await pdfPage.close();
 
+  // The door opened on the virtual PLC mid-scan: the scan stops and the page says why and what to do.
+  await page.click('button[data-tab="scan"]');
+  await page.$eval('#part-id', (el) => { el.value = 'door-e2e'; });
+  await page.click('#start');
+  await waitFor(page, 'progress of the second scan', () => document.body.dataset.job === 'scan' && Number(document.body.dataset.progress || 0) >= 2, 60000);
+  station.kill('SIGUSR1');
+  await page.waitForFunction(() => document.body.dataset.finished === 'error', { timeout: 60000 }).catch(() => fail('the door did not stop the scan'));
+  const doorFault = await page.$eval('#fault', (el) => el.innerText);
+  if (!/door/i.test(doorFault) || !/Close the cell door/.test(doorFault)) fail(`the page does not say the door stopped the scan: ${doorFault}`);
+  await shot(page, '4-door-opened.png');
+  station.kill('SIGUSR2');
+  await page.evaluate(() => { delete document.body.dataset.finished; });
+
   await page.click('button[data-tab="history"]');
   await waitFor(page, 'the run in the history', () => document.getElementById('runs').innerText.includes('sample-e2e'), 10000);
-  await shot(page, '4-history.png');
+  await shot(page, '5-history.png');
   await page.click('button[data-tab="maintenance"]');
   await waitFor(page, 'the actions log', () => document.getElementById('actions').innerText.includes('scan start'), 10000);
-  await shot(page, '5-maintenance.png');
+  await shot(page, '6-maintenance.png');
 
   const stats = await page.evaluate(() => window.hmiStats);
   const lat = stats.latencies.slice().sort((a, b) => a - b);
   const q = (p) => lat[Math.min(lat.length - 1, Math.floor(p * lat.length))];
   console.log(`page load: ${loadMs} ms to ready (navigation load event ${Math.round(nav.load)} ms, DOMContentLoaded ${Math.round(nav.dcl)} ms)`);
   console.log(`live events: ${stats.events} received; latency from publishing to the page: median ${q(0.5)} ms, 95th percentile ${q(0.95)} ms, max ${lat[lat.length - 1]} ms`);
+  console.log(`door opened mid-scan, the page shows: ${doorFault.replace(/\s+/g, ' ')}`);
   console.log(`verdict: ${verdict.replace(/\s+/g, ' ')}; picked: ${picked.replace(/\s+/g, ' ')}; FLD ${fld.w}x${fld.h}; PDF ${files.pdf.size} bytes`);
   if (consoleErrors.length) fail(`errors in the browser console:\n  ${consoleErrors.join('\n  ')}`);
   console.log('PASSED');
