@@ -193,6 +193,8 @@ TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
   expectError(client_->Get("/api/nothing-here"), 404, "an unknown API path");
   expectError(client_->Get("/api/runs?last=many"), 400, "a count that is no number");
 
+  // DNS rebinding: a name other than loopback's is refused by the loopback panel.
+  expectError(client_->Get("/api/cell", {{"Host", "evil.example:8080"}}), 403, "a Host that is not loopback");
   auto fld = client_->Get("/api/runs/20261125-010203-part/files/fld.png");
   ASSERT_TRUE(fld);
   EXPECT_EQ(fld->status, 200);

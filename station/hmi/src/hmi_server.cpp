@@ -134,6 +134,16 @@ void addPageRoutes(HmiServer::Impl& impl) {
 httplib::Server::HandlerResponse gate(HmiServer::Impl& impl, const httplib::Request& req, httplib::Response& res) {
   using R = httplib::Server::HandlerResponse;
   if (req.path.rfind("/api/", 0) != 0) return R::Unhandled;
+  // Without a login, a page of another site could reach the loopback panel through a DNS name that
+  // resolves to 127.0.0.1 (DNS rebinding) and then be "same origin": only loopback names are served.
+  if (!impl.auth.loginRequired()) {
+    std::string host = req.get_header_value("Host");
+    host = host.empty() ? host : host.front() == '[' ? host.substr(0, host.find(']') + 1) : host.substr(0, host.rfind(':'));
+    if (!isLoopbackHost(host)) {
+      sendError(res, 403, "refused: this panel answers on its loopback address only (Host '" + host + "')");
+      return R::Handled;
+    }
+  }
   if (isStateChanging(req)) {
     const std::string origin = req.get_header_value("Origin");
     if (!origin.empty() && origin != "http://" + req.get_header_value("Host")) {

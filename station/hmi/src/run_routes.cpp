@@ -22,11 +22,6 @@ json readJsonFile(const fs::path& file) {
   return j.is_discarded() ? json(nullptr) : j;
 }
 
-std::string readBytes(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 void listRuns(HmiServer::Impl& impl, const httplib::Request& req, httplib::Response& res) {
   results::RunFilter filter;
   filter.part_id = req.get_param_value("part_id");
@@ -86,7 +81,17 @@ void addRunRoutes(HmiServer::Impl& impl) {
   s.Get(R"(/api/runs/([^/]+)/files/([^/]+))", [&impl](const httplib::Request& req, httplib::Response& res) {
     const fs::path file = runFile(impl.runsDir(), req.matches[1], req.matches[2]);
     res.set_header("Cache-Control", "no-cache");
-    res.set_content(readBytes(file), contentType(file.filename().string()));
+    // Streamed in pieces: a whole part's trace is hundreds of megabytes.
+    auto in = std::make_shared<std::ifstream>(file, std::ios::binary);
+    const std::size_t size = fs::file_size(file);
+    res.set_content_provider(size, contentType(file.filename().string()),
+                             [in](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+                               std::vector<char> buffer(std::min<std::size_t>(length, 1 << 16));
+                               in->seekg(static_cast<std::streamoff>(offset));
+                               in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+                               const auto got = static_cast<std::size_t>(in->gcount());
+                               return got > 0 && sink.write(buffer.data(), got);
+                             });
   });
   s.Get(R"(/api/runs/([^/]+)/mesh)", [&impl](const httplib::Request& req, httplib::Response& res) {
     const fs::path dir = runFolder(impl.runsDir(), req.matches[1]);
