@@ -78,9 +78,9 @@ void addApiRoutes(HmiServer::Impl& impl) {
   s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {
     const Session who = *impl.sessionOf(req);
-    const bool aborting = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");
-    impl.recordAction(who, "abort", {{"was_running", aborting}}, req);
-    if (!aborting) return sendError(res, 409, "nothing is running");
+    const auto refused = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");
+    impl.recordAction(who, "abort", {{"refused", refused.value_or("")}}, req);
+    if (refused) return sendError(res, 409, *refused);
     sendJson(res, {{"aborting", true}}, 202);
   });
   s.Post("/api/verify", [&impl](const httplib::Request& req, httplib::Response& res) {

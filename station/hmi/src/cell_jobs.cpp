@@ -26,8 +26,9 @@ json progressJson(const acquisition::ScanProgress& p) {
 class HubObserver final : public station::ScanJobObserver {
  public:
   HubObserver(EventHub& hub, acquisition::Cell& cell, std::string kind,
-              std::function<void(const std::string&)> on_run_folder = {})
-      : hub_(hub), cell_(cell), kind_(std::move(kind)), on_run_folder_(std::move(on_run_folder)) {}
+              std::function<void(const std::string&)> on_run_folder = {}, std::function<void()> on_scan_done = {})
+      : hub_(hub), cell_(cell), kind_(std::move(kind)), on_run_folder_(std::move(on_run_folder)),
+        on_scan_done_(std::move(on_scan_done)) {}
 
   void runFolder(const fs::path& dir) override {
     if (on_run_folder_) on_run_folder_(dir.filename().string());
@@ -49,6 +50,7 @@ class HubObserver final : public station::ScanJobObserver {
     hub_.publish("safety", json{{"kind", kind_}, {"text", what}, {"advice", faultAdvice(what)}}.dump());
   }
   void scanDone(const acquisition::ScanRunResult& r) override {
+    if (on_scan_done_ && r.completed) on_scan_done_();
     hub_.publish("scan_done", json{{"kind", kind_}, {"completed", r.completed}, {"abort_reason", r.abort_reason},
                                    {"sweeps", r.sweeps_done}, {"views", r.views_done}, {"profiles", r.profiles},
                                    {"wall_seconds", r.wall_seconds}}.dump());
@@ -62,6 +64,7 @@ class HubObserver final : public station::ScanJobObserver {
   acquisition::Cell& cell_;
   std::string kind_;
   std::function<void(const std::string&)> on_run_folder_;
+  std::function<void()> on_scan_done_;
   std::chrono::steady_clock::time_point last_progress_{};
 };
 
@@ -136,13 +139,15 @@ std::optional<std::string> CellJobs::startVerify(const std::string& user) {
   return std::nullopt;
 }
 
-bool CellJobs::abort(const std::string& reason) {
+std::optional<std::string> CellJobs::abort(const std::string& reason) {
   std::lock_guard lock(mutex_);
-  if (!status_.busy) return false;
+  if (!status_.busy) return std::string("nothing is running");
+  if (status_.measuring)
+    return std::string("the scan's motion is over: it is being measured and ends by itself in a few seconds");
   if (scan_ != nullptr) scan_->abort(reason);
   else if (verify_ != nullptr) verify_->abort(reason);
   else pending_abort_ = reason;  // before the job object exists: it takes the abort as it starts
-  return true;
+  return std::nullopt;
 }
 
 JobStatus CellJobs::status() const {
@@ -169,10 +174,16 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     options.program = request.program;
     options.material = request.material;
     options.run.session.part_id = request.part_id;
-    HubObserver observer(hub_, *setup_.cell, "scan", [this](const std::string& run_id) {
-      std::lock_guard lock(mutex_);
-      status_.run_id = run_id;
-    });
+    HubObserver observer(
+        hub_, *setup_.cell, "scan",
+        [this](const std::string& run_id) {
+          std::lock_guard lock(mutex_);
+          status_.run_id = run_id;
+        },
+        [this] {
+          std::lock_guard lock(mutex_);
+          status_.measuring = true;
+        });
     station::ScanJob job(*setup_.cell, &observer);
     {
       std::lock_guard lock(mutex_);

@@ -113,7 +113,7 @@ json runRecordJson(const results::RunRecord& r) {
 
 json statusJson(const JobStatus& s) {
   return {{"busy", s.busy}, {"kind", s.kind}, {"user", s.user}, {"part_id", s.part_id}, {"run_id", s.run_id},
-          {"started_utc", s.started_utc}};
+          {"started_utc", s.started_utc}, {"measuring", s.measuring}};
 }
 
 }  // namespace stampscan::hmi

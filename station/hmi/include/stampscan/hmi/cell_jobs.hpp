@@ -43,6 +43,7 @@ struct JobStatus {
   std::string part_id;   // of a scan
   std::string run_id;    // once the scan has its folder
   std::string started_utc;
+  bool measuring = false;  // a scan whose motion is over: measuring, fitting, the report
 };
 
 class CellJobs {
@@ -58,8 +59,9 @@ class CellJobs {
   // Nothing when started; otherwise why not, in one line (another job runs, no verify on this cell).
   std::optional<std::string> startScan(const ScanRequest& request, const std::string& user);
   std::optional<std::string> startVerify(const std::string& user);
-  // False when nothing runs.
-  bool abort(const std::string& reason);
+  // Nothing when the running job is told to stop; otherwise why not (nothing runs, or the scan's
+  // motion is over and only its measuring remains, which ends by itself).
+  std::optional<std::string> abort(const std::string& reason);
   JobStatus status() const;
   const CellSetup& setup() const { return setup_; }
   acquisition::Cell& cell() const { return *setup_.cell; }
