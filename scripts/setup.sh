@@ -12,7 +12,8 @@ packages=(build-essential cmake ninja-build pkg-config
           libzstd-dev liblz4-dev zlib1g-dev libopencv-dev libmodbus-dev mbpoll
           libcgal-demo nlohmann-json3-dev libusb-1.0-0-dev libumockdev-dev umockdev
           libtomlplusplus-dev libaravis-dev aravis-tools aravis-tools-cli iproute2 libcairo2-dev
-          fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql)
+          fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql
+          libcpp-httplib-dev libsodium-dev libjs-three libjs-chart.js chromium)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -34,11 +35,14 @@ if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
 fi
-interop=tests/acquisition/interop
-if [ ! -d "$interop/node_modules" ] || [ "$interop/package-lock.json" -nt "$interop/node_modules/.package-lock.json" ]; then
-  echo "setup: npm ci in $interop"
-  npm ci --prefix "$interop" --no-audit --no-fund --loglevel=error
-fi
+# The panel's browser test (tests/hmi/browser) drives Debian's chromium with puppeteer-core, pinned
+# the same way. Each folder is installed again only when its lockfile is newer than its install.
+for node_dir in tests/acquisition/interop tests/hmi/browser; do
+  if [ ! -d "$node_dir/node_modules" ] || [ "$node_dir/package-lock.json" -nt "$node_dir/node_modules/.package-lock.json" ]; then
+    echo "setup: npm ci in $node_dir"
+    npm ci --prefix "$node_dir" --no-audit --no-fund --loglevel=error
+  fi
+done
 
 # Warnings are errors in every build, so that `scripts/test.sh` after this finds the same
 # configuration and builds nothing again.

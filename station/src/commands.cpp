@@ -5,10 +5,11 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 14> kCommands{{
+  static constexpr std::array<CommandEntry, 15> kCommands{{
       {"scan", addScanCommand},
       {"process", addProcessCommand},
       {"report", addReportCommand},
+      {"hmi", addHmiCommand},
       {"history", addHistoryCommand},
       {"trend", addTrendCommand},
       {"fit", addFitCommand},

@@ -33,6 +33,8 @@ CommandRunner addTrendCommand(CLI::App& app);
 CommandRunner addCalibrateCommand(CLI::App& app);
 CommandRunner addVerifyCommand(CLI::App& app);
 CommandRunner addCalibrationCommand(CLI::App& app);
+// In the station program itself, above the panel's library (station/hmi).
+CommandRunner addHmiCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.
 CommandRunner addServeSubcommand(CLI::App* sim);
 

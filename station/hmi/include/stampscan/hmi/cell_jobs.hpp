@@ -1,0 +1,90 @@
+// The work the panel starts on the cell: a scan (station::ScanJob, as `station scan` runs it) or a
+// check of the digitizer (station::VerifyJob, as `station verify`), one at a time. The panel only
+// chooses what to start; the jobs are the CLI's own, and their observer turns what they report into
+// events for the browsers (event_hub.hpp). The names and payloads of the events are in API.md.
+//
+// Thread safety: every method may be called from any thread. A job runs on a thread of its own;
+// the destructor aborts a running job and waits for it.
+#pragma once
+
+#include "stampscan/acquisition/cell.hpp"
+#include "stampscan/hmi/event_hub.hpp"
+#include "stampscan/station/scan_job.hpp"
+#include "stampscan/station/verify_job.hpp"
+
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+namespace stampscan::hmi {
+
+// What the command prepares once for the cell it serves (the jobs fill in the rest per start).
+struct CellSetup {
+  acquisition::Cell* cell = nullptr;  // borrowed; alive while the jobs exist
+  // Plan, run parameters, runs folder, truth; part id, program and material come with each start.
+  station::ScanJobOptions scan;
+  // The verification's sphere sweeps; absent: the cell offers no verify.
+  std::optional<station::VerifyJobOptions> verify;
+  // digitizer.json in use and history/ of calibration records.
+  std::filesystem::path calibration_dir = "stampscan-runs/calibration";
+};
+
+struct ScanRequest {
+  std::string part_id, program, material;
+};
+
+struct JobStatus {
+  bool busy = false;
+  std::string kind;      // "scan" or "verify" while busy
+  std::string user;      // who started it
+  std::string part_id;   // of a scan
+  std::string run_id;    // once the scan has its folder
+  std::string started_utc;
+  bool measuring = false;  // a scan whose motion is over: measuring, fitting, the report
+};
+
+class CellJobs {
+ public:
+  CellJobs(CellSetup setup, EventHub& hub);
+  ~CellJobs();
+  CellJobs(const CellJobs&) = delete;
+  CellJobs& operator=(const CellJobs&) = delete;
+
+  // Connects the cell's devices in the background, so that the cell view shows them before the
+  // first scan. A job started meanwhile waits for it.
+  void connectDevices();
+  // Nothing when started; otherwise why not, in one line (another job runs, no verify on this cell).
+  std::optional<std::string> startScan(const ScanRequest& request, const std::string& user);
+  std::optional<std::string> startVerify(const std::string& user);
+  // Nothing when the running job is told to stop; otherwise why not (nothing runs, or the scan's
+  // motion is over and only its measuring remains, which ends by itself).
+  std::optional<std::string> abort(const std::string& reason);
+  JobStatus status() const;
+  const CellSetup& setup() const { return setup_; }
+  acquisition::Cell& cell() const { return *setup_.cell; }
+
+ private:
+  std::optional<std::string> begin(const std::string& kind, const std::string& user, const std::string& part_id);
+  void runScan(ScanRequest request, std::string user);
+  void runVerify(std::string user);
+  void finish(const std::string& event_json);
+
+  CellSetup setup_;
+  EventHub& hub_;
+  std::mutex cell_mutex_;  // held by whoever drives the cell's devices: the connect, or a job
+  mutable std::mutex mutex_;
+  JobStatus status_;
+  station::ScanJob* scan_ = nullptr;      // while a scan runs
+  station::VerifyJob* verify_ = nullptr;  // while a verify runs
+  std::optional<std::string> pending_abort_;
+  std::thread worker_, connector_;
+};
+
+// What to do about a fault, in words for the operator ("Close the door, then press Start again."),
+// from the one-line reason a job gave; empty when there is no advice.
+std::string faultAdvice(const std::string& reason);
+
+}  // namespace stampscan::hmi

@@ -1,0 +1,62 @@
+// The operator's panel: `station hmi` serves the page (station/hmi/web/, built into the program),
+// Debian's packaged JavaScript (three.js, Chart.js from /usr/share/javascript: no CDN) and the JSON
+// API of API.md, with live updates as Server-Sent Events. It is a client of the CLI's own jobs
+// (cell_jobs.hpp), results database and calibration store: no workflow lives here.
+//
+// Security (auth.hpp): on a loopback address there is no login; on any other, a users file is
+// required and every API call but the login needs a session. Every state-changing request must
+// carry the session's CSRF token and, when the browser sends an Origin, come from this server's
+// own origin. Every action is appended to the actions log with who did it.
+//
+// Thread safety: construct and run() on one thread; stop() from any thread.
+#pragma once
+
+#include "stampscan/hmi/cell_jobs.hpp"
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace stampscan::hmi {
+
+struct HmiOptions {
+  std::string listen = "127.0.0.1:8080";  // host:port; port 0 picks a free one
+  // Required when the host is not loopback.
+  std::filesystem::path users_file;
+  std::chrono::seconds session_idle_timeout{15 * 60};
+  // Who did what, one JSON object a line; empty: hmi-actions.jsonl in the runs folder.
+  std::filesystem::path actions_log;
+  // The page's files; empty: the copy built into the program.
+  std::filesystem::path web_dir;
+  // Debian's packaged JavaScript, served under /lib/.
+  std::filesystem::path javascript_dir = "/usr/share/javascript";
+};
+
+class HmiServer {
+ public:
+  // Throws std::runtime_error for a listen address that cannot be parsed, or that is not loopback
+  // without a users file, or a users file that cannot be read.
+  HmiServer(CellSetup setup, HmiOptions options);
+  ~HmiServer();
+  HmiServer(const HmiServer&) = delete;
+  HmiServer& operator=(const HmiServer&) = delete;
+
+  // Binds the listening socket; returns the port. Throws std::runtime_error naming the address when
+  // it cannot bind.
+  int bind();
+  // Connects the cell's devices in the background and serves until stop(). Call bind() first.
+  void run();
+  void stop();
+  // http://host:port/ once bound.
+  std::string url() const;
+  bool loginRequired() const;
+
+ // The server's state, defined in the library's sources (its route files share it).
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stampscan::hmi

@@ -1,0 +1,112 @@
+// The cell and its jobs: GET /api/cell, /api/status, /api/materials, /api/calibration;
+// POST /api/scan/start, /api/scan/abort, /api/verify; GET /api/actions. See API.md.
+#include "json_views.hpp"
+#include "server_impl.hpp"
+#include "stampscan/report/material.hpp"
+
+#include <fstream>
+
+namespace stampscan::hmi {
+
+using nlohmann::json;
+
+namespace {
+
+// A text field of a request body: absent is "", anything but a short string is refused.
+std::optional<std::string> textField(const json& body, const char* name, std::size_t max_length, std::string& error) {
+  if (!body.contains(name) || body[name].is_null()) return std::string();
+  if (!body[name].is_string()) {
+    error = std::string("'") + name + "' must be a string";
+    return std::nullopt;
+  }
+  std::string v = body[name].get<std::string>();
+  if (v.size() > max_length) {
+    error = std::string("'") + name + "' is longer than " + std::to_string(max_length) + " characters";
+    return std::nullopt;
+  }
+  return v;
+}
+
+// Part ids become folder names: letters, digits and - _ . only.
+bool isPartId(const std::string& id) {
+  return !id.empty() && id.front() != '.' && std::all_of(id.begin(), id.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+  });
+}
+
+void startScan(HmiServer::Impl& impl, const httplib::Request& req, httplib::Response& res) {
+  const json body = json::parse(req.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object())
+    return sendError(res, 400, "the body must be a JSON object: {\"part_id\": ..., \"program\": ..., \"material\": ...}");
+  std::string error;
+  const auto part_id = textField(body, "part_id", 64, error);
+  const auto program = part_id ? textField(body, "program", 64, error) : std::nullopt;
+  const auto material = program ? textField(body, "material", 32, error) : std::nullopt;
+  if (!material) return sendError(res, 400, error);
+  if (!isPartId(*part_id))
+    return sendError(res, 400, "'part_id' is required: letters, digits, '-', '_' and '.' (it names the run folder)");
+  if (!material->empty() && !report::builtInMaterials().contains(*material))
+    return sendError(res, 400, "unknown material '" + *material + "' (known: " + report::builtInMaterials().names() + ")");
+  const Session who = *impl.sessionOf(req);
+  const ScanRequest request{*part_id, *program, *material};
+  if (const auto refused = impl.jobs.startScan(request, who.user)) {
+    impl.recordAction(who, "scan refused", {{"part_id", *part_id}, {"reason", *refused}}, req);
+    return sendError(res, 409, *refused);
+  }
+  impl.recordAction(who, "scan start", {{"part_id", *part_id}, {"program", *program}, {"material", *material}}, req);
+  sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
+}
+
+}  // namespace
+
+void addApiRoutes(HmiServer::Impl& impl) {
+  auto& s = impl.server;
+  s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) { sendJson(res, cellJson(impl.jobs)); });
+  s.Get("/api/status", [&impl](const httplib::Request&, httplib::Response& res) {
+    sendJson(res, statusJson(impl.jobs.status()));
+  });
+  s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
+    json names = json::array();
+    for (const auto& m : report::builtInMaterials().materials()) names.push_back(m.name);
+    sendJson(res, {{"materials", names}, {"default", report::kDefaultMaterial}});
+  });
+  s.Get("/api/calibration", [&impl](const httplib::Request&, httplib::Response& res) {
+    json j = calibrationJson(impl.jobs.setup().calibration_dir);
+    j["verify_available"] = impl.jobs.setup().verify.has_value();
+    sendJson(res, j);
+  });
+  s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
+  s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const Session who = *impl.sessionOf(req);
+    const auto refused = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");
+    impl.recordAction(who, "abort", {{"refused", refused.value_or("")}}, req);
+    if (refused) return sendError(res, 409, *refused);
+    sendJson(res, {{"aborting", true}}, 202);
+  });
+  s.Post("/api/verify", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const Session who = *impl.sessionOf(req);
+    if (const auto refused = impl.jobs.startVerify(who.user)) {
+      impl.recordAction(who, "verify refused", {{"reason", *refused}}, req);
+      return sendError(res, 409, *refused);
+    }
+    impl.recordAction(who, "verify start", json::object(), req);
+    sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
+  });
+  s.Get("/api/actions", [&impl](const httplib::Request&, httplib::Response& res) {
+    // The last 200 lines of the actions log, newest last.
+    std::deque<std::string> lines;
+    {
+      std::lock_guard lock(impl.actions_mutex);
+      std::ifstream in(impl.options.actions_log);
+      for (std::string line; std::getline(in, line);) {
+        lines.push_back(line);
+        if (lines.size() > 200) lines.pop_front();
+      }
+    }
+    json out = json::array();
+    for (const auto& l : lines) out.push_back(json::parse(l, nullptr, false));
+    sendJson(res, {{"actions", out}});
+  });
+}
+
+}  // namespace stampscan::hmi

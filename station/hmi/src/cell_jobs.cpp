@@ -1,0 +1,274 @@
+#include "stampscan/hmi/cell_jobs.hpp"
+
+#include "json_views.hpp"
+#include "stampscan/acquisition/scan_runner.hpp"
+#include "stampscan/registration/calibration_store.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+
+namespace stampscan::hmi {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json progressJson(const acquisition::ScanProgress& p) {
+  return {{"step", p.step},         {"steps", p.steps},     {"doing", p.doing},
+          {"elapsed_s", p.elapsed_s}, {"remaining_s", p.remaining_s}, {"profiles", p.profiles},
+          {"lost_profiles", p.lost_profiles}, {"positions", p.positions}};
+}
+
+// Turns what a job reports into hub events. Progress comes many times a second; the browsers get
+// at most ten a second (the last one of a burst is never lost: the next event or the end carries on).
+class HubObserver final : public station::ScanJobObserver {
+ public:
+  HubObserver(EventHub& hub, acquisition::Cell& cell, std::string kind,
+              std::function<void(const std::string&)> on_run_folder = {}, std::function<void()> on_scan_done = {})
+      : hub_(hub), cell_(cell), kind_(std::move(kind)), on_run_folder_(std::move(on_run_folder)),
+        on_scan_done_(std::move(on_scan_done)) {}
+
+  void runFolder(const fs::path& dir) override {
+    if (on_run_folder_) on_run_folder_(dir.filename().string());
+    hub_.publish("run", json{{"kind", kind_}, {"run_id", dir.filename().string()}}.dump());
+  }
+  void checkPassed(const std::string& what) override {
+    hub_.publish("check", json{{"kind", kind_}, {"text", what}}.dump());
+  }
+  void progress(const acquisition::ScanProgress& p) override {
+    const auto now = std::chrono::steady_clock::now();
+    if (p.step < p.steps && now - last_progress_ < std::chrono::milliseconds(100)) return;
+    last_progress_ = now;
+    json j = progressJson(p);
+    j["kind"] = kind_;
+    j["devices"] = devicesJson(cell_);
+    hub_.publish("progress", j.dump());
+  }
+  void safetyEvent(const std::string& what) override {
+    hub_.publish("safety", json{{"kind", kind_}, {"text", what}, {"advice", faultAdvice(what)}}.dump());
+  }
+  void scanDone(const acquisition::ScanRunResult& r) override {
+    if (on_scan_done_ && r.completed) on_scan_done_();
+    hub_.publish("scan_done", json{{"kind", kind_}, {"completed", r.completed}, {"abort_reason", r.abort_reason},
+                                   {"sweeps", r.sweeps_done}, {"views", r.views_done}, {"profiles", r.profiles},
+                                   {"wall_seconds", r.wall_seconds}}.dump());
+  }
+  void stageDone(std::string_view stage, const std::string& text) override {
+    hub_.publish("stage", json{{"kind", kind_}, {"stage", std::string(stage)}, {"text", text}}.dump());
+  }
+
+ private:
+  EventHub& hub_;
+  acquisition::Cell& cell_;
+  std::string kind_;
+  std::function<void(const std::string&)> on_run_folder_;
+  std::function<void()> on_scan_done_;
+  std::chrono::steady_clock::time_point last_progress_{};
+};
+
+}  // namespace
+
+std::string faultAdvice(const std::string& reason) {
+  const auto has = [&](const char* word) { return reason.find(word) != std::string::npos; };
+  if (has("door")) return "Close the cell door, then press Start again.";
+  if (has("e-stop") || has("emergency")) return "Release the emergency stop and reset the cell, then press Start again.";
+  if (has("curtain")) return "Step out of the light curtain and clear it, then press Start again.";
+  if (has("air")) return "Check the compressed air supply (the clamp needs it), then press Start again.";
+  if (has("clamp")) return "Check that the part sits flat on the fixture, then press Start again.";
+  if (has("operator abort")) return "The scan was stopped on request. Press Start to scan again.";
+  if (has("does not answer") || has("timeout") || has("disconnected") || has("not answer"))
+    return "A device does not answer: check its cable and power, then press Start again; call maintenance if it "
+           "persists.";
+  if (has("lost data") || has("missing")) return "Scan the part again; call maintenance if it happens again.";
+  return "";
+}
+
+CellJobs::CellJobs(CellSetup setup, EventHub& hub) : setup_(std::move(setup)), hub_(hub) {
+  if (setup_.cell == nullptr) throw std::invalid_argument("CellJobs: no cell");
+}
+
+CellJobs::~CellJobs() {
+  abort("the panel is shutting down");
+  if (worker_.joinable()) worker_.join();
+  if (connector_.joinable()) connector_.join();
+}
+
+void CellJobs::connectDevices() {
+  if (connector_.joinable()) return;
+  connector_ = std::thread([this] {
+    std::lock_guard cell_lock(cell_mutex_);
+    acquisition::Cell& c = *setup_.cell;
+    drivers::Device* devices[] = {&c.cmm(), &c.plc(), &c.digitizer(), &c.leftCamera(), &c.rightCamera()};
+    for (drivers::Device* d : devices) {
+      try {
+        if (d->state() != drivers::DeviceState::Ready) d->connect();
+      } catch (const std::exception&) {
+        // The fault is recorded on the device; the cell view shows it.
+      }
+    }
+    hub_.publish("cell", json{{"devices", devicesJson(c)}}.dump());
+  });
+}
+
+std::optional<std::string> CellJobs::begin(const std::string& kind, const std::string& user, const std::string& part_id) {
+  std::lock_guard lock(mutex_);
+  if (status_.busy)
+    return "a " + status_.kind + " is running (started by " + status_.user + " at " + status_.started_utc +
+           "): wait for it to end or abort it first";
+  if (worker_.joinable()) worker_.join();  // the last job has ended; its thread is done
+  status_ = JobStatus{true, kind, user, part_id, "", registration::utcNow()};
+  pending_abort_.reset();
+  return std::nullopt;
+}
+
+std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const std::string& user) {
+  if (auto refused = begin("scan", user, request.part_id)) return refused;
+  hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"part_id", request.part_id},
+                               {"program", request.program}}.dump());
+  worker_ = std::thread(&CellJobs::runScan, this, request, user);
+  return std::nullopt;
+}
+
+std::optional<std::string> CellJobs::startVerify(const std::string& user) {
+  if (!setup_.verify) return std::string("this cell offers no verification");
+  if (auto refused = begin("verify", user, "")) return refused;
+  hub_.publish("started", json{{"kind", "verify"}, {"user", user}}.dump());
+  worker_ = std::thread(&CellJobs::runVerify, this, user);
+  return std::nullopt;
+}
+
+std::optional<std::string> CellJobs::abort(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (!status_.busy) return std::string("nothing is running");
+  if (status_.measuring)
+    return std::string("the scan's motion is over: it is being measured and ends by itself in a few seconds");
+  if (scan_ != nullptr) scan_->abort(reason);
+  else if (verify_ != nullptr) verify_->abort(reason);
+  else pending_abort_ = reason;  // before the job object exists: it takes the abort as it starts
+  return std::nullopt;
+}
+
+JobStatus CellJobs::status() const {
+  std::lock_guard lock(mutex_);
+  return status_;
+}
+
+void CellJobs::finish(const std::string& event_json) {
+  {
+    std::lock_guard lock(mutex_);
+    status_ = JobStatus{};
+    scan_ = nullptr;
+    verify_ = nullptr;
+  }
+  hub_.publish("finished", event_json);
+}
+
+void CellJobs::runScan(ScanRequest request, std::string user) {
+  json done = {{"kind", "scan"}, {"user", user}, {"part_id", request.part_id}, {"ok", false}};
+  try {
+    std::lock_guard cell_lock(cell_mutex_);
+    station::ScanJobOptions options = setup_.scan;
+    options.part_id = request.part_id;
+    options.program = request.program;
+    options.material = request.material;
+    options.run.session.part_id = request.part_id;
+    HubObserver observer(
+        hub_, *setup_.cell, "scan",
+        [this](const std::string& run_id) {
+          std::lock_guard lock(mutex_);
+          status_.run_id = run_id;
+        },
+        [this] {
+          std::lock_guard lock(mutex_);
+          status_.measuring = true;
+        });
+    station::ScanJob job(*setup_.cell, &observer);
+    {
+      std::lock_guard lock(mutex_);
+      scan_ = &job;
+      if (pending_abort_) job.abort(*pending_abort_);
+    }
+    station::ScanJobResult r;
+    try {
+      r = job.run(options);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      scan_ = nullptr;
+      throw;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      scan_ = nullptr;
+    }
+    done["run_id"] = r.run_dir.filename().string();
+    done["elements"] = r.elements;
+    done["ok"] = r.report_error.empty();
+    if (r.report) {
+      done["verdict"] = report::toString(r.report->verdict);
+      done["verdict_reason"] = r.report->verdict_reason;
+      done["max_thinning_percent"] = r.report->max_thinning_percent;
+      done["min_margin_percent"] = r.report->min_margin_percent;
+    }
+    if (!r.report_error.empty()) done["error"] = "the scan is measured, but its report failed: " + r.report_error;
+    if (r.data_loss) done["data_loss"] = *r.data_loss;
+    if (!r.history_error.empty()) done["history_error"] = r.history_error;
+  } catch (const acquisition::ScanError& e) {
+    done["error"] = std::string("refused before anything moved: ") + e.what();
+    done["advice"] = faultAdvice(e.what());
+  } catch (const std::exception& e) {
+    done["error"] = e.what();
+    done["advice"] = faultAdvice(e.what());
+    std::lock_guard lock(mutex_);
+    if (!status_.run_id.empty()) done["run_id"] = status_.run_id;
+  }
+  finish(done.dump());
+}
+
+void CellJobs::runVerify(std::string user) {
+  json done = {{"kind", "verify"}, {"user", user}, {"ok", false}};
+  try {
+    std::lock_guard cell_lock(cell_mutex_);
+    station::VerifyJobOptions options = *setup_.verify;
+    options.history = setup_.calibration_dir / "history";
+    const fs::path stored = setup_.calibration_dir / "digitizer.json";
+    if (fs::exists(stored)) {
+      const registration::DigitizerCalibrationFile file = registration::loadDigitizerCalibration(stored);
+      options.calibration = file.calibration;
+      options.calibration_source = stored.string() + " (created " + file.created + ")";
+    }
+    HubObserver observer(hub_, *setup_.cell, "verify");
+    station::VerifyJob job(*setup_.cell, &observer);
+    {
+      std::lock_guard lock(mutex_);
+      verify_ = &job;
+      if (pending_abort_) job.abort(*pending_abort_);
+    }
+    station::VerifyJobResult r;
+    try {
+      r = job.run(options);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      verify_ = nullptr;
+      throw;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      verify_ = nullptr;
+    }
+    done["ok"] = true;
+    done["record_id"] = r.record.id;
+    done["verdict"] = registration::toString(r.record.verdict);
+    json checks = json::array();
+    for (const auto& c : r.record.checks)
+      checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
+    done["checks"] = checks;
+  } catch (const std::exception& e) {
+    done["error"] = e.what();
+    done["advice"] = faultAdvice(e.what());
+  }
+  finish(done.dump());
+}
+
+}  // namespace stampscan::hmi

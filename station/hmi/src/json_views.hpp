@@ -1,0 +1,23 @@
+// The JSON the API and the events show of the cell and its runs (private to the panel library).
+#pragma once
+
+#include "stampscan/acquisition/cell.hpp"
+#include "stampscan/hmi/cell_jobs.hpp"
+#include "stampscan/results/results_store.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+namespace stampscan::hmi {
+
+// Every device: name, family, state, identity, last fault.
+nlohmann::json devicesJson(acquisition::Cell& cell);
+// The devices, the interlocks and stack light as the PLC reports them (read now when the PLC is
+// connected and idle; else its watchdog's last reading), the calibration in use and its verdict.
+nlohmann::json cellJson(const CellJobs& jobs);
+nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir);
+nlohmann::json runRecordJson(const results::RunRecord& r);
+nlohmann::json statusJson(const JobStatus& s);
+
+}  // namespace stampscan::hmi

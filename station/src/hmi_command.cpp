@@ -1,0 +1,175 @@
+// `station hmi`: the operator's panel in the browser. A thin caller of station/hmi (the server, the
+// API and the page): it reads the options, hosts the virtual cell when no --cell is given (as
+// `station scan` does), prepares the scan and the verification the panel may start, and serves.
+#include "stampscan/hmi/auth.hpp"
+#include "stampscan/hmi/hmi_server.hpp"
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/station/commands.hpp"
+#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/station/verify_job.hpp"
+#include "virtual_digitizer_host.hpp"
+
+#include <toml++/toml.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+namespace stampscan::station {
+
+namespace {
+
+struct HmiCommandOptions {
+  std::string cell, listen = "127.0.0.1:8080", users, runs = "stampscan-runs", calibration_dir, web, ready_file;
+  bool hash_password = false;
+  std::uint64_t seed = 1;
+};
+
+std::atomic<int> g_hmi_stop{0};
+extern "C" void onHmiStop(int sig) { g_hmi_stop = sig; }
+// On the built-in virtual cell: SIGUSR1 opens the cell's door, SIGUSR2 closes it, so that a fault
+// can be rehearsed (and tested) on the panel. The handler only records which; the watcher acts.
+std::atomic<int> g_virtual_door{0};
+extern "C" void onVirtualDoor(int sig) { g_virtual_door = sig; }
+
+// [hmi] users = "FILE" in the cell config, relative to the config's folder.
+std::string usersFromCellConfig(const std::string& cell_file) {
+  try {
+    const toml::table doc = toml::parse_file(cell_file);
+    if (const auto users = doc["hmi"]["users"].value<std::string>()) {
+      const std::filesystem::path p(*users);
+      return p.is_absolute() ? p.string() : (std::filesystem::path(cell_file).parent_path() / p).string();
+    }
+  } catch (const toml::parse_error&) {
+    // loadCellConfig has already named what is wrong with the file.
+  }
+  return "";
+}
+
+int hashPasswordFromStdin() {
+  std::string password;
+  std::getline(std::cin, password);
+  if (password.empty()) {
+    std::fprintf(stderr, "station hmi --hash-password: give the password on standard input\n");
+    return 1;
+  }
+  std::printf("%s\n", hmi::hashPassword(password).c_str());
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner addHmiCommand(CLI::App& app) {
+  auto opt = std::make_shared<HmiCommandOptions>();
+  CLI::App* cmd = app.add_subcommand("hmi", "The operator's panel in the browser: cell view, scan, results, history, "
+                                            "calibration (default: the built-in virtual cell on http://127.0.0.1:8080/)");
+  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  cmd->add_option("--listen", opt->listen, "HOST:PORT to serve on (port 0: any free one); any address but loopback "
+                                           "requires a login");
+  cmd->add_option("--users", opt->users, "Users file (TOML: [[user]] name, role, password_hash); default: [hmi] users "
+                                         "in the cell config");
+  cmd->add_option("-o,--runs", opt->runs, "Folder of run folders and the results database");
+  cmd->add_option("--calibration-dir", opt->calibration_dir, "The cell's calibration folder (default: RUNS/calibration)");
+  cmd->add_option("--web", opt->web, "Serve the page from this folder instead of the built-in copy (development)");
+  cmd->add_option("--ready-file", opt->ready_file, "Write the panel's URL into this file once it serves (for scripts)");
+  cmd->add_option("--seed", opt->seed, "The virtual cell's seed");
+  cmd->footer("On the built-in virtual cell, SIGUSR1 opens the cell door and SIGUSR2 closes it (to rehearse a fault).");
+  cmd->add_flag("--hash-password", opt->hash_password,
+                "Read a password on standard input, print its hash for the users file, and exit");
+  return [opt]() {
+    if (opt->hash_password) return hashPasswordFromStdin();
+    const bool virtual_cell = opt->cell.empty();
+    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    hmi::HmiOptions options;
+    options.listen = opt->listen;
+    options.users_file = !opt->users.empty() ? opt->users : virtual_cell ? "" : usersFromCellConfig(opt->cell);
+    options.web_dir = opt->web;
+
+    // The scan the panel starts: the built-in plan of the sample pan's region, as `station scan`.
+    sim::ScanParams world = sim::ScanParams::quick();
+    world.part = sim::PartKind::Pan;
+    world.seed = opt->seed;
+    hmi::CellSetup setup;
+    setup.scan.plan = sim::planScan(world);
+    setup.scan.plan.name = setup.scan.plan.part.kind + ", laser and stereo, with calibration scenes";
+    setup.scan.run.limits = config.limits;
+    setup.scan.run.session = sim::describeSession(world);
+    setup.scan.runs_dir = opt->runs;
+    setup.scan.results_database = config.results_database;
+    applySphereCertificate(config.calibration, setup.scan.run.session);
+    setup.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
+    setup.scan.calibration_dir = setup.calibration_dir;
+    setup.scan.calibration_policy = config.calibration;
+    // The verification of the digitizer: every sphere sweep of the calibration and the ball bar, as
+    // `station verify` (the stereo pair's check on the plate stays with the command, whose cameras
+    // take the calibration's resolution).
+    sim::ScanParams sphere_world = world;
+    sphere_world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    VerifyJobOptions verify;
+    verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
+    verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
+    if (config.calibration.sphere_distance_mm > 0) {
+      verify.ball_bar = VerifyJobOptions::BallBar{config.calibration.second_sphere_diameter_mm,
+                                                  config.calibration.sphere_distance_mm, config.calibration.length_mpe_mm};
+      sphere_world.second_sphere_sweeps = 4;
+    }
+    verify.plan = verificationStepsOf(sim::planScan(sphere_world));
+    verify.run.limits = config.limits;
+    verify.run.session = sim::describeSession(sphere_world);
+    verify.run.session.part_id = "reference sphere";
+    applySphereCertificate(config.calibration, verify.run.session);
+    verify.results_database = calibrationResultsDatabase(config.results_database, setup.calibration_dir);
+    setup.verify = verify;
+
+    // The embedded virtual cell first: hosting may re-execute this program (umockdev).
+    std::unique_ptr<HostedVirtualCell> hosted;
+    if (virtual_cell) {
+      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, true);
+      config = hosted->config();
+      setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
+                                         hosted->cell().truth().digitizer_latency_ns};
+    }
+    acquisition::Cell cell(config);
+    setup.cell = &cell;
+    hmi::HmiServer server(std::move(setup), options);
+    server.bind();
+    std::printf("station hmi: %s%s on %s%s\n", config.name.c_str(), hosted ? " (hosted in this process)" : "",
+                server.url().c_str(), server.loginRequired() ? " (login required)" : "");
+    std::fflush(stdout);
+    if (!opt->ready_file.empty()) std::ofstream(opt->ready_file) << server.url() << '\n';
+
+    g_hmi_stop = 0;
+    const auto previous_int = std::signal(SIGINT, onHmiStop);
+    const auto previous_term = std::signal(SIGTERM, onHmiStop);
+    std::atomic<bool> done{false};
+    if (hosted) {
+      std::signal(SIGUSR1, onVirtualDoor);
+      std::signal(SIGUSR2, onVirtualDoor);
+    }
+    std::thread watcher([&] {
+      while (!done && !g_hmi_stop) {
+        if (const int door = g_virtual_door.exchange(0); door != 0 && hosted) {
+          if (door == SIGUSR1) hosted->cell().plc().openDoor();
+          else hosted->cell().plc().closeDoor();
+          std::printf("station hmi: the virtual cell's door is %s\n", door == SIGUSR1 ? "open" : "closed");
+          std::fflush(stdout);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+      server.stop();
+    });
+    server.run();
+    done = true;
+    watcher.join();
+    std::signal(SIGINT, previous_int);
+    std::signal(SIGTERM, previous_term);
+    std::printf("station hmi: stopped\n");
+    return 0;
+  };
+}
+
+}  // namespace stampscan::station

@@ -1,0 +1,171 @@
+// End-to-end test of the operator's panel in a real browser: starts `station hmi` on the embedded
+// virtual cell, drives Debian's chromium (headless) with puppeteer-core, and goes the operator's
+// path: open the panel, start a scan of the sample part, see the progress move, see the verdict
+// and the 3D strain map, pick a spot on it, open the FLD and the PDF, see the run in the history.
+// Fails on any error in the browser's console. Prints the page's load time and how late the live
+// events reach the page (publishing time on the station to arrival in the page, same clock).
+//
+//   node panel_e2e.mjs STATION_EXE WORK_DIR [SCREENSHOT_DIR]
+// Exit 0: passed; 1: failed (the reason printed); 77: skipped, chromium not found.
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+
+const [stationExe, workDir, shotDir] = process.argv.slice(2).map((p) => p && path.resolve(p));
+const chromium = process.env.STAMPSCAN_CHROMIUM || '/usr/bin/chromium';
+if (!fs.existsSync(chromium)) {
+  console.log(`SKIPPED: chromium not found at ${chromium} (install the Debian package chromium; scripts/setup.sh does)`);
+  process.exit(77);
+}
+const puppeteer = (await import('puppeteer-core')).default;
+
+const fail = (why) => { throw new Error(why); };
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+// A fresh runs folder each time, so the history shows this test's run alone.
+fs.rmSync(path.join(workDir, 'runs'), { recursive: true, force: true });
+fs.mkdirSync(workDir, { recursive: true });
+if (shotDir) fs.mkdirSync(shotDir, { recursive: true });
+const readyFile = path.join(workDir, 'ready.txt');
+fs.rmSync(readyFile, { force: true });
+
+const station = spawn(stationExe, ['hmi', '--listen', '127.0.0.1:0', '--ready-file', readyFile, '-o', path.join(workDir, 'runs')],
+  { cwd: workDir, stdio: ['ignore', 'inherit', 'inherit'] });
+let browser = null;
+const userDataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'stampscan-chromium-'));
+const consoleErrors = [];
+
+async function waitFor(page, what, fn, timeoutMs, ...args) {
+  try {
+    // A job that ends in an error ends the wait at once (its reason is then in the failure).
+    await page.waitForFunction(`(${fn})(...${JSON.stringify(args)}) || document.body.dataset.finished === 'error'`, { timeout: timeoutMs, polling: 100 });
+    if (await page.evaluate(() => document.body.dataset.finished === 'error')) throw new Error('the job failed');
+  } catch (e) {
+    const fault = await page.evaluate(() => document.getElementById('fault').innerText).catch(() => '');
+    fail(`${what} did not happen within ${timeoutMs / 1000} s${fault ? ` (the page shows: ${fault})` : ''}`);
+  }
+}
+async function shot(page, name) {
+  if (shotDir) await page.screenshot({ path: path.join(shotDir, name), fullPage: true });
+}
+
+try {
+  for (let i = 0; !fs.existsSync(readyFile) || !fs.readFileSync(readyFile, 'utf8').trim(); ++i) {
+    if (station.exitCode !== null) fail(`station hmi exited with ${station.exitCode} before serving`);
+    if (i > 600) fail('station hmi did not serve within 60 s');
+    await sleep(100);
+  }
+  const url = fs.readFileSync(readyFile, 'utf8').trim();
+  browser = await puppeteer.launch({
+    executablePath: chromium,
+    headless: true,
+    userDataDir,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync',
+      // WebGL on the CPU (SwiftShader) for the 3D view, as there is no GPU here.
+      '--enable-unsafe-swiftshader', '--use-angle=swiftshader', '--window-size=1400,1000'],
+  });
+  const page = await browser.newPage();
+  await page.setViewport({ width: 1400, height: 1000 });
+  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+  page.on('pageerror', (e) => consoleErrors.push(String(e)));
+
+  const t0 = Date.now();
+  await page.goto(url, { waitUntil: 'load' });
+  await waitFor(page, 'the panel being ready', () => document.body.dataset.ready === '1', 20000);
+  const loadMs = Date.now() - t0;
+  const nav = await page.evaluate(() => { const n = performance.getEntriesByType('navigation')[0]; return { load: n.loadEventEnd, dcl: n.domContentLoadedEventEnd }; });
+  await waitFor(page, 'the cell view showing the PLC', () => document.getElementById('interlocks').innerText.includes('Door'), 20000);
+  await shot(page, '1-cell.png');
+
+  // The scan of the sample part.
+  await page.click('button[data-tab="scan"]');
+  await page.$eval('#part-id', (el) => { el.value = ''; });
+  await page.type('#part-id', 'sample-e2e');
+  await page.click('#start');
+  await waitFor(page, 'progress', () => Number(document.body.dataset.progress || 0) >= 1, 60000);
+  const first = await page.evaluate(() => Number(document.body.dataset.progress));
+  await waitFor(page, 'the progress moving on', (f) => Number(document.body.dataset.progress) > f, 60000, first);
+  await shot(page, '2-scan-progress.png');
+  // A second start while the scan runs is refused, with the reason, on the page too.
+  const session = await (await fetch(`${url}api/session`)).json();
+  const second = await fetch(`${url}api/scan/start`, { method: 'POST', headers: { 'Content-Type': 'application/json', 'X-CSRF-Token': session.csrf }, body: '{"part_id":"second"}' });
+  const refused = { status: second.status, body: await second.json() };
+  if (refused.status !== 409 || !/running/.test(refused.body.error)) fail(`a second start was not refused with 409: ${JSON.stringify(refused)}`);
+
+  await waitFor(page, 'the verdict', () => ['good', 'marginal', 'failed'].includes(document.body.dataset.verdict), 240000);
+  await waitFor(page, 'the 3D map', () => Number(document.body.dataset.mesh || 0) > 0, 30000);
+  const verdict = await page.$eval('#verdict', (el) => el.innerText);
+  await sleep(500);
+  // Tap the middle of the surface and read its strains.
+  await shot(page, '3-result.png');
+  const box = await (await page.$('#view3d canvas')).boundingBox();
+  // Tap the middle, then around it, until a tap lands on the surface.
+  for (const [fx, fy] of [[0.5, 0.5], [0.45, 0.55], [0.55, 0.45], [0.4, 0.4], [0.6, 0.6]]) {
+    await page.mouse.click(box.x + box.width * fx, box.y + box.height * fy);
+    await sleep(300);
+    if (await page.$eval('#pick', (el) => el.innerText.includes('safety margin'))) break;
+  }
+  await waitFor(page, 'a picked spot', () => document.getElementById('pick').innerText.includes('safety margin'), 5000);
+  const picked = await page.$eval('#pick', (el) => el.innerText);
+  await shot(page, '3-result-picked.png');
+  const fld = await page.$eval('#fld', (img) => ({ w: img.naturalWidth, h: img.naturalHeight }));
+  if (!fld.w) fail('the FLD image did not load');
+  const files = await page.evaluate(async () => {
+    const get = async (href) => { const r = await fetch(href); const b = new Uint8Array(await r.arrayBuffer()); return { status: r.status, type: r.headers.get('Content-Type'), head: String.fromCharCode(...b.slice(0, 5)), size: b.length }; };
+    return { pdf: await get(document.getElementById('pdf').href), fld: await get(document.getElementById('fldlink').href) };
+  });
+  if (files.pdf.status !== 200 || files.pdf.type !== 'application/pdf' || files.pdf.head !== '%PDF-') fail(`the PDF did not open: ${JSON.stringify(files.pdf)}`);
+  if (files.fld.status !== 200 || files.fld.type !== 'image/png') fail(`the FLD did not open: ${JSON.stringify(files.fld)}`);
+  // Open the PDF as the operator does (its own tab).
+  const pdfPage = await browser.newPage();
+  const pdfResponse = await pdfPage.goto(files.pdf ? await page.$eval('#pdf', (a) => a.href) : '', { waitUntil: 'load' }).catch((e) => e);
+  if (pdfResponse instanceof Error) {
+    // Headless chromium may hand a PDF to its downloader instead of showing it; the fetch above read it.
+    if (!/ERR_ABORTED/.test(String(pdfResponse))) fail(`the PDF tab did not open: ${pdfResponse}`);
+  } else if (pdfResponse.status() !== 200) fail(`the PDF tab answered ${pdfResponse.status()}`);
+  await pdfPage.close();
+
+  // The door opened on the virtual PLC mid-scan: the scan stops and the page says why and what to do.
+  await page.click('button[data-tab="scan"]');
+  await page.$eval('#part-id', (el) => { el.value = 'door-e2e'; });
+  await page.click('#start');
+  await waitFor(page, 'progress of the second scan', () => document.body.dataset.job === 'scan' && Number(document.body.dataset.progress || 0) >= 2, 60000);
+  station.kill('SIGUSR1');
+  await page.waitForFunction(() => document.body.dataset.finished === 'error', { timeout: 60000 }).catch(() => fail('the door did not stop the scan'));
+  const doorFault = await page.$eval('#fault', (el) => el.innerText);
+  if (!/door/i.test(doorFault) || !/Close the cell door/.test(doorFault)) fail(`the page does not say the door stopped the scan: ${doorFault}`);
+  await shot(page, '4-door-opened.png');
+  station.kill('SIGUSR2');
+  await page.evaluate(() => { delete document.body.dataset.finished; });
+
+  await page.click('button[data-tab="history"]');
+  await waitFor(page, 'the run in the history', () => document.getElementById('runs').innerText.includes('sample-e2e'), 10000);
+  await shot(page, '5-history.png');
+  await page.click('button[data-tab="maintenance"]');
+  await waitFor(page, 'the actions log', () => document.getElementById('actions').innerText.includes('scan start'), 10000);
+  await shot(page, '6-maintenance.png');
+
+  const stats = await page.evaluate(() => window.hmiStats);
+  const lat = stats.latencies.slice().sort((a, b) => a - b);
+  const q = (p) => lat[Math.min(lat.length - 1, Math.floor(p * lat.length))];
+  console.log(`page load: ${loadMs} ms to ready (navigation load event ${Math.round(nav.load)} ms, DOMContentLoaded ${Math.round(nav.dcl)} ms)`);
+  console.log(`live events: ${stats.events} received; latency from publishing to the page: median ${q(0.5)} ms, 95th percentile ${q(0.95)} ms, max ${lat[lat.length - 1]} ms`);
+  console.log(`door opened mid-scan, the page shows: ${doorFault.replace(/\s+/g, ' ')}`);
+  console.log(`verdict: ${verdict.replace(/\s+/g, ' ')}; picked: ${picked.replace(/\s+/g, ' ')}; FLD ${fld.w}x${fld.h}; PDF ${files.pdf.size} bytes`);
+  if (consoleErrors.length) fail(`errors in the browser console:\n  ${consoleErrors.join('\n  ')}`);
+  console.log('PASSED');
+  await browser.close();
+  browser = null;
+  station.kill('SIGTERM');
+  process.exitCode = 0;
+} catch (e) {
+  console.log(`FAILED: ${e.message}`);
+  if (consoleErrors.length) console.log(`browser console errors:\n  ${consoleErrors.join('\n  ')}`);
+  process.exitCode = 1;
+} finally {
+  if (browser) await browser.close().catch(() => {});
+  if (station.exitCode === null) station.kill('SIGTERM');
+  await new Promise((r) => (station.exitCode !== null ? r() : station.once('exit', r)));
+  fs.rmSync(userDataDir, { recursive: true, force: true });
+}

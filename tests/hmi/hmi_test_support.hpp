@@ -1,0 +1,126 @@
+// Shared by the panel's tests: `station hmi` started as its own process on the embedded virtual
+// cell (as an operator starts it), on a free port, with a scratch runs folder; an HTTP client for it.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#ifndef STATION_EXE
+#error "STATION_EXE must name the station executable"
+#endif
+
+namespace stampscan::hmi::test {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+inline std::string readText(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Runs `station hmi ARGS --ready-file ... -o ROOT/runs` until destroyed.
+class StationHmi {
+ public:
+  StationHmi(const fs::path& root, std::vector<std::string> args) : root_(root) {
+    ready_ = root / "ready.txt";
+    fs::remove(ready_);
+    args.insert(args.begin(), {STATION_EXE, "hmi"});
+    for (const char* a : {"--ready-file", ready_.c_str(), "-o"}) args.emplace_back(a);
+    args.push_back((root / "runs").string());
+    pid_ = fork();
+    if (pid_ == 0) {
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      const std::string log = (root / "station.log").string();
+      freopen(log.c_str(), "w", stdout);
+      freopen(log.c_str(), "a", stderr);
+      execv(STATION_EXE, argv.data());
+      _exit(127);
+    }
+  }
+  ~StationHmi() { stop(); }
+  // The port once it serves (0 when it exited first; exit_code then says how).
+  int waitReady() {
+    for (int i = 0; i < 600; ++i) {
+      const std::string url = readText(ready_);
+      if (!url.empty() && url.back() == '\n') {
+        port_ = std::stoi(url.substr(url.rfind(':') + 1));
+        return port_;
+      }
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        pid_ = -1;
+        return 0;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return 0;
+  }
+  void stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+  }
+  std::string log() const { return readText(root_ / "station.log"); }
+  int port() const { return port_; }
+  int exit_code = -1;
+
+ private:
+  fs::path root_, ready_;
+  pid_t pid_ = -1;
+  int port_ = 0;
+};
+
+class HmiTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device device;
+    root_ = fs::temp_directory_path() / ("stampscan_hmi_test_" + std::to_string(device()) + std::to_string(device()));
+    fs::create_directories(root_ / "runs");
+  }
+  void TearDown() override {
+    station_.reset();
+    std::error_code ignored;
+    fs::remove_all(root_, ignored);
+  }
+  // Starts the panel and a client for it; fails the test when it does not serve.
+  void startPanel(std::vector<std::string> args = {"--listen", "127.0.0.1:0"}) {
+    station_ = std::make_unique<StationHmi>(root_, std::move(args));
+    ASSERT_GT(station_->waitReady(), 0) << station_->log();
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", station_->port());
+    client_->set_read_timeout(30, 0);
+    client_->set_url_encode(false);  // the tests send their paths exactly as written
+  }
+  // The JSON body of a response (null when it is not JSON).
+  static json body(const httplib::Result& r) { return r ? json::parse(r->body, nullptr, false) : json(); }
+  std::string csrf() { return body(client_->Get("/api/session"))["csrf"].get<std::string>(); }
+  httplib::Result post(const std::string& path, const std::string& payload, const std::string& token,
+                       httplib::Headers headers = {}) {
+    if (!token.empty()) headers.emplace("X-CSRF-Token", token);
+    return client_->Post(path.c_str(), headers, payload, "application/json");
+  }
+
+  fs::path root_;
+  std::unique_ptr<StationHmi> station_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+}  // namespace stampscan::hmi::test

@@ -1,0 +1,208 @@
+// The panel's API against the embedded virtual cell: the page and Debian's scripts are served, the
+// cell view reads the devices and the PLC, a scan streams its events, a second start is refused
+// with 409 and the reason, an abort ends the scan with the reason, and bad input gets a clear JSON
+// error with a 4xx status (path traversal included).
+#include "hmi_test_support.hpp"
+
+#include <atomic>
+#include <mutex>
+
+namespace stampscan::hmi::test {
+namespace {
+
+// Collects the panel's Server-Sent Events on a thread of its own.
+class EventReader {
+ public:
+  explicit EventReader(int port) : client_("127.0.0.1", port) {
+    client_.set_read_timeout(60, 0);
+    thread_ = std::thread([this] {
+      client_.Get("/api/events", [this](const char* data, std::size_t length) {
+        std::lock_guard lock(mutex_);
+        text_.append(data, length);
+        return !stop_;
+      });
+    });
+  }
+  ~EventReader() {
+    stop_ = true;
+    client_.stop();
+    thread_.join();
+  }
+  std::string text() {
+    std::lock_guard lock(mutex_);
+    return text_;
+  }
+  // The data of every event of that name so far.
+  std::vector<json> events(const std::string& name) {
+    std::vector<json> out;
+    const std::string t = text();
+    const std::string marker = "event: " + name + "\ndata: ";
+    for (auto pos = t.find(marker); pos != std::string::npos; pos = t.find(marker, pos + 1)) {
+      const auto start = pos + marker.size();
+      const auto end = t.find('\n', start);
+      if (end != std::string::npos) out.push_back(json::parse(t.substr(start, end - start), nullptr, false));
+    }
+    return out;
+  }
+  bool waitFor(const std::string& name, std::chrono::seconds timeout) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < until) {
+      if (!events(name).empty()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+  }
+
+ private:
+  httplib::Client client_;
+  std::atomic<bool> stop_{false};
+  std::mutex mutex_;
+  std::string text_;
+  std::thread thread_;
+};
+
+TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
+  startPanel();
+  auto page = client_->Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find("/lib/three/three.min.js"), std::string::npos);
+  auto three = client_->Get("/lib/three/three.min.js");
+  ASSERT_TRUE(three);
+  EXPECT_EQ(three->status, 200) << "libjs-three is not installed";
+  EXPECT_EQ(client_->Get("/lib/chart.js/chart.min.js")->status, 200) << "libjs-chart.js is not installed";
+  EXPECT_EQ(client_->Get("/app.js")->status, 200);
+
+  const json session = body(client_->Get("/api/session"));
+  EXPECT_FALSE(session["login_required"].get<bool>()) << "loopback needs no login";
+  EXPECT_FALSE(session["csrf"].get<std::string>().empty());
+
+  // The devices connect in the background: wait for the PLC.
+  json cell;
+  for (int i = 0; i < 100; ++i) {
+    cell = body(client_->Get("/api/cell"));
+    if (cell["plc"]["connected"].get<bool>()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(cell["devices"].size(), 5u) << cell.dump(2);
+  for (const auto& d : cell["devices"]) EXPECT_FALSE(d["name"].get<std::string>().empty());
+  ASSERT_TRUE(cell["plc"]["connected"].get<bool>()) << cell.dump(2);
+  EXPECT_TRUE(cell["plc"]["interlocks"]["door_closed"].get<bool>());
+  EXPECT_TRUE(cell["plc"]["interlocks"]["e_stop_ok"].get<bool>());
+  EXPECT_TRUE(cell["plc"]["stack_light"].is_object());
+  EXPECT_EQ(cell["calibration"]["verdict"], "not verified");
+  EXPECT_FALSE(cell["job"]["busy"].get<bool>());
+}
+
+TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
+  startPanel();
+  EventReader events(station_->port());
+  ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
+  const std::string token = csrf();
+  auto started = post("/api/scan/start", R"({"part_id": "p-17", "program": "OP20"})", token);
+  ASSERT_TRUE(started);
+  ASSERT_EQ(started->status, 202) << started->body;
+
+  // The scan reports as it goes: its run folder, the checks, then progress with counts and devices.
+  ASSERT_TRUE(events.waitFor("progress", std::chrono::seconds(60))) << events.text();
+  const json progress = events.events("progress").front();
+  EXPECT_GT(progress["steps"].get<int>(), 0);
+  EXPECT_TRUE(progress.contains("remaining_s"));
+  EXPECT_TRUE(progress.contains("profiles"));
+  EXPECT_EQ(progress["devices"].size(), 5u);
+  EXPECT_TRUE(progress["t_ms"].is_number());
+  ASSERT_FALSE(events.events("run").empty());
+  const std::string run_id = events.events("run").front()["run_id"];
+  EXPECT_NE(run_id.find("p-17"), std::string::npos);
+  EXPECT_FALSE(events.events("check").empty());
+
+  // One scan at a time: the second start is refused, with the reason.
+  auto second = post("/api/scan/start", R"({"part_id": "p-18"})", token);
+  ASSERT_TRUE(second);
+  EXPECT_EQ(second->status, 409);
+  EXPECT_NE(body(second)["error"].get<std::string>().find("a scan is running"), std::string::npos) << second->body;
+  EXPECT_TRUE(body(client_->Get("/api/status"))["busy"].get<bool>());
+
+  auto aborted = post("/api/scan/abort", "{}", token);
+  ASSERT_TRUE(aborted);
+  EXPECT_EQ(aborted->status, 202);
+  ASSERT_TRUE(events.waitFor("finished", std::chrono::seconds(60))) << events.text();
+  const json finished = events.events("finished").front();
+  EXPECT_FALSE(finished["ok"].get<bool>());
+  EXPECT_NE(finished["error"].get<std::string>().find("operator abort"), std::string::npos) << finished.dump();
+  EXPECT_FALSE(finished["advice"].get<std::string>().empty());
+  EXPECT_FALSE(body(client_->Get("/api/status"))["busy"].get<bool>());
+
+  // The aborted run is in the results database, with its reason, and its folder is served.
+  const json runs = body(client_->Get("/api/runs"));
+  ASSERT_EQ(runs["runs"].size(), 1u) << runs.dump(2);
+  EXPECT_EQ(runs["runs"][0]["run_id"], run_id);
+  EXPECT_EQ(runs["runs"][0]["status"], "aborted");
+  const json details = body(client_->Get(("/api/runs/" + run_id).c_str()));
+  EXPECT_EQ(details["run"]["part_id"], "p-17") << details.dump(2);
+  auto trace = client_->Get(("/api/runs/" + run_id + "/files/trace.mcap").c_str());
+  ASSERT_TRUE(trace);
+  EXPECT_EQ(trace->status, 200);
+  // Nothing to abort now.
+  EXPECT_EQ(post("/api/scan/abort", "{}", token)->status, 409);
+  // Who did what.
+  const std::string actions = readText(root_ / "runs" / "hmi-actions.jsonl");
+  EXPECT_NE(actions.find("\"scan start\""), std::string::npos);
+  EXPECT_NE(actions.find("\"scan refused\""), std::string::npos);
+  EXPECT_NE(actions.find("\"abort\""), std::string::npos);
+}
+
+TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
+  // A run folder with a report file, and a symlink in it that points out of the runs folder.
+  const fs::path run = root_ / "runs" / "20261125-010203-part";
+  fs::create_directories(run);
+  std::ofstream(run / "run.json") << R"({"part_id": "part"})";
+  std::ofstream(run / "fld.png") << "not really a png";
+  fs::create_symlink("/etc/passwd", run / "evil.png");
+  std::ofstream(root_ / "secret.txt") << "TOP-SECRET-CONTENT";
+  startPanel();
+  const std::string token = csrf();
+
+  const auto expectError = [&](const httplib::Result& r, int status, const std::string& what) {
+    ASSERT_TRUE(r) << what;
+    EXPECT_EQ(r->status, status) << what << ": " << r->body;
+    const json j = body(r);
+    EXPECT_TRUE(j.is_object() && j.contains("error")) << what << ": " << r->body;
+    EXPECT_EQ(r->body.find("root:"), std::string::npos) << what;
+    EXPECT_EQ(r->body.find("TOP-SECRET-CONTENT"), std::string::npos) << what;
+  };
+  expectError(post("/api/scan/start", "{not json", token), 400, "malformed JSON");
+  expectError(post("/api/scan/start", "[1, 2]", token), 400, "not an object");
+  expectError(post("/api/scan/start", R"({"program": "OP20"})", token), 400, "no part id");
+  expectError(post("/api/scan/start", R"({"part_id": "../up"})", token), 400, "a part id that climbs");
+  expectError(post("/api/scan/start", R"({"part_id": 7})", token), 400, "a part id that is a number");
+  expectError(post("/api/scan/start", R"({"part_id": "a", "material": "cheese"})", token), 400, "unknown material");
+  expectError(client_->Get("/api/runs/no-such-run"), 404, "unknown run id");
+  expectError(client_->Get("/api/runs/no-such-run/mesh"), 404, "unknown run's mesh");
+  expectError(client_->Get("/api/runs/20261125-010203-part/mesh"), 404, "a run without a mesh");
+  expectError(client_->Get("/api/runs/20261125-010203-part/files/report.pdf"), 404, "a file the run lacks");
+  expectError(client_->Get("/api/runs/20261125-010203-part/files/evil.png"), 404, "a symlink out of the run");
+  expectError(client_->Get("/api/runs/..%2Fsecret.txt"), 404, "an encoded ../ as run id");
+  expectError(client_->Get("/api/runs/20261125-010203-part/files/..%2F..%2Fsecret.txt"), 404, "an encoded ../ as file");
+  expectError(client_->Get("/api/runs/20261125-010203-part/files/%2E%2E"), 400, "an encoded .. as file");
+  expectError(client_->Get("/api/runs/%2E%2E/files/secret.txt"), 400, "an encoded .. as run id");
+  expectError(client_->Get("/api/runs/20261125-010203-part/files/.hidden"), 400, "a hidden file");
+  expectError(client_->Get("/api/runs/../secret.txt"), 404, "a raw ../");
+  expectError(client_->Get("/lib/../../../../etc/passwd"), 404, "a raw ../ under the scripts");
+  expectError(client_->Get("/lib/%2E%2E/%2E%2E/%2E%2E/etc/passwd"), 404, "an encoded ../ under the scripts");
+  expectError(client_->Get("/api/nothing-here"), 404, "an unknown API path");
+  expectError(client_->Get("/api/runs?last=many"), 400, "a count that is no number");
+
+  // DNS rebinding: a name other than loopback's is refused by the loopback panel.
+  expectError(client_->Get("/api/cell", {{"Host", "evil.example:8080"}}), 403, "a Host that is not loopback");
+  auto fld = client_->Get("/api/runs/20261125-010203-part/files/fld.png");
+  ASSERT_TRUE(fld);
+  EXPECT_EQ(fld->status, 200);
+  EXPECT_EQ(fld->get_header_value("Content-Type"), "image/png");
+  EXPECT_EQ(fld->body, "not really a png");
+  // And the server is still there.
+  EXPECT_EQ(client_->Get("/api/session")->status, 200);
+}
+
+}  // namespace
+}  // namespace stampscan::hmi::test

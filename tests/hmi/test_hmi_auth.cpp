@@ -1,0 +1,112 @@
+// The panel off loopback: a login is required, with two roles. Unauthenticated and operator
+// requests to maintenance actions are refused; state-changing requests need the session's CSRF
+// token and this server's Origin; every action is recorded with who did it.
+#include "hmi_test_support.hpp"
+
+#include <cstdio>
+
+namespace stampscan::hmi::test {
+namespace {
+
+// The password's hash as `station hmi --hash-password` prints it.
+std::string hashOf(const std::string& password) {
+  const std::string command = "echo " + password + " | " STATION_EXE " hmi --hash-password";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string out;
+  char buffer[256];
+  while (pipe != nullptr && fgets(buffer, sizeof buffer, pipe) != nullptr) out += buffer;
+  if (pipe != nullptr) pclose(pipe);
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
+}
+
+class HmiAuthTest : public HmiTest {
+ protected:
+  void startWithUsers() {
+    const std::string op = hashOf("op-secret"), mt = hashOf("mt-secret");
+    ASSERT_EQ(op.rfind("$argon2id$", 0), 0u) << op;
+    std::ofstream(root_ / "users.toml") << "[[user]]\nname = \"olga\"\nrole = \"operator\"\npassword_hash = \"" << op
+                                         << "\"\n\n[[user]]\nname = \"max\"\nrole = \"maintenance\"\npassword_hash = \""
+                                         << mt << "\"\n";
+    startPanel({"--listen", "0.0.0.0:0", "--users", (root_ / "users.toml").string()});
+  }
+  // Logs in; returns the CSRF token and keeps the session cookie for the next requests.
+  std::string login(const std::string& user, const std::string& password, int expected = 200) {
+    auto r = client_->Post("/api/login", json{{"user", user}, {"password", password}}.dump(), "application/json");
+    EXPECT_TRUE(r);
+    if (!r) return "";
+    EXPECT_EQ(r->status, expected) << r->body;
+    if (r->status != 200) return "";
+    const std::string cookie = r->get_header_value("Set-Cookie");
+    EXPECT_NE(cookie.find("HttpOnly"), std::string::npos);
+    EXPECT_NE(cookie.find("SameSite=Strict"), std::string::npos);
+    client_->set_default_headers({{"Cookie", cookie.substr(0, cookie.find(';'))}});
+    return body(r)["csrf"].get<std::string>();
+  }
+};
+
+TEST_F(HmiAuthTest, OffLoopbackAUsersFileIsRequired) {
+  station_ = std::make_unique<StationHmi>(root_, std::vector<std::string>{"--listen", "0.0.0.0:0"});
+  EXPECT_EQ(station_->waitReady(), 0);
+  EXPECT_EQ(station_->exit_code, 1);
+  EXPECT_NE(station_->log().find("needs a login"), std::string::npos) << station_->log();
+}
+
+TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRefused) {
+  startWithUsers();
+  EXPECT_TRUE(body(client_->Get("/api/session"))["login_required"].get<bool>());
+  // The page itself is public (it shows the login); the API is not.
+  EXPECT_EQ(client_->Get("/")->status, 200);
+  EXPECT_EQ(client_->Get("/api/cell")->status, 401);
+  EXPECT_EQ(client_->Get("/api/runs")->status, 401);
+  EXPECT_EQ(post("/api/verify", "{}", "")->status, 401);
+  EXPECT_EQ(post("/api/scan/start", R"({"part_id": "x"})", "")->status, 401);
+  EXPECT_EQ(client_->Get("/api/actions")->status, 401);
+
+  login("olga", "wrong", 401);
+  login("nobody", "op-secret", 401);
+  const std::string op_csrf = login("olga", "op-secret");
+  ASSERT_FALSE(op_csrf.empty());
+  EXPECT_EQ(client_->Get("/api/cell")->status, 200);
+  // An operator may not verify nor read the actions log.
+  auto verify = post("/api/verify", "{}", op_csrf);
+  ASSERT_TRUE(verify);
+  EXPECT_EQ(verify->status, 403);
+  EXPECT_NE(body(verify)["error"].get<std::string>().find("maintenance"), std::string::npos) << verify->body;
+  EXPECT_EQ(client_->Get("/api/actions")->status, 403);
+  // State-changing requests without the CSRF token, or from another site, are refused.
+  EXPECT_EQ(post("/api/scan/abort", "{}", "")->status, 403);
+  EXPECT_EQ(post("/api/scan/abort", "{}", "forged")->status, 403);
+  EXPECT_EQ(post("/api/scan/abort", "{}", op_csrf, {{"Origin", "http://evil.example"}})->status, 403);
+  // With both, the operator's action goes through (nothing runs: 409, but not refused for rights).
+  EXPECT_EQ(post("/api/scan/abort", "{}", op_csrf)->status, 409);
+  // A forged session cookie is no session.
+  client_->set_default_headers({{"Cookie", "stampscan_session=forged"}});
+  EXPECT_EQ(client_->Get("/api/cell")->status, 401);
+
+  // Maintenance may verify (and abort it again at once).
+  const std::string mt_csrf = login("max", "mt-secret");
+  EXPECT_EQ(post("/api/verify", "{}", "")->status, 403) << "no CSRF token";
+  auto started = post("/api/verify", "{}", mt_csrf);
+  ASSERT_TRUE(started);
+  EXPECT_EQ(started->status, 202) << started->body;
+  EXPECT_EQ(post("/api/scan/abort", "{}", mt_csrf)->status, 202);
+  auto actions = client_->Get("/api/actions");
+  ASSERT_TRUE(actions);
+  EXPECT_EQ(actions->status, 200);
+  // Every action with who did it, the refused ones too.
+  const std::string log = readText(root_ / "runs" / "hmi-actions.jsonl");
+  EXPECT_NE(log.find(R"("action":"refused")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("user":"olga")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("action":"verify start")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("user":"max")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("action":"login refused")"), std::string::npos) << log;
+  EXPECT_EQ(log.find("secret"), std::string::npos) << "passwords never go into the log";
+
+  // After logging out the session is gone.
+  EXPECT_EQ(post("/api/logout", "{}", mt_csrf)->status, 200);
+  EXPECT_EQ(client_->Get("/api/cell")->status, 401);
+}
+
+}  // namespace
+}  // namespace stampscan::hmi::test

@@ -1,0 +1,114 @@
+// The panel's parts that need no cell: sessions and their expiry, the users file, the event hub's
+// bounded queues, the advice for faults.
+#include "stampscan/hmi/auth.hpp"
+#include "stampscan/hmi/cell_jobs.hpp"
+#include "stampscan/hmi/event_hub.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace stampscan::hmi {
+namespace {
+
+std::vector<User> twoUsers() {
+  return {User{"olga", Role::Operator, hashPassword("op-secret")}, User{"max", Role::Maintenance, hashPassword("mt")}};
+}
+
+TEST(HmiAuth, PasswordsAreStoredHashedAndVerified) {
+  const std::string hash = hashPassword("correct horse");
+  EXPECT_EQ(hash.rfind("$argon2id$", 0), 0u);
+  EXPECT_EQ(hash.find("correct horse"), std::string::npos);
+  EXPECT_TRUE(verifyPassword("correct horse", hash));
+  EXPECT_FALSE(verifyPassword("correct horse ", hash));
+  EXPECT_NE(hashPassword("correct horse"), hash) << "each hash has its own salt";
+}
+
+TEST(HmiAuth, LoginGivesASessionWithItsRoleAndCsrfToken) {
+  Authenticator auth(true, twoUsers(), std::chrono::seconds(60));
+  EXPECT_FALSE(auth.login("olga", "wrong"));
+  EXPECT_FALSE(auth.login("nobody", "op-secret"));
+  const auto s = auth.login("olga", "op-secret");
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->role, Role::Operator);
+  EXPECT_NE(s->token, s->csrf);
+  EXPECT_TRUE(auth.session(s->token));
+  EXPECT_FALSE(auth.session("forged"));
+  auth.logout(s->token);
+  EXPECT_FALSE(auth.session(s->token));
+  EXPECT_FALSE(allows(Role::Operator, Role::Maintenance));
+  EXPECT_TRUE(allows(Role::Maintenance, Role::Operator));
+}
+
+TEST(HmiAuth, SessionsExpireWhenIdle) {
+  Authenticator auth(true, twoUsers(), std::chrono::seconds(0));
+  const auto s = auth.login("max", "mt");
+  ASSERT_TRUE(s);
+  EXPECT_FALSE(auth.session(s->token)) << "an idle timeout of 0 ends the session at once";
+}
+
+TEST(HmiAuth, LoopbackNeedsNoLogin) {
+  Authenticator auth(false, {}, std::chrono::seconds(60));
+  const auto s = auth.session("");
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->role, Role::Maintenance);
+  EXPECT_FALSE(s->csrf.empty());
+  EXPECT_TRUE(isLoopbackHost("127.0.0.1"));
+  EXPECT_TRUE(isLoopbackHost("::1"));
+  EXPECT_TRUE(isLoopbackHost("localhost"));
+  EXPECT_FALSE(isLoopbackHost("0.0.0.0"));
+  EXPECT_FALSE(isLoopbackHost("192.168.1.20"));
+}
+
+TEST(HmiAuth, AUsersFileThatIsWrongIsNamed) {
+  const auto file = std::filesystem::temp_directory_path() / "stampscan_hmi_users_test.toml";
+  std::ofstream(file) << "[[user]]\nname = \"olga\"\nrole = \"operator\"\npassword_hash = \"plain\"\n";
+  try {
+    loadUsers(file);
+    ADD_FAILURE() << "a plain password was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("olga"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("password_hash"), std::string::npos) << e.what();
+  }
+  std::ofstream(file) << "[[user]]\nname = \"olga\"\nrole = \"boss\"\npassword_hash = \"" << hashPassword("x") << "\"\n";
+  EXPECT_THROW(loadUsers(file), std::runtime_error);
+  std::filesystem::remove(file);
+}
+
+TEST(HmiEvents, EverySubscriberGetsEveryEventStampedWithItsTime) {
+  EventHub hub;
+  auto a = hub.subscribe(), b = hub.subscribe();
+  hub.publish("progress", R"({"step":1})");
+  for (auto& s : {a, b}) {
+    const auto e = s->next(std::chrono::milliseconds(100));
+    ASSERT_TRUE(e);
+    EXPECT_EQ(e->name, "progress");
+    EXPECT_EQ(e->json.rfind("{\"t_ms\":", 0), 0u) << e->json;
+    EXPECT_NE(e->json.find("\"step\":1"), std::string::npos);
+    EXPECT_NE(formatServerSentEvent(*e).find("event: progress\ndata: {"), std::string::npos);
+  }
+  EXPECT_FALSE(a->next(std::chrono::milliseconds(1)));
+}
+
+TEST(HmiEvents, ASlowSubscriberLosesItsOldestEventsNotTheScan) {
+  EventHub hub(3);
+  auto s = hub.subscribe();
+  for (int i = 0; i < 10; ++i) hub.publish("progress", "{\"step\":" + std::to_string(i) + "}");
+  const auto first = s->next(std::chrono::milliseconds(10));
+  ASSERT_TRUE(first);
+  EXPECT_NE(first->json.find("\"step\":7"), std::string::npos) << first->json;
+  hub.close();
+  EXPECT_TRUE(s->closed());
+}
+
+TEST(HmiAdvice, FaultsComeWithWhatToDo) {
+  EXPECT_NE(faultAdvice("the scan was aborted: door opened").find("Close the cell door"), std::string::npos);
+  EXPECT_NE(faultAdvice("e-stop chain broken").find("emergency stop"), std::string::npos);
+  EXPECT_NE(faultAdvice("light curtain interrupted").find("light curtain"), std::string::npos);
+  EXPECT_NE(faultAdvice("air pressure lost").find("air"), std::string::npos);
+  EXPECT_EQ(faultAdvice("something unheard of"), "");
+}
+
+}  // namespace
+}  // namespace stampscan::hmi
