@@ -217,7 +217,10 @@ TEST_F(StationTest, TheCalibrationInUseIsCheckedByScanAndVerifyAndRenewedByCalib
   EXPECT_NE(run_json.at("calibration").at("digitizer").get<std::string>().find("digitizer.json (record "), std::string::npos);
   EXPECT_LT(run_json.at("accuracy").at("position_rms_mm").get<double>(), 0.05);
   EXPECT_LT(run_json.at("accuracy").at("strain_rms").get<double>(), 0.005);
-  EXPECT_GT(run_json.at("accuracy").at("matched").get<int>(), 300);
+  // As `station scan`'s own test: about 350 elements on a quiet machine, fewer when a loaded one
+  // delays the CMM's reports and the track filter leaves the sweeps' ends out; all of them true.
+  EXPECT_GT(run_json.at("measurement").at("elements").get<int>(), 250);
+  EXPECT_EQ(run_json.at("accuracy").at("matched"), run_json.at("measurement").at("elements"));
 
   // Each damaged variant of the file in use is refused with its reason, and nothing moves.
   const fs::path file = cal / "digitizer.json";
