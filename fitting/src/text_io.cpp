@@ -1,5 +1,7 @@
 // Plain-text clouds: one point a line, columns split by spaces, tabs, commas or semicolons, `#`
-// starting a comment. An optional first line of column names says what each column holds.
+// starting a comment. An optional first line of column names says what each column holds; without
+// one, the count of columns does, as the common exports write them: x y z, x y z strain,
+// x y z nx ny nz, x y z nx ny nz strain.
 #include "stampscan/fitting/text_io.hpp"
 
 #include "io_detail.hpp"
@@ -100,13 +102,19 @@ std::pair<Layout, bool> layoutFromFirstLine(const std::vector<std::string_view>&
     return parseNumber(token, ignored);
   });
   if (numeric == static_cast<std::ptrdiff_t>(tokens.size())) {
-    if (tokens.size() != 3 && tokens.size() != 4) {
+    const std::size_t n = tokens.size();
+    if (n != 3 && n != 4 && n != 6 && n != 7) {
       throw InputError(file, where,
-                       "expected 3 or 4 columns (x y z [strain]), found " + std::to_string(tokens.size()) +
+                       "expected 3, 4, 6 or 7 columns (x y z [nx ny nz] [strain]), found " + std::to_string(n) +
                            "; for other columns, start the file with a line naming them");
     }
     std::vector<Column> columns{{"x", Role::X}, {"y", Role::Y}, {"z", Role::Z}};
-    if (tokens.size() == 4) columns.push_back({"strain", Role::Strain});
+    if (n >= 6) {
+      columns.push_back({"nx", Role::NX});
+      columns.push_back({"ny", Role::NY});
+      columns.push_back({"nz", Role::NZ});
+    }
+    if (n == 4 || n == 7) columns.push_back({"strain", Role::Strain});
     return {layoutFromRoles(std::move(columns), file, where), false};
   }
   if (numeric > 0) {

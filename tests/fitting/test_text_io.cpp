@@ -42,6 +42,22 @@ TEST(TextRead, XyzWithoutHeader) {
   EXPECT_EQ(report.skipped_nonfinite, 0u);
 }
 
+// Without a header, six columns are a point and its normal, seven the same and the strain: the
+// common scanner exports (`x y z nx ny nz`), which need no header line to be read.
+TEST(TextRead, SixOrSevenColumnsAreNormalsAndStrain) {
+  const Cloud normals = parseTextCloud("1 2 3 0 0 1\n4 5 6 0.6 0 0.8\n", "n.xyz");
+  ASSERT_EQ(normals.size(), 2u);
+  ASSERT_TRUE(normals.hasNormals());
+  EXPECT_EQ(normals.normals[1], Vec3(0.6, 0, 0.8));
+  EXPECT_FALSE(normals.hasStrain());
+  EXPECT_NO_THROW(normals.validate());
+  const Cloud both = parseTextCloud("1,2,3,0,1,0,0.05\n4,5,6,1,0,0,-0.01\n", "ns.csv");
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both.normals[0], Vec3(0, 1, 0));
+  EXPECT_EQ(both.strain, (std::vector<double>{0.05, -0.01}));
+  EXPECT_NO_THROW(both.validate());
+}
+
 TEST(TextRead, FourthColumnIsStrain) {
   const Cloud cloud = parseTextCloud("1 2 3 0.01 # first\r\n4 5 6 -0.02\r\n", "s.xyz");
   ASSERT_EQ(cloud.size(), 2u);
@@ -78,7 +94,9 @@ TEST(TextRead, SkipsAndCountsNonFinitePoints) {
 TEST(TextErrors, WrongColumnCount) {
   expectError("1 2 3\n4 5 6\n7 8\n", "line 3", "expected 3 columns (x y z), found 2");
   expectError("# c\n1 2 3 4\n5 6 7\n", "line 3", "expected 4 columns (x y z strain), found 3");
-  expectError("1 2 3 4 5 6\n", "line 1", "expected 3 or 4 columns (x y z [strain]), found 6");
+  expectError("1 2 3 4 5\n", "line 1", "expected 3, 4, 6 or 7 columns (x y z [nx ny nz] [strain]), found 5");
+  expectError("1 2 3 4 5 6 7 8\n", "line 1", "expected 3, 4, 6 or 7 columns (x y z [nx ny nz] [strain]), found 8");
+  expectError("1 2 3 0 0 1\n4 5 6 0 1\n", "line 2", "expected 6 columns (x y z nx ny nz), found 5");
   expectError("x,y,z,q\n1,2,3\n", "line 2", "expected 4 columns (x y z q), found 3");
 }
 

@@ -1,6 +1,7 @@
 // Plain text clouds: whitespace- or comma-separated columns, one point a line, `#` comments.
-// XYZ files: x y z [strain]. CSV files may start with a header line naming the columns
-// (x,y,z and optionally strain, nx, ny, nz); without a header, columns are x,y,z[,strain].
+// A file may start with a header line naming the columns (x, y, z and optionally strain, nx, ny,
+// nz, other scalars by name, in any order); without one, the count of columns says what they are:
+// x y z, x y z strain, x y z nx ny nz, x y z nx ny nz strain.
 #pragma once
 
 #include "stampscan/fitting/cloud.hpp"
