@@ -4,10 +4,10 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
+#include "stampscan/station/calibration_status.hpp"
 #include "stampscan/results/results_store.hpp"
 #include "stampscan/station/commands.hpp"
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -127,62 +127,30 @@ int diff(const CalibrationOptions& o) {
   return 0;
 }
 
-// The calibration in use, sensor by sensor: which record, its verdict, its age against the cell's
-// validity, and the last verification. Exit 2 when a sensor has none that a scan would accept.
+// The calibration in use, sensor by sensor (calibration_status.hpp). Exit 2 when a sensor has none
+// that a scan would accept.
 int status(const CalibrationOptions& o) {
   const acquisition::CellConfig cell = o.cell.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(o.cell);
-  const fs::path dir = o.calibration_dir;
-  const auto now = std::chrono::system_clock::now();
-  bool usable = true;
-  const auto report = [&](const char* sensor, const fs::path& file, const std::string& created,
-                          const registration::CalibrationProvenance& p) {
-    registration::CalibrationExpectation e;
-    e.cell = cell.name;
-    e.sensors = p.sensors;  // the sensors are not asked here: `station scan` compares their serials
-    e.validity_days = cell.calibration.validity_days;
-    e.now = now;
-    const auto problem = registration::calibrationProblem(file, created, p, e);
-    const auto when = registration::parseUtc(created);
-    const double age = when ? std::chrono::duration<double>(now - *when).count() / 86400.0 : 0.0;
-    if (problem) {
-      usable = false;
-      std::printf("  %-11s NOT USABLE: %s; run `station calibrate %s`\n", sensor, problem->c_str(), sensor);
-    } else {
-      std::printf("  %-11s record %s (%s), created %s: %.1f days old, valid %.1f days more\n", sensor,
-                  p.record_id.c_str(), p.verdict.c_str(), created.c_str(), age, cell.calibration.validity_days - age);
-    }
-  };
-  std::printf("calibration in use in %s (cell '%s', valid %g days)\n", dir.c_str(), cell.name.c_str(),
+  const CalibrationStatus st = calibrationStatus(o.calibration_dir, cell);
+  std::printf("calibration in use in %s (cell '%s', valid %g days)\n", o.calibration_dir.c_str(), cell.name.c_str(),
               cell.calibration.validity_days);
-  for (const char* sensor : {"digitizer", "cameras"}) {
-    const fs::path file = dir / (std::string(sensor) + ".json");
-    if (!fs::exists(file)) {
-      usable = false;
-      std::printf("  %-11s none in use; run `station calibrate %s`\n", sensor, sensor);
-      continue;
-    }
-    try {
-      if (std::string(sensor) == "digitizer") {
-        const auto d = registration::loadDigitizerCalibration(file);
-        report(sensor, file, d.created, d.provenance);
-      } else {
-        const auto c = registration::loadCameraCalibration(file);
-        report(sensor, file, c.created, c.provenance);
-      }
-    } catch (const std::exception& e) {
-      usable = false;
-      std::printf("  %-11s NOT USABLE: %s; run `station calibrate %s`\n", sensor, e.what(), sensor);
-    }
+  for (const SensorCalibrationStatus& s : st.sensors) {
+    if (s.usable())
+      std::printf("  %-11s record %s (%s), created %s: %.1f days old, valid %.1f days more\n", s.sensor.c_str(),
+                  s.record_id.c_str(), s.verdict.c_str(), s.created.c_str(), s.age_days,
+                  cell.calibration.validity_days - s.age_days);
+    else if (!s.problem)
+      std::printf("  %-11s none in use; run `station calibrate %s`\n", s.sensor.c_str(), s.sensor.c_str());
+    else
+      std::printf("  %-11s NOT USABLE: %s; run `station calibrate %s`\n", s.sensor.c_str(), s.problem->c_str(),
+                  s.sensor.c_str());
   }
-  const registration::RecordListing listing = registration::listCalibrationRecords(historyOf(o.calibration_dir));
-  const registration::CalibrationRecord* last = nullptr;
-  for (const auto& r : listing.records)
-    if (r.kind == "verification") last = &r;
-  if (last)
-    std::printf("  %-11s last %s: %s\n", "verified", last->id.c_str(), registration::toString(last->verdict));
+  if (st.last_verification)
+    std::printf("  %-11s last %s: %s\n", "verified", st.last_verification->id.c_str(),
+                registration::toString(st.last_verification->verdict));
   else
     std::printf("  %-11s never (`station verify` checks the calibration in use)\n", "verified");
-  return usable ? 0 : 2;
+  return st.allUsable() ? 0 : 2;
 }
 
 }  // namespace
