@@ -91,6 +91,11 @@ TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
   EXPECT_TRUE(cell["plc"]["interlocks"]["e_stop_ok"].get<bool>());
   EXPECT_TRUE(cell["plc"]["stack_light"].is_object());
   EXPECT_EQ(cell["calibration"]["verdict"], "not verified");
+  // Each sensor's calibration in use, as a scan would judge it: none stored yet.
+  ASSERT_EQ(cell["calibration"]["sensors"].size(), 2u);
+  EXPECT_EQ(cell["calibration"]["sensors"][0]["sensor"], "digitizer");
+  EXPECT_FALSE(cell["calibration"]["sensors"][0]["in_use"].get<bool>());
+  EXPECT_FALSE(cell["calibration"]["sensors"][1]["usable"].get<bool>());
   EXPECT_FALSE(cell["job"]["busy"].get<bool>());
 }
 

@@ -71,7 +71,7 @@ void addApiRoutes(HmiServer::Impl& impl) {
     sendJson(res, {{"materials", names}, {"default", report::kDefaultMaterial}});
   });
   s.Get("/api/calibration", [&impl](const httplib::Request&, httplib::Response& res) {
-    json j = calibrationJson(impl.jobs.setup().calibration_dir);
+    json j = calibrationJson(impl.jobs.setup().calibration_dir, impl.jobs.cell().config());
     j["verify_available"] = impl.jobs.setup().verify.has_value();
     sendJson(res, j);
   });

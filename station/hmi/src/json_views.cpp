@@ -2,6 +2,7 @@
 
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
+#include "stampscan/station/calibration_status.hpp"
 
 namespace stampscan::hmi {
 
@@ -36,7 +37,7 @@ json devicesJson(acquisition::Cell& cell) {
                       deviceJson(cell.leftCamera()), deviceJson(cell.rightCamera())});
 }
 
-json calibrationJson(const fs::path& calibration_dir) {
+json calibrationJson(const fs::path& calibration_dir, const acquisition::CellConfig& cell) {
   json j;
   const fs::path stored = calibration_dir / "digitizer.json";
   std::error_code ec;
@@ -61,6 +62,19 @@ json calibrationJson(const fs::path& calibration_dir) {
   j["last_verification"] = last_verification;
   j["verdict"] = last_verification.is_null() ? "not verified" : last_verification["verdict"].get<std::string>();
   j["records"] = listing.records.size();
+  // Each sensor's calibration in use as a scan would judge it (station/calibration_status.hpp).
+  json sensors = json::array();
+  for (const station::SensorCalibrationStatus& s : station::calibrationStatus(calibration_dir, cell).sensors)
+    sensors.push_back({{"sensor", s.sensor},
+                       {"in_use", s.in_use},
+                       {"usable", s.usable()},
+                       {"record_id", s.record_id},
+                       {"verdict", s.verdict},
+                       {"created", s.created},
+                       {"age_days", s.age_days},
+                       {"valid_days", cell.calibration.validity_days},
+                       {"problem", s.problem ? json(*s.problem) : json(nullptr)}});
+  j["sensors"] = sensors;
   return j;
 }
 
@@ -89,7 +103,7 @@ json cellJson(const CellJobs& jobs) {
     }
   }
   j["plc"] = plc_json;
-  j["calibration"] = calibrationJson(jobs.setup().calibration_dir);
+  j["calibration"] = calibrationJson(jobs.setup().calibration_dir, cell.config());
   return j;
 }
 

@@ -16,7 +16,8 @@ nlohmann::json devicesJson(acquisition::Cell& cell);
 // The devices, the interlocks and stack light as the PLC reports them (read now when the PLC is
 // connected and idle; else its watchdog's last reading), the calibration in use and its verdict.
 nlohmann::json cellJson(const CellJobs& jobs);
-nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir);
+// The calibration in use (each sensor as a scan would judge it, on this cell's rules) and the last records.
+nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir, const acquisition::CellConfig& cell);
 nlohmann::json runRecordJson(const results::RunRecord& r);
 nlohmann::json statusJson(const JobStatus& s);
 

@@ -92,7 +92,12 @@ function calibrationHtml(cal) {
   const v = cal.last_verification;
   const cls = cal.verdict === 'passed' ? 'ok' : cal.verdict === 'not verified' ? 'warn' : 'bad';
   let html = `<div class="chips"><span class="chip ${cls}">Verification: ${esc(cal.verdict)}</span>` +
-    `<span class="chip">In use: ${esc(cal.in_use.file || cal.in_use.note)}</span></div>`;
+    `<span class="chip">In use: ${esc(cal.in_use.file || cal.in_use.note)}</span>` +
+    (cal.sensors || []).map((s) => {
+      if (s.usable) return `<span class="chip ok">${esc(s.sensor)}: ${esc(s.record_id)}, valid ${num(s.valid_days - s.age_days, 1)} days more</span>`;
+      if (!s.in_use) return `<span class="chip warn">${esc(s.sensor)}: none in use (scans calibrate on their own scenes)</span>`;
+      return `<span class="chip bad">${esc(s.sensor)}: ${esc(s.problem)}: run station calibrate ${esc(s.sensor)}</span>`;
+    }).join('') + '</div>';
   if (v) html += '<table class="table"><tr><th>Check</th><th>Value</th><th>MPE</th><th></th></tr>' +
     v.checks.map((c) => `<tr><td>${esc(c.name)}</td><td>${num(c.value, 4)} ${esc(c.unit)}</td><td>${num(c.limit, 4)}</td><td>${c.passed ? 'PASS' : 'FAIL'}</td></tr>`).join('') +
     `</table><small>${esc(v.id)}, ${esc(v.created)}</small>`;
