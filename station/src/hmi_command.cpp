@@ -124,6 +124,21 @@ CommandRunner addHmiCommand(CLI::App& app) {
     applySphereCertificate(config.calibration, verify.run.session);
     verify.results_database = calibrationResultsDatabase(config.results_database, setup.calibration_dir);
     setup.verify = verify;
+    // The calibration: the calibration scenes of a full session (every sphere sweep and plate view)
+    // at the hosted cameras' resolution, as `station calibrate` with that world.
+    sim::ScanParams calibration_world = world;
+    calibration_world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    calibration_world.plate_poses = sim::ScanParams{}.plate_poses;
+    CalibrateJobOptions calibrate;
+    calibrate.plan = calibrationScenesOf(sim::planScan(calibration_world), true, true);
+    calibrate.run.limits = config.limits;
+    calibrate.run.session = sim::describeSession(calibration_world);
+    calibrate.run.session.part_id = "calibration";
+    applySphereCertificate(config.calibration, calibrate.run.session);
+    calibrate.calibration_dir = setup.calibration_dir;
+    calibrate.policy = config.calibration;
+    calibrate.results_database = verify.results_database;
+    setup.calibrate = calibrate;
 
     // The embedded virtual cell first: hosting may re-execute this program (umockdev).
     std::unique_ptr<HostedVirtualCell> hosted;

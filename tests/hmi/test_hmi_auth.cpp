@@ -3,7 +3,9 @@
 // token and this server's Origin; every action is recorded with who did it.
 #include "hmi_test_support.hpp"
 
+#include <chrono>
 #include <cstdio>
+#include <thread>
 
 namespace stampscan::hmi::test {
 namespace {
@@ -60,6 +62,7 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   EXPECT_EQ(client_->Get("/api/cell")->status, 401);
   EXPECT_EQ(client_->Get("/api/runs")->status, 401);
   EXPECT_EQ(post("/api/verify", "{}", "")->status, 401);
+  EXPECT_EQ(post("/api/calibrate", "{}", "")->status, 401);
   EXPECT_EQ(post("/api/scan/start", R"({"part_id": "x"})", "")->status, 401);
   EXPECT_EQ(client_->Get("/api/actions")->status, 401);
 
@@ -74,6 +77,9 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   EXPECT_EQ(verify->status, 403);
   EXPECT_NE(body(verify)["error"].get<std::string>().find("maintenance"), std::string::npos) << verify->body;
   EXPECT_EQ(client_->Get("/api/actions")->status, 403);
+  auto calibrate = post("/api/calibrate", R"({"sensors": "digitizer"})", op_csrf);
+  ASSERT_TRUE(calibrate);
+  EXPECT_EQ(calibrate->status, 403) << calibrate->body;
   // State-changing requests without the CSRF token, or from another site, are refused.
   EXPECT_EQ(post("/api/scan/abort", "{}", "")->status, 403);
   EXPECT_EQ(post("/api/scan/abort", "{}", "forged")->status, 403);
@@ -91,6 +97,19 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   ASSERT_TRUE(started);
   EXPECT_EQ(started->status, 202) << started->body;
   EXPECT_EQ(post("/api/scan/abort", "{}", mt_csrf)->status, 202);
+  // ... and calibrate, once the verification has ended: a bad request is named, a good one starts.
+  for (int i = 0; i < 600 && body(client_->Get("/api/status"))["busy"].get<bool>(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  auto bad = post("/api/calibrate", R"({"sensors": "lens"})", mt_csrf);
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400) << bad->body;
+  EXPECT_NE(body(bad)["error"].get<std::string>().find("lens"), std::string::npos) << bad->body;
+  EXPECT_EQ(post("/api/calibrate", R"({"accept": "yes"})", mt_csrf)->status, 400);
+  auto calibrating = post("/api/calibrate", R"({"sensors": "digitizer"})", mt_csrf);
+  ASSERT_TRUE(calibrating);
+  EXPECT_EQ(calibrating->status, 202) << calibrating->body;
+  EXPECT_EQ(body(calibrating)["job"]["kind"], "calibrate") << calibrating->body;
+  EXPECT_EQ(post("/api/scan/abort", "{}", mt_csrf)->status, 202);
   auto actions = client_->Get("/api/actions");
   ASSERT_TRUE(actions);
   EXPECT_EQ(actions->status, 200);
@@ -99,6 +118,7 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   EXPECT_NE(log.find(R"("action":"refused")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("user":"olga")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("action":"verify start")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("action":"calibrate start")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("user":"max")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("action":"login refused")"), std::string::npos) << log;
   EXPECT_EQ(log.find("secret"), std::string::npos) << "passwords never go into the log";

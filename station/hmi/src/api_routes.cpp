@@ -1,5 +1,5 @@
 // The cell and its jobs: GET /api/cell, /api/status, /api/materials, /api/calibration;
-// POST /api/scan/start, /api/scan/abort, /api/verify; GET /api/actions. See API.md.
+// POST /api/scan/start, /api/scan/abort, /api/verify, /api/calibrate; GET /api/actions. See API.md.
 #include "json_views.hpp"
 #include "server_impl.hpp"
 #include "stampscan/report/material.hpp"
@@ -90,6 +90,23 @@ void addApiRoutes(HmiServer::Impl& impl) {
       return sendError(res, 409, *refused);
     }
     impl.recordAction(who, "verify start", json::object(), req);
+    sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
+  });
+  s.Post("/api/calibrate", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const Session who = *impl.sessionOf(req);
+    const json body = json::parse(req.body.empty() ? std::string("{}") : req.body, nullptr, false);
+    if (body.is_discarded() || !body.is_object()) return sendError(res, 400, "the body is not a JSON object");
+    if ((body.contains("sensors") && !body["sensors"].is_string()) || (body.contains("accept") && !body["accept"].is_boolean()))
+      return sendError(res, 400, "\"sensors\" must be a string (digitizer, cameras, all) and \"accept\" true or false");
+    const std::string sensors = body.value("sensors", std::string("all"));
+    const bool accept = body.value("accept", false);
+    if (sensors != "digitizer" && sensors != "cameras" && sensors != "all")
+      return sendError(res, 400, "\"sensors\" must be digitizer, cameras or all, not \"" + sensors + "\"");
+    if (const auto refused = impl.jobs.startCalibrate(sensors, accept, who.user)) {
+      impl.recordAction(who, "calibrate refused", {{"reason", *refused}, {"sensors", sensors}}, req);
+      return sendError(res, 409, *refused);
+    }
+    impl.recordAction(who, "calibrate start", {{"sensors", sensors}, {"accept", accept}}, req);
     sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
   });
   s.Get("/api/actions", [&impl](const httplib::Request&, httplib::Response& res) {

@@ -139,6 +139,25 @@ std::optional<std::string> CellJobs::startVerify(const std::string& user) {
   return std::nullopt;
 }
 
+std::optional<std::string> CellJobs::startCalibrate(const std::string& sensors, bool accept, const std::string& user) {
+  if (!setup_.calibrate) return std::string("this cell offers no calibration");
+  if (sensors != "digitizer" && sensors != "cameras" && sensors != "all")
+    return std::string("sensors must be digitizer, cameras or all, not '") + sensors + "'";
+  station::CalibrateJobOptions options = *setup_.calibrate;
+  options.digitizer = sensors != "cameras";
+  options.cameras = sensors != "digitizer";
+  try {
+    options.plan = station::calibrationScenesOf(options.plan, options.digitizer, options.cameras);
+  } catch (const std::exception& e) {
+    return std::string(e.what());
+  }
+  options.accepted_by = accept ? user + " (on the panel)" : "";
+  if (auto refused = begin("calibrate", user, "")) return refused;
+  hub_.publish("started", json{{"kind", "calibrate"}, {"user", user}, {"sensors", sensors}}.dump());
+  worker_ = std::thread(&CellJobs::runCalibrate, this, std::move(options), user);
+  return std::nullopt;
+}
+
 std::optional<std::string> CellJobs::abort(const std::string& reason) {
   std::lock_guard lock(mutex_);
   if (!status_.busy) return std::string("nothing is running");
@@ -146,6 +165,7 @@ std::optional<std::string> CellJobs::abort(const std::string& reason) {
     return std::string("the scan's motion is over: it is being measured and ends by itself in a few seconds");
   if (scan_ != nullptr) scan_->abort(reason);
   else if (verify_ != nullptr) verify_->abort(reason);
+  else if (calibrate_ != nullptr) calibrate_->abort(reason);
   else pending_abort_ = reason;  // before the job object exists: it takes the abort as it starts
   return std::nullopt;
 }
@@ -161,6 +181,7 @@ void CellJobs::finish(const std::string& event_json) {
     status_ = JobStatus{};
     scan_ = nullptr;
     verify_ = nullptr;
+    calibrate_ = nullptr;
   }
   hub_.publish("finished", event_json);
 }
@@ -264,6 +285,53 @@ void CellJobs::runVerify(std::string user) {
     for (const auto& c : r.record.checks)
       checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
     done["checks"] = checks;
+  } catch (const std::exception& e) {
+    done["error"] = e.what();
+    done["advice"] = faultAdvice(e.what());
+  }
+  finish(done.dump());
+}
+
+void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string user) {
+  json done = {{"kind", "calibrate"}, {"user", user}, {"ok", false}};
+  try {
+    std::lock_guard cell_lock(cell_mutex_);
+    HubObserver observer(hub_, *setup_.cell, "calibrate");
+    station::CalibrateJob job(*setup_.cell, &observer);
+    {
+      std::lock_guard lock(mutex_);
+      calibrate_ = &job;
+      if (pending_abort_) job.abort(*pending_abort_);
+    }
+    station::CalibrateJobResult r;
+    try {
+      r = job.run(options);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      calibrate_ = nullptr;
+      throw;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      calibrate_ = nullptr;
+    }
+    done["ok"] = true;
+    json sensors = json::array();
+    for (const auto* sensor : {&r.digitizer, &r.cameras}) {
+      if (!*sensor) continue;
+      const station::SensorCalibration& s = **sensor;
+      json checks = json::array();
+      for (const auto& c : s.record.checks)
+        checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
+      sensors.push_back({{"sensor", s.record.kind},
+                         {"record_id", s.record.id},
+                         {"verdict", registration::toString(s.record.verdict)},
+                         {"in_use", s.in_use},
+                         {"checks", checks},
+                         {"left_out", s.left_out},
+                         {"drift", s.drift}});
+    }
+    done["sensors"] = sensors;
   } catch (const std::exception& e) {
     done["error"] = e.what();
     done["advice"] = faultAdvice(e.what());

@@ -50,7 +50,8 @@ std::string cookieValue(const httplib::Request& req, const std::string& name) {
 // What a route needs of the caller: nothing (the page, the login), a session, or the maintenance role.
 std::optional<Role> neededRole(const httplib::Request& req) {
   const std::string& p = req.path;
-  if (p == "/api/verify" || p == "/api/actions" || p == "/api/settings") return Role::Maintenance;
+  if (p == "/api/verify" || p == "/api/calibrate" || p == "/api/actions" || p == "/api/settings")
+    return Role::Maintenance;
   return Role::Operator;
 }
 

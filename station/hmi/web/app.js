@@ -114,6 +114,7 @@ function setBusy(busy, job) {
   $('start').disabled = busy;
   $('abort').disabled = !busy;
   $('verify').disabled = busy;
+  $('calibrate').disabled = busy;
   if (busy && job) document.body.dataset.job = job.kind;
   else delete document.body.dataset.job;
 }
@@ -151,6 +152,7 @@ function onProgress(p) {
 function onFinished(f) {
   setBusy(false);
   if (f.kind === 'verify') { showVerify(f); return; }
+  if (f.kind === 'calibrate') { showCalibrate(f); return; }
   $('bar-fill').style.width = f.ok ? '100%' : $('bar-fill').style.width;
   if (f.error) { showFault(f.error, f.advice); log(`ended: ${f.error}`); }
   else log(`done: ${f.verdict || ''} ${f.verdict_reason || ''}`);
@@ -372,6 +374,20 @@ function showVerify(f) {
   loadMaintenance();
   pollCell();
 }
+function showCalibrate(f) {
+  $('verify-result').innerHTML = f.error ? `<div class="fault">${esc(f.error)}</div>` :
+    '<div class="chips">' + f.sensors.map((s) =>
+      `<span class="chip ${s.in_use ? 'ok' : 'bad'}">Calibration of the ${esc(s.sensor)} ${esc(s.verdict)}` +
+      `${s.in_use ? ', now in use' : ', NOT in use'} (${esc(s.record_id)})</span>` +
+      s.drift.map((d) => `<span class="chip warn">Drift: ${esc(d)}</span>`).join('')).join('') + '</div>';
+  loadMaintenance();
+  pollCell();
+}
+$('calibrate').addEventListener('click', async () => {
+  $('verify-result').textContent = 'Calibrating the digitizer on the reference sphere…';
+  const r = await api('/api/calibrate', { body: { sensors: 'digitizer' } });
+  if (!r.ok) $('verify-result').innerHTML = `<div class="fault">${esc(r.body.error)}</div>`;
+});
 $('verify').addEventListener('click', async () => {
   $('verify-result').textContent = 'Verifying on the reference sphere…';
   const r = await api('/api/verify', { body: {} });

@@ -9,6 +9,7 @@
 
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/hmi/event_hub.hpp"
+#include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/scan_job.hpp"
 #include "stampscan/station/verify_job.hpp"
 
@@ -28,6 +29,9 @@ struct CellSetup {
   station::ScanJobOptions scan;
   // The verification's sphere sweeps; absent: the cell offers no verify.
   std::optional<station::VerifyJobOptions> verify;
+  // The calibration: its plan holds every calibration scene (sphere sweeps, plate views); each
+  // request takes the scenes of the sensors it asks for. Absent: the cell offers no calibrate.
+  std::optional<station::CalibrateJobOptions> calibrate;
   // digitizer.json in use and history/ of calibration records.
   std::filesystem::path calibration_dir = "stampscan-runs/calibration";
 };
@@ -38,7 +42,7 @@ struct ScanRequest {
 
 struct JobStatus {
   bool busy = false;
-  std::string kind;      // "scan" or "verify" while busy
+  std::string kind;      // "scan", "verify" or "calibrate" while busy
   std::string user;      // who started it
   std::string part_id;   // of a scan
   std::string run_id;    // once the scan has its folder
@@ -59,6 +63,9 @@ class CellJobs {
   // Nothing when started; otherwise why not, in one line (another job runs, no verify on this cell).
   std::optional<std::string> startScan(const ScanRequest& request, const std::string& user);
   std::optional<std::string> startVerify(const std::string& user);
+  // `sensors`: "digitizer", "cameras" or "all"; with `accept`, a calibration that fails its limits
+  // is put in use anyway, recorded as accepted by `user`.
+  std::optional<std::string> startCalibrate(const std::string& sensors, bool accept, const std::string& user);
   // Nothing when the running job is told to stop; otherwise why not (nothing runs, or the scan's
   // motion is over and only its measuring remains, which ends by itself).
   std::optional<std::string> abort(const std::string& reason);
@@ -70,6 +77,7 @@ class CellJobs {
   std::optional<std::string> begin(const std::string& kind, const std::string& user, const std::string& part_id);
   void runScan(ScanRequest request, std::string user);
   void runVerify(std::string user);
+  void runCalibrate(station::CalibrateJobOptions options, std::string user);
   void finish(const std::string& event_json);
 
   CellSetup setup_;
@@ -79,6 +87,7 @@ class CellJobs {
   JobStatus status_;
   station::ScanJob* scan_ = nullptr;      // while a scan runs
   station::VerifyJob* verify_ = nullptr;  // while a verify runs
+  station::CalibrateJob* calibrate_ = nullptr;  // while a calibration runs
   std::optional<std::string> pending_abort_;
   std::thread worker_, connector_;
 };
