@@ -85,11 +85,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     job.history = dir / "history";
     job.results_database = calibrationResultsDatabase(config.results_database, dir);
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
-    if (!opt->calibration.empty() || fs::exists(stored)) {
-      const registration::DigitizerCalibrationFile file = registration::loadDigitizerCalibration(stored);
-      job.calibration = file.calibration;
-      job.calibration_source = stored.string() + " (created " + file.created + ")";
-    }
+    if (!opt->calibration.empty() || fs::exists(stored)) verifyWithCalibration(job, stored);
 
     // The stereo pair too when its calibration is in use: three views of the plate, the virtual
     // cameras at the resolution they were calibrated at.

@@ -54,6 +54,12 @@ acquisition::ScanPlan verificationStepsOf(const acquisition::ScanPlan& plan, std
   return out;
 }
 
+void verifyWithCalibration(VerifyJobOptions& options, const fs::path& file) {
+  const registration::DigitizerCalibrationFile stored = registration::loadDigitizerCalibration(file);
+  options.calibration = stored.calibration;
+  options.calibration_source = file.string() + " (created " + stored.created + ")";
+}
+
 VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer)
     : cell_(cell), traced_(cell, observer) {}
 

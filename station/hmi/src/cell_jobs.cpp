@@ -123,6 +123,25 @@ std::optional<std::string> CellJobs::begin(const std::string& kind, const std::s
   return std::nullopt;
 }
 
+class CellJobs::RunningJob {
+ public:
+  template <typename Job>
+  RunningJob(CellJobs& jobs, Job& job) : jobs_(jobs) {
+    std::lock_guard lock(jobs_.mutex_);
+    jobs_.abort_running_ = [&job](const std::string& reason) { job.abort(reason); };
+    if (jobs_.pending_abort_) job.abort(*jobs_.pending_abort_);
+  }
+  ~RunningJob() {
+    std::lock_guard lock(jobs_.mutex_);
+    jobs_.abort_running_ = nullptr;
+  }
+  RunningJob(const RunningJob&) = delete;
+  RunningJob& operator=(const RunningJob&) = delete;
+
+ private:
+  CellJobs& jobs_;
+};
+
 std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const std::string& user) {
   if (auto refused = begin("scan", user, request.part_id)) return refused;
   hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"part_id", request.part_id},
@@ -163,9 +182,7 @@ std::optional<std::string> CellJobs::abort(const std::string& reason) {
   if (!status_.busy) return std::string("nothing is running");
   if (status_.measuring)
     return std::string("the scan's motion is over: it is being measured and ends by itself in a few seconds");
-  if (scan_ != nullptr) scan_->abort(reason);
-  else if (verify_ != nullptr) verify_->abort(reason);
-  else if (calibrate_ != nullptr) calibrate_->abort(reason);
+  if (abort_running_) abort_running_(reason);
   else pending_abort_ = reason;  // before the job object exists: it takes the abort as it starts
   return std::nullopt;
 }
@@ -179,9 +196,6 @@ void CellJobs::finish(const std::string& event_json) {
   {
     std::lock_guard lock(mutex_);
     status_ = JobStatus{};
-    scan_ = nullptr;
-    verify_ = nullptr;
-    calibrate_ = nullptr;
   }
   hub_.publish("finished", event_json);
 }
@@ -206,22 +220,10 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
           status_.measuring = true;
         });
     station::ScanJob job(*setup_.cell, &observer);
-    {
-      std::lock_guard lock(mutex_);
-      scan_ = &job;
-      if (pending_abort_) job.abort(*pending_abort_);
-    }
     station::ScanJobResult r;
-    try {
-      r = job.run(options);
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      scan_ = nullptr;
-      throw;
-    }
     {
-      std::lock_guard lock(mutex_);
-      scan_ = nullptr;
+      const RunningJob running(*this, job);
+      r = job.run(options);
     }
     done["run_id"] = r.run_dir.filename().string();
     done["elements"] = r.elements;
@@ -253,38 +255,19 @@ void CellJobs::runVerify(std::string user) {
     std::lock_guard cell_lock(cell_mutex_);
     station::VerifyJobOptions options = *setup_.verify;
     options.history = setup_.calibration_dir / "history";
-    const fs::path stored = setup_.calibration_dir / "digitizer.json";
-    if (fs::exists(stored)) {
-      const registration::DigitizerCalibrationFile file = registration::loadDigitizerCalibration(stored);
-      options.calibration = file.calibration;
-      options.calibration_source = stored.string() + " (created " + file.created + ")";
-    }
+    if (const fs::path stored = setup_.calibration_dir / "digitizer.json"; fs::exists(stored))
+      station::verifyWithCalibration(options, stored);
     HubObserver observer(hub_, *setup_.cell, "verify");
     station::VerifyJob job(*setup_.cell, &observer);
-    {
-      std::lock_guard lock(mutex_);
-      verify_ = &job;
-      if (pending_abort_) job.abort(*pending_abort_);
-    }
     station::VerifyJobResult r;
-    try {
-      r = job.run(options);
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      verify_ = nullptr;
-      throw;
-    }
     {
-      std::lock_guard lock(mutex_);
-      verify_ = nullptr;
+      const RunningJob running(*this, job);
+      r = job.run(options);
     }
     done["ok"] = true;
     done["record_id"] = r.record.id;
     done["verdict"] = registration::toString(r.record.verdict);
-    json checks = json::array();
-    for (const auto& c : r.record.checks)
-      checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
-    done["checks"] = checks;
+    done["checks"] = checksJson(r.record.checks);
   } catch (const std::exception& e) {
     done["error"] = e.what();
     done["advice"] = faultAdvice(e.what());
@@ -298,36 +281,21 @@ void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string us
     std::lock_guard cell_lock(cell_mutex_);
     HubObserver observer(hub_, *setup_.cell, "calibrate");
     station::CalibrateJob job(*setup_.cell, &observer);
-    {
-      std::lock_guard lock(mutex_);
-      calibrate_ = &job;
-      if (pending_abort_) job.abort(*pending_abort_);
-    }
     station::CalibrateJobResult r;
-    try {
-      r = job.run(options);
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      calibrate_ = nullptr;
-      throw;
-    }
     {
-      std::lock_guard lock(mutex_);
-      calibrate_ = nullptr;
+      const RunningJob running(*this, job);
+      r = job.run(options);
     }
     done["ok"] = true;
     json sensors = json::array();
     for (const auto* sensor : {&r.digitizer, &r.cameras}) {
       if (!*sensor) continue;
       const station::SensorCalibration& s = **sensor;
-      json checks = json::array();
-      for (const auto& c : s.record.checks)
-        checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
       sensors.push_back({{"sensor", s.record.kind},
                          {"record_id", s.record.id},
                          {"verdict", registration::toString(s.record.verdict)},
                          {"in_use", s.in_use},
-                         {"checks", checks},
+                         {"checks", checksJson(s.record.checks)},
                          {"left_out", s.left_out},
                          {"drift", s.drift}});
     }

@@ -23,14 +23,19 @@ json deviceJson(const drivers::Device& d) {
 }
 
 json recordSummary(const registration::CalibrationRecord& r) {
-  json checks = json::array();
-  for (const auto& c : r.checks)
-    checks.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
+  const json checks = checksJson(r.checks);
   return {{"id", r.id}, {"kind", r.kind}, {"created", r.created}, {"verdict", registration::toString(r.verdict)},
           {"calibration", r.calibration}, {"checks", checks}};
 }
 
 }  // namespace
+
+json checksJson(const std::vector<registration::RecordCheck>& checks) {
+  json out = json::array();
+  for (const auto& c : checks)
+    out.push_back({{"name", c.name}, {"value", c.value}, {"limit", c.limit}, {"unit", c.unit}, {"passed", c.passed}});
+  return out;
+}
 
 json devicesJson(acquisition::Cell& cell) {
   return json::array({deviceJson(cell.cmm()), deviceJson(cell.plc()), deviceJson(cell.digitizer()),

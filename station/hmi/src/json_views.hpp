@@ -3,6 +3,7 @@
 
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/hmi/cell_jobs.hpp"
+#include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/results/results_store.hpp"
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,8 @@ nlohmann::json devicesJson(acquisition::Cell& cell);
 // The devices, the interlocks and stack light as the PLC reports them (read now when the PLC is
 // connected and idle; else its watchdog's last reading), the calibration in use and its verdict.
 nlohmann::json cellJson(const CellJobs& jobs);
+// A record's checks against their limits, as the page shows them.
+nlohmann::json checksJson(const std::vector<registration::RecordCheck>& checks);
 // The calibration in use (each sensor as a scan would judge it, on this cell's rules) and the last records.
 nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir, const acquisition::CellConfig& cell);
 nlohmann::json runRecordJson(const results::RunRecord& r);

@@ -79,6 +79,10 @@ struct VerifyJobResult {
   std::string history_error;  // why the record is not a row of the results database ("" when it is)
 };
 
+// The verification of the digitizer calibration in `file` (digitizer.json): sets the options'
+// calibration and names its source. Throws std::runtime_error naming the file when it cannot be read.
+void verifyWithCalibration(VerifyJobOptions& options, const std::filesystem::path& file);
+
 class VerifyJob {
  public:
   VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer = nullptr);

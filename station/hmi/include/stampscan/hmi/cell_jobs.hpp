@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <functional>
 #include <optional>
 #include <string>
 #include <thread>
@@ -85,9 +86,10 @@ class CellJobs {
   std::mutex cell_mutex_;  // held by whoever drives the cell's devices: the connect, or a job
   mutable std::mutex mutex_;
   JobStatus status_;
-  station::ScanJob* scan_ = nullptr;      // while a scan runs
-  station::VerifyJob* verify_ = nullptr;  // while a verify runs
-  station::CalibrateJob* calibrate_ = nullptr;  // while a calibration runs
+  // The running job's abort (a scan, verify or calibrate job), set while its run() is under way.
+  std::function<void(const std::string&)> abort_running_;
+  // Registers a job's abort for as long as it lives (and hands it an abort asked before it existed).
+  class RunningJob;
   std::optional<std::string> pending_abort_;
   std::thread worker_, connector_;
 };
