@@ -4,6 +4,7 @@
 #include "stampscan/fitting/local_fit.hpp"
 #include "stampscan/fitting/quadric_patch.hpp"
 
+#include "cell_pyramid.hpp"
 #include "robust_patch_fit.hpp"
 #include "spanning_orientation.hpp"
 
@@ -57,6 +58,10 @@ struct AnchoredSurface::Impl {
   std::vector<Vec3> probe_points;
   std::unique_ptr<KdTree> probe_tree;
   std::unique_ptr<BandwidthField> h_field;
+  // After widening: the narrow field the point fits use (h_field then holds the wide one).
+  std::unique_ptr<BandwidthField> narrow_field;
+  std::unique_ptr<detail::CellPyramid> pyramid;
+  double step_tolerance = 0;  // mm: a projection has converged when a step is below this
   std::vector<double> noise_floor;        // residual variance floor seen by each probe
   std::vector<double> curvature_limited;  // 1 where misfit, not the point count, limited h
   double h0 = 1;  // bandwidth of level 0
@@ -72,6 +77,7 @@ struct AnchoredSurface::Impl {
     QuadricPatch surface;
     double strain = std::numeric_limits<double>::quiet_NaN();
     Vec3 strain_gradient = Vec3::Zero();
+    double noise_floor = 0;  // residual variance the probes saw here
   };
   std::vector<Anchor> anchors;              // sorted by key
   std::vector<std::size_t> adjacency_offset;  // CSR: anchors near each anchor, itself first
@@ -86,7 +92,10 @@ struct AnchoredSurface::Impl {
   // limited h: there the quadrics hold over a shorter distance and need closer neighbours.
   static int tierOf(int level, bool fine) { return 2 * level + (fine ? 1 : 0); }
   double cellSize(int tier) const {
-    const double spacing = tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
+    // Wide patches are read closer to their centres: the shape's cubic terms, which cancel at the
+    // centre of a symmetric support, grow with the distance from it.
+    const double spacing = pyramid ? params.wide_anchor_spacing
+                                   : tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
     return spacing * h0 * std::pow(params.scale_step, tier / 2);
   }
   int levelFor(double h) const {
@@ -108,6 +117,10 @@ struct AnchoredSurface::Impl {
   void chooseBandwidths(AnchoredStats& stats);
   void buildAnchors();
   void fitAnchors(const Progress& progress);
+  std::vector<float> pointWeights() const;
+  void widenBandwidths(AnchoredStats& stats, const Progress& progress);
+  void fitAnchorsOnCells(const Progress& progress);
+  const BandwidthField& pointField() const { return narrow_field ? *narrow_field : *h_field; }
   void linkAnchors();
   std::size_t orientAnchors();
   Projection blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const;
@@ -227,6 +240,7 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
       anchor.h = h_field->at(anchor.centre, 4);
       // The noise floor the probes saw here.
       const double floor = h_field->interpolateOther(anchor.centre, noise_floor, 4);
+      anchor.noise_floor = floor;
       // A fit that fails (too few points, or too few kept) is retried wider, a few times, as long as
       // the wider fit still explains its neighbourhood (a wide fit over a tight radius would not, and
       // is worse than leaving the cell to its neighbours).
@@ -256,6 +270,88 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
       anchor.surface = fit->surface;
       anchor.strain = fit->strain;
       anchor.strain_gradient = fit->strain_gradient;
+    }
+  });
+  if (progress) progress("anchors", 1.0);
+}
+
+std::vector<float> AnchoredSurface::Impl::pointWeights() const {
+  // Tukey's biweight of each point's residual from its narrow, robust patch, against the noise
+  // there: outliers get no weight in the wide fits, whose cells could not single them out.
+  std::vector<float> weights(points.size(), 0.0f);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const Anchor& a = anchors[anchor_of_point[i]];
+      if (!a.valid) continue;  // no fit took this cell: an outlier alone, or too sparse to judge
+      const double sigma = std::sqrt(std::max(a.noise_floor, 1e-12));
+      const double r = a.surface.signedDistance(points[i]) / (4.685 * sigma);
+      weights[i] = r * r < 1.0 ? static_cast<float>((1.0 - r * r) * (1.0 - r * r)) : 0.0f;
+    }
+  });
+  return weights;
+}
+
+void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress& progress) {
+  const std::vector<double>& narrow = h_field->values();
+  stats.narrow_bandwidth = summarize(narrow);
+  const double largest = stats.narrow_bandwidth.max * std::pow(params.scale_step, params.wide_scales - 1);
+  pyramid = std::make_unique<detail::CellPyramid>(points, tree, pointWeights(), strain,
+                                                  stats.narrow_bandwidth.median / detail::kCellsPerBandwidth, largest);
+  for (int l = 0; l < pyramid->levels(); ++l) stats.pyramid_cells += pyramid->cells(l);
+  stats.pyramid_bytes = pyramid->bytes();
+  // The narrow anchors have given the point weights; the wide ones replace them.
+  std::vector<Anchor>().swap(anchors);
+  std::vector<std::uint32_t>().swap(anchor_of_point);
+
+  std::vector<double> wide(narrow.size(), 0.0);
+  std::vector<double> limited(narrow.size(), 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, narrow.size(), 8), [&](const auto& range) {
+    detail::CellFitScratch scratch;
+    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+      const double sigma = std::sqrt(std::max(noise_floor[p], 1e-12));
+      const detail::BandwidthChoice choice = detail::chooseBandwidth(*pyramid, probe_points[p], narrow[p], params.scale_step,
+                                                           params.wide_scales, sigma, params.agreement_sigmas, false, scratch);
+      // Where no cell fit could be made the narrow choice stands.
+      wide[p] = choice.fit ? std::max(choice.h, narrow[p]) : narrow[p];
+      limited[p] = choice.limited ? 1.0 : 0.0;
+    }
+  });
+  stats.shape_limited_share = narrow.empty() ? 0.0 : static_cast<double>(std::count(limited.begin(), limited.end(), 1.0)) / static_cast<double>(narrow.size());
+  stats.bandwidth = summarize(wide);
+  narrow_field = std::move(h_field);
+  h0 = stats.bandwidth.min;
+  levels = 1 + static_cast<int>(std::ceil(std::log(stats.bandwidth.max / h0) / std::log(params.scale_step) - 1e-9));
+  levels = std::clamp(levels, 1, 60);
+  h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(wide), BandwidthField::Mean::Harmonic);
+  curvature_limited = std::move(limited);
+  if (progress) progress("bandwidth", 1.0);
+}
+
+void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
+  // Each anchor chooses its own bandwidth by the same rule, from the narrow h there up to one step
+  // beyond the wide field's: the field is interpolated between probes and may be too wide where a
+  // radius starts between them.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 16), [&](const auto& range) {
+    detail::CellFitScratch scratch;
+    for (std::size_t a = range.begin(); a != range.end(); ++a) {
+      Anchor& anchor = anchors[a];
+      const auto [h_narrow, floor] = narrow_field->atAndOther(anchor.centre, noise_floor, 4);
+      const double h_wide = h_field->at(anchor.centre, 4);
+      anchor.noise_floor = floor;
+      // Start two steps below the field's h (or at the narrow h, if that is wider): the field may be
+      // too wide where a radius begins between probes, and the narrower fits let the rule see it.
+      const double h_start = std::max(h_narrow, h_wide / (params.scale_step * params.scale_step));
+      const int scales =
+          2 + static_cast<int>(std::ceil(std::log(std::max(h_wide / h_start, 1.0)) / std::log(params.scale_step) - 1e-9));
+      const detail::BandwidthChoice choice =
+          detail::chooseBandwidth(*pyramid, anchor.centre, h_start, params.scale_step, scales,
+                                  std::sqrt(std::max(floor, 1e-12)), params.agreement_sigmas, strain != nullptr, scratch);
+      anchor.h = choice.fit ? choice.h : h_wide;
+      if (!choice.fit) continue;
+      anchor.valid = true;
+      anchor.surface = choice.fit->surface;
+      anchor.strain = choice.fit->strain;
+      anchor.strain_gradient = choice.fit->strain_gradient;
     }
   });
   if (progress) progress("anchors", 1.0);
@@ -386,7 +482,7 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     // round of projections.
     double spread_sq = 0;
     for (const Contribution& c : near) spread_sq += c.phi * (c.projected - next).squaredNorm();
-    const double tolerance = params.tolerance * h_mean;
+    const double tolerance = std::min(params.tolerance * h_mean, step_tolerance);
     x = next;
     result.iterations = it;
     result.valid = true;
@@ -448,6 +544,15 @@ AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& 
   lap("anchor cells");
   impl_->fitAnchors(progress);
   lap("anchor fits");
+  impl_->step_tolerance = params.tolerance * stats_.bandwidth.median;
+  if (params.widen) {
+    impl_->widenBandwidths(stats_, progress);
+    lap("widening");
+    impl_->buildAnchors();
+    lap("wide anchor cells");
+    impl_->fitAnchorsOnCells(progress);
+    lap("wide anchor fits");
+  }
   impl_->linkAnchors();
   lap("anchor links");
   stats_.orientation_components = impl_->orientAnchors();
@@ -485,7 +590,7 @@ Projection AnchoredSurface::Impl::checkedAgainstLocalFit(const Vec3& x, const Pr
   // than the feature and agree on a surface that cuts the corner. A move of many noise deviations is
   // checked against a fit centred at the point itself, as narrow as the data allow: an outlier is
   // carried onto the surface by that fit too, a point on a tight radius is not.
-  const double floor = h_field->interpolateOther(x, noise_floor, 4);
+  const double floor = pointField().interpolateOther(x, noise_floor, 4);
   const double moved = (blended.point - x).norm();
   const double sigma = std::sqrt(floor);
   if (!blended.valid || !(floor > 0) || moved <= kTrustedMoveSigmas * sigma) return blended;
@@ -504,7 +609,7 @@ Projection AnchoredSurface::Impl::checkedAgainstLocalFit(const Vec3& x, const Pr
   }
   if (neighbour_moves.empty() || median(neighbour_moves) <= 0.5 * kTrustedMoveSigmas * sigma) return blended;
   thread_local FitScratch scratch;
-  double h = h_field->at(x, 4) / (params.scale_step * params.scale_step);
+  double h = pointField().at(x, 4) / (params.scale_step * params.scale_step);
   for (int attempt = 0; attempt < 5; ++attempt, h *= params.scale_step) {
     const auto fit = fitLocal(points, tree, strain, x, h, params.robust, params.min_points, scratch);
     if (!fit) continue;

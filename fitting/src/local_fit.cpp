@@ -14,6 +14,14 @@ void WeightedSums::add(const Vec3& p, double w) {
   wpp_.noalias() += w * q * q.transpose();
 }
 
+void WeightedSums::addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w) {
+  const Vec3 q = (mean - origin_) * inv_scale_;
+  ++count_;
+  w_ += w;
+  wp_ += w * q;
+  wpp_.noalias() += w * (q * q.transpose() + covariance * (inv_scale_ * inv_scale_));
+}
+
 std::optional<LocalSurface> LocalSurface::fitPlane(const WeightedSums& s) {
   if (!(s.w_ > 0)) return std::nullopt;
   LocalSurface surface;

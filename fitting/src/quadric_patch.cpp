@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <limits>
 
 namespace stampscan::fitting {
 
@@ -48,24 +49,67 @@ void QuadricPatch::Sums::add(const Vec3& p, double w) {
   ++count_;
 }
 
-std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
-  Eigen::Matrix<double, 6, 6> a;
-  Eigen::Matrix<double, 6, 1> b;
+void QuadricPatch::Sums::addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w,
+                                 double variance_weight) {
+  const Vec3 d = (mean - origin_) * inv_scale_;
+  const Vec3 t1 = frame_.col(0), t2 = frame_.col(1);
+  const double u = t1.dot(d), v = t2.dot(d), h = frame_.col(2).dot(d);
+  const double s2 = inv_scale_ * inv_scale_;
+  const double cuu = t1.dot(covariance * t1) * s2, cuv = t1.dot(covariance * t2) * s2, cvv = t2.dot(covariance * t2) * s2;
+  // E[phi] over the cell's points: the means of u^2, uv, v^2 carry the in-plane covariance.
+  const double phi[6] = {1.0, u, v, u * u + cuu, u * v + cuv, v * v + cvv};
   int k = 0;
   for (int i = 0; i < 6; ++i) {
-    for (int j = 0; j <= i; ++j) a(i, j) = a(j, i) = s.ata_[k++];
-    b(i) = s.atb_[i];
+    for (int j = 0; j <= i; ++j, ++k) {
+      ata_[k] += w * phi[i] * phi[j];
+      var_ata_[k] += variance_weight * phi[i] * phi[j];
+    }
+    atb_[i] += w * phi[i] * h;
   }
-  const double total = a(0, 0);
-  if (!(total > 0)) return std::nullopt;
-  a /= total;
-  b /= total;
-  // Ridge on the curvature terms only: where the neighbours do not span two directions (a row of
-  // repeats, an edge) the patch stays close to the plane instead of curling at random.
+  ++count_;
+}
+
+namespace {
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+Matrix6 unpack(const double (&lower)[21]) {
+  Matrix6 a;
+  int k = 0;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j <= i; ++j) a(i, j) = a(j, i) = lower[k++];
+  return a;
+}
+// Ridge on the curvature terms only: where the neighbours do not span two directions (a row of
+// repeats, an edge) the patch stays close to the plane instead of curling at random. `a` is
+// normalised by its total weight.
+void addRidge(Matrix6& a) {
   const double ridge = 1e-4 * (a(3, 3) + a(5, 5)) + 1e-12;
   for (int i = 3; i < 6; ++i) a(i, i) += ridge;
   a(1, 1) += 1e-12;
   a(2, 2) += 1e-12;
+}
+}  // namespace
+
+double QuadricPatch::offsetVarianceFactor(const Sums& s) {
+  Matrix6 a = unpack(s.ata_);
+  const double total = a(0, 0);
+  if (!(total > 0)) return std::numeric_limits<double>::infinity();
+  a /= total;
+  addRidge(a);
+  const Matrix6 b = unpack(s.var_ata_) / (total * total);
+  const Eigen::Matrix<double, 6, 1> row = a.ldlt().solve(Eigen::Matrix<double, 6, 1>::Unit(0));
+  const double factor = row.dot(b * row);
+  return std::isfinite(factor) && factor >= 0 ? factor : std::numeric_limits<double>::infinity();
+}
+
+std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
+  Matrix6 a = unpack(s.ata_);
+  Eigen::Matrix<double, 6, 1> b;
+  for (int i = 0; i < 6; ++i) b(i) = s.atb_[i];
+  const double total = a(0, 0);
+  if (!(total > 0)) return std::nullopt;
+  a /= total;
+  b /= total;
+  addRidge(a);
   QuadricPatch patch;
   patch.origin_ = s.origin_;
   patch.scale_ = 1.0 / s.inv_scale_;

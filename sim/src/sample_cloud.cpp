@@ -14,14 +14,42 @@ namespace {
 constexpr double kStrainNoise = 0.005;  // measurement noise on strain, true-strain units
 }
 
-SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params) {
+SampleShape sampleShape(const PanPart& part) {
+  SampleShape shape;
+  shape.height = [&part](double x, double y) { return part.height(x, y); };
+  shape.slope = [&part](double x, double y) { return part.gradient(x, y).norm(); };
+  shape.thickness_strain = [&part](double x, double y) { return part.thicknessStrain(x, y); };
+  shape.distance = [&part](const Vec3& p) { return part.distance(p); };
+  shape.half_length = part.params().half_length;
+  shape.half_width = part.params().half_width;
+  return shape;
+}
+
+SampleShape sampleShape(const FormedPart& part) {
+  SampleShape shape;
+  shape.height = [&part](double x, double y) { return part.height(x, y); };
+  shape.slope = [&part](double x, double y) {
+    const Vec3 n = part.normal(x, y);
+    return std::sqrt(n.x() * n.x() + n.y() * n.y()) / std::max(std::abs(n.z()), 1e-9);
+  };
+  shape.thickness_strain = [&part](double x, double y) { return part.deformationAt(x, y).thickness_strain; };
+  shape.distance = [&part](const Vec3& p) { return part.distance(p); };
+  const BlankRect box = part.footprint();
+  shape.half_length = std::min(-box.min.x(), box.max.x());
+  shape.half_width = std::min(-box.min.y(), box.max.y());
+  return shape;
+}
+
+SampleCloud makeSampleCloud(const SampleShape& part, const SampleCloudParams& params) {
   std::mt19937_64 rng(params.seed);
   // normal_distribution needs a positive spread: noise-free samples get exactly zero.
   std::normal_distribution<double> gauss(0.0, 1.0);
   const auto noise = [&](std::mt19937_64& g) { return params.noise_sigma > 0 ? params.noise_sigma * gauss(g) : 0.0; };
   std::normal_distribution<double> strain_noise(0.0, kStrainNoise);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  const PanParams& pp = part.params();
+  struct {
+    double half_length, half_width;
+  } const pp{part.half_length, part.half_width};
   const double x_split = pp.half_length * (1.0 - 2.0 * params.stereo_fraction);  // stereo beyond this x
   const Vec3 hole_centre(-0.5 * pp.half_length, 0.35 * pp.half_width, 0);
 
@@ -29,8 +57,8 @@ SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params
   auto& cloud = out.cloud;
   const auto emit = [&](double x, double y) {
     if (params.hole_radius > 0 && std::hypot(x - hole_centre.x(), y - hole_centre.y()) < params.hole_radius) return false;
-    Vec3 p = part.surfacePoint(x, y) + Vec3(noise(rng), noise(rng), noise(rng));
-    const double truth = part.thicknessStrain(x, y);
+    Vec3 p = Vec3(x, y, part.height(x, y)) + Vec3(noise(rng), noise(rng), noise(rng));
+    const double truth = part.thickness_strain(x, y);
     cloud.positions.push_back(p);
     cloud.strain.push_back(truth + strain_noise(rng));
     out.true_strain.push_back(truth);
@@ -63,7 +91,7 @@ SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params
         const double x = sx + c * u - s * v, y = s * u + c * v;
         if (x < laser_x0 || x > laser_x1 || std::abs(y) > pp.half_width || x > pp.half_length) continue;
         // Steep walls scatter the beam: drop points with a chance that grows with the slope.
-        const double slope = part.gradient(x, y).norm();
+        const double slope = part.slope(x, y);
         if (unit(rng) < params.steep_dropout * slope * slope / (1.0 + slope * slope)) continue;
         if (emit(x, y)) ++out.laser_points;
       }
@@ -93,7 +121,7 @@ SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params
   return out;
 }
 
-SurfaceError surfaceError(const PanPart& part, const std::vector<Vec3>& points) {
+SurfaceError surfaceError(const SampleShape& part, const std::vector<Vec3>& points) {
   struct Acc {
     double sum_sq = 0, max = 0;
   };

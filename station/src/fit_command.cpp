@@ -27,7 +27,7 @@ struct FitOptions {
   std::string input, output, mesh;
   std::string method = "auto", bandwidth = "auto", kernel = "gaussian", scalar = "smooth";
   int sig_r = 7;
-  bool ascii = false, doubles = false, colors = false, quiet = false;
+  bool ascii = false, doubles = false, colors = false, quiet = false, widen = false;
   int threads = 0;
   std::vector<double> viewpoint;
 };
@@ -128,6 +128,9 @@ CommandRunner addFitCommand(CLI::App& app) {
   cmd->add_option("--viewpoint", opt->viewpoint, "Orient normals towards this point X Y Z (default: propagate, facing +z)")
       ->expected(3);
   cmd->add_option("--mesh", opt->mesh, "Also write a triangle mesh of the surface, coloured by strain");
+  cmd->add_flag("--widen", opt->widen,
+                "Method auto: widen the bandwidth where the surface is smooth (fits on a pyramid of cell moments; "
+                "better on smooth parts, worse near tight radii)");
   cmd->add_flag("--ascii", opt->ascii, "Write ASCII PLY (default binary little-endian)");
   cmd->add_flag("--double", opt->doubles, "Write double precision (default float)");
   cmd->add_flag("--colors", opt->colors, "Add red green blue from the strain temperature map");
@@ -138,7 +141,8 @@ CommandRunner addFitCommand(CLI::App& app) {
     if (opt->threads > 0)
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(opt->threads));
-    const FitParams params = fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
+    FitParams params = fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
+    params.anchored.widen = opt->widen;
     // Check where the results go before the work: a missing folder should not cost a fit, and a
     // failure after the first file is written would leave half a result.
     for (const std::string& path : {opt->output, opt->mesh}) {

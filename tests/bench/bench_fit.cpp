@@ -5,7 +5,9 @@
 // Each system runs in a child process so that its peak memory is its own: after the cloud is made,
 // the child resets its peak-RSS counter (/proc/self/clear_refs) and reports the peak during the fit.
 //
-//   bench_fit [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl]
+//   bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl]
+//
+// The pan has tight radii and steep walls; the dome is smooth all over, where wide supports pay.
 #include "stampscan/fitting/surface_fit.hpp"
 #include "stampscan/sim/sample_cloud.hpp"
 
@@ -85,6 +87,8 @@ int main(int argc, char** argv) {
   bool skip_pcl = false;
   bool per_point = false;
   std::vector<double> radii = {0.75, 1.0, 1.5, 2.0, 3.0};
+  std::string shape_name = "pan";
+  fitting::AnchoredParams anchored;  // the default's parameters; --narrow and --gamma change them
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&]() { return std::string(i + 1 < argc ? argv[++i] : ""); };
@@ -92,6 +96,9 @@ int main(int argc, char** argv) {
     else if (a == "--threads") threads = std::stoi(next());
     else if (a == "--seed") seed = std::stoull(next());
     else if (a == "--skip-pcl") skip_pcl = true;
+    else if (a == "--shape") shape_name = next();
+    else if (a == "--narrow") anchored.widen = false;
+    else if (a == "--gamma") anchored.agreement_sigmas = std::stod(next());
     else if (a == "--per-point") per_point = true;
     else if (a == "--radii") {
       radii.clear();
@@ -99,18 +106,24 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
     } else {
-      std::fprintf(stderr, "usage: bench_fit [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
+      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
       return 2;
     }
   }
-  const sim::PanPart part;
+  const sim::PanPart pan;
+  const sim::DomePart dome;
+  if (shape_name != "pan" && shape_name != "dome") {
+    std::fprintf(stderr, "bench_fit: --shape must be pan or dome, not '%s'\n", shape_name.c_str());
+    return 2;
+  }
+  const sim::SampleShape part = shape_name == "pan" ? sim::sampleShape(pan) : sim::sampleShape(dome);
   sim::SampleCloudParams sp;
   sp.target_points = points;
   sp.seed = seed;
   const sim::SampleCloud sample = sim::makeSampleCloud(part, sp);
   const std::size_t n = sample.cloud.size();
   // TBB's worker threads do not survive fork(): nothing parallel may run here before the children.
-  std::printf("cloud: %zu points (%zu laser, %zu stereo, %zu outliers), %d threads\n", n, sample.laser_points,
+  std::printf("cloud: %s, %zu points (%zu laser, %zu stereo, %zu outliers), %d threads\n", shape_name.c_str(), n, sample.laser_points,
               sample.stereo_points, sample.outliers, threads);
   std::printf("%-26s %9s %10s %10s %9s %12s %12s\n", "system", "time s", "points/s", "RMS mm", "max mm", "fit B/point",
               "total B/pt");
@@ -141,6 +154,7 @@ int main(int argc, char** argv) {
     auto limit = limitThreads();
     fitting::FitParams params;
     params.method = method;
+    params.anchored = anchored;
     const long before = statusKb("VmRSS:");
     resetPeak();
     const double t0 = now();

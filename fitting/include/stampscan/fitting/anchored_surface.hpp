@@ -44,6 +44,14 @@ struct AnchoredParams {
   double anchor_spacing = 2.0;  // anchor cell size as a multiple of h where the surface is smooth
   double fine_anchor_spacing = 1.0;  // the same where curvature limited h
   double blend_radius = 1.6;    // partition-of-unity support as a multiple of the anchor cell size
+  // Widening: after the narrow fits above, each region's bandwidth is chosen again by Lepski's rule
+  // over fits on the cell pyramid, from the narrow h up to h * scale_step^(wide_scales - 1), and
+  // the anchors are fitted there (see the header's comment). Off by default: it wins on smooth
+  // surfaces and loses near tight radii (the figures are in tests/bench/README.md).
+  bool widen = false;
+  int wide_scales = 10;
+  double agreement_sigmas = 1.5;  // a wider fit must agree with the narrower ones to this many SDs
+  double wide_anchor_spacing = 0.5;  // anchor cell size as a multiple of the wide h
   bool robust = true;
   int max_iterations = 10;
   double tolerance = 1e-3;      // the projection stops when a step is below tolerance * h
@@ -58,6 +66,10 @@ struct AnchoredStats {
   std::size_t probes = 0;
   std::size_t anchors = 0;
   std::size_t invalid_anchors = 0;
+  std::size_t pyramid_cells = 0;      // over all levels (0 without widening)
+  std::size_t pyramid_bytes = 0;
+  double shape_limited_share = 0;       // probes whose widening the shape stopped (not the cap)
+  BandwidthSummary narrow_bandwidth;  // over the probes, before widening
   std::size_t orientation_components = 0;
   BandwidthSummary bandwidth;  // over the probes
   std::map<std::string, double> stage_seconds;

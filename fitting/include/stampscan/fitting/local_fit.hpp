@@ -19,6 +19,9 @@ class WeightedSums {
 
   // Adds point p with weight w.
   void add(const Vec3& p, double w);
+  // Adds a cell of points by their total weight w, weighted centroid and covariance about it: the
+  // same sums as adding each point (cell_pyramid.hpp).
+  void addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w);
 
   double weightSum() const { return w_; }
   std::size_t count() const { return count_; }

@@ -23,6 +23,11 @@ class QuadricPatch {
     // The same in a frame of one's own (columns t1, t2, n).
     Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale);
     void add(const Vec3& p, double w);
+    // A cell of points given by their weighted centroid and covariance (the pyramid of
+    // cell_pyramid.hpp): its design row is the mean of its points' rows, which the covariance makes
+    // exact for the quadratic terms, so the cell adds no curvature bias. `variance_weight` is the
+    // sum of the squared weights its points carry in this fit; it feeds offsetVariance.
+    void addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w, double variance_weight);
     std::size_t count() const { return count_; }
 
    private:
@@ -34,12 +39,16 @@ class QuadricPatch {
     // plain sums so the accumulation loop vectorises.
     double ata_[21] = {};
     double atb_[6] = {};
+    double var_ata_[21] = {};  // the same with the variance weights (addCell only)
     std::size_t count_ = 0;
   };
 
   // Nothing when the weights sum to zero. With too little spread for curvature the quadratic
   // terms are damped towards the plane (a small ridge), never left undetermined.
   static std::optional<QuadricPatch> fit(const Sums& sums);
+  // The variance of the fitted height at the origin per unit variance of a point's residual
+  // (the sandwich M^-1 B M^-1 of weighted least squares), for sums built with addCell.
+  static double offsetVarianceFactor(const Sums& sums);
 
   // Closest point of the patch to x (Gauss-Newton on the height field, two steps).
   Vec3 project(const Vec3& x) const;

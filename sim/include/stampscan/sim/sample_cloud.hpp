@@ -1,13 +1,15 @@
-// A scanned-looking cloud of the sample pan, with the defects of real scans that the paper describes:
+// A scanned-looking cloud of the sample pan (or another shape), with the defects of real scans that the paper describes:
 // laser sweeps that overlap at small angles (density doubles where they meet), stereo observations
 // repeated 1-12 times per grid element, Gaussian noise, dropouts on steep walls, a hole and a few
 // outliers. Deterministic for a given seed.
 #pragma once
 
 #include "stampscan/fitting/cloud.hpp"
+#include "stampscan/sim/formed_part.hpp"
 #include "stampscan/sim/sample_part.hpp"
 
 #include <cstdint>
+#include <functional>
 
 namespace stampscan::sim {
 
@@ -29,13 +31,33 @@ struct SampleCloud {
   std::size_t laser_points = 0, stereo_points = 0, outliers = 0;
 };
 
-SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params = {});
+// What the sample scan needs of a shape: its height, slope and thickness strain over a rectangle
+// |x| <= half_length, |y| <= half_width, and the distance of any point to it (the ground truth).
+struct SampleShape {
+  std::function<double(double, double)> height;
+  std::function<double(double, double)> slope;  // |grad height|
+  std::function<double(double, double)> thickness_strain;
+  std::function<double(const Vec3&)> distance;
+  double half_length = 0, half_width = 0;
+};
+// The sample pan (tight radii, steep walls) and any formed part centred on the origin (for example
+// the smooth punch-stretched dome). The part must outlive the shape.
+SampleShape sampleShape(const PanPart& part);
+SampleShape sampleShape(const FormedPart& part);
+
+SampleCloud makeSampleCloud(const SampleShape& shape, const SampleCloudParams& params = {});
+inline SampleCloud makeSampleCloud(const PanPart& part, const SampleCloudParams& params = {}) {
+  return makeSampleCloud(sampleShape(part), params);
+}
 
 // Root-mean-square orthogonal distance of `points` to the part surface, and the largest distance.
 struct SurfaceError {
   double rms = 0;
   double max = 0;
 };
-SurfaceError surfaceError(const PanPart& part, const std::vector<Vec3>& points);
+SurfaceError surfaceError(const SampleShape& shape, const std::vector<Vec3>& points);
+inline SurfaceError surfaceError(const PanPart& part, const std::vector<Vec3>& points) {
+  return surfaceError(sampleShape(part), points);
+}
 
 }  // namespace stampscan::sim
