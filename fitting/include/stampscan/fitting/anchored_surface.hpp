@@ -1,20 +1,32 @@
-// The default surface: WLS algebraic-sphere fits at adaptive anchors, blended into one implicit
-// surface, with a per-region bandwidth chosen from the data by the intersection-of-confidence-
-// intervals rule. Beyond the paper, and built to remove its stated weaknesses:
+// The default surface: robust WLS quadric patches (quadric_patch.hpp) fitted at adaptive anchors
+// and blended into one implicit surface, with a per-region bandwidth chosen from the data. Beyond
+// the paper, and built to remove its stated weaknesses:
 //
-//  - Bandwidth. Probes spread over the cloud fit spheres at growing bandwidths h_j = h_start 1.5^j and
-//    keep the largest h at which the sphere still explains the neighbourhood down to the noise (the
-//    residual variance stays at its floor; misfit would raise it). Flat, noisy regions get wide
-//    kernels, tight radii narrow ones, and near-duplicates cannot shrink h because the start scale
-//    is the 16th neighbour distance (more than the 12-15 repeats of stereo data). The probe values
-//    are Shepard-interpolated into a smooth h(P*) (Eqs. (13)-(14)).
-//  - Shrinkage at peaks. Each local fit is an algebraic sphere (Pratt-normalised, so planes are the
-//    limit case), which follows curvature where the plane of Eq. (1) cuts corners.
+//  - Bandwidth. Probes spread over the cloud fit patches at growing bandwidths h_j = h_start 1.5^j
+//    and keep the largest h at which the patch still explains the neighbourhood down to the noise
+//    (the residual variance stays at its floor; misfit would raise it), and at most about
+//    max_effective_count points carry weight. Near-duplicates cannot shrink h because the start
+//    scale is the 16th neighbour distance (more than the 12-15 repeats of stereo data). The probe
+//    values are Shepard-interpolated into a smooth h(P*) (Eqs. (13)-(14)).
+//  - Shrinkage at peaks. Each local fit is a quadric height field over the weighted plane's frame
+//    (Eqs. (2), (6), (7)), which follows curvature where the plane of Eq. (1) cuts corners.
 //  - Outliers. Each fit is refitted with Tukey's biweight on its residuals.
 //  - Cost. Neighbouring points share almost all of their WLS neighbourhood, so fitting at every point
-//    repeats work. Fits are made at anchors spaced ~0.6 h apart and blended with a compact partition
-//    of unity (as in multi-level partition-of-unity implicits, Ohtake et al. 2003); the work per point
-//    no longer grows with the neighbourhood size.
+//    repeats work. Fits are made at anchors spaced one or two h apart and blended with a compact
+//    partition of unity (as in multi-level partition-of-unity implicits, Ohtake et al. 2003); the
+//    work per point no longer grows with the neighbourhood size.
+//  - Widening (AnchoredParams::widen, off by default). The cap on the effective count keeps the cost
+//    bounded but stops accuracy from growing with density. With widening, every point gets a weight
+//    from its narrow patch (Tukey's biweight: outliers get none) and the weighted moments (count,
+//    centroid, covariance, strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp).
+//    A fit at bandwidth h reads the level whose cells are about h/3 wide, so its cost is bounded
+//    whatever h and the density, and no point's contribution is subsampled away. Probes and then
+//    anchors choose h by Lepski's rule: the widest fit whose offset agrees with every narrower
+//    fit's to within agreement_sigmas standard deviations of their difference. The widened patches
+//    are read within about a quarter h of their centres (wide_anchor_spacing), since the shape's
+//    cubic terms, which cancel at the centre, grow away from it. Measured: on flat and gently curved
+//    regions the error falls several-fold; near tight radii the blend of wide and narrow patches
+//    is worse than the narrow fits, which is why it is not yet the default.
 //
 // Thread safety: after construction every method is const and safe from many threads.
 #pragma once

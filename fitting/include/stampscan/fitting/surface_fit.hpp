@@ -18,8 +18,8 @@
 namespace stampscan::fitting {
 
 enum class FitMethod {
-  // Default, no tuning: bandwidth chosen from the data (ICI), robust algebraic-sphere fits at
-  // adaptive anchors blended into one surface (see anchored_surface.hpp).
+  // Default, no tuning: bandwidth chosen from the data, robust quadric patches fitted at adaptive
+  // anchors and blended into one surface (see anchored_surface.hpp).
   Auto,
   // The same local model (robust algebraic sphere, Euclidean Gaussian kernel) fitted afresh at every
   // point with Ahn's iteration, with a density-robust per-point bandwidth. Slower; a reference.
