@@ -474,8 +474,18 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
       sum_p += c.phi * c.projected;
       sum_h += c.phi * c.anchor->h;
     }
-    const Vec3 next = sum_p / sum_w;
+    Vec3 next = sum_p / sum_w;
     h_mean = sum_h / sum_w;
+    // After the first step the point moves along the surface normal only. Where patches disagree a
+    // little (sparse data), the mean of their feet shifts as x moves along the surface and would
+    // drag the point sideways by a small, steady step each round: never converging, and carrying
+    // the point away from the foot of the measurement it came from.
+    if (it > 1) {
+      const Contribution& strongest =
+          *std::max_element(near.begin(), near.end(), [](const Contribution& a, const Contribution& b) { return a.phi < b.phi; });
+      const Vec3 n = strongest.anchor->surface.normal(strongest.projected);
+      next = x + n * n.dot(next - x);
+    }
     const double step = (next - x).norm();
     // The blended point lies among its feet on the patches; when they agree to within the
     // tolerance, projecting it again cannot move it farther than that: converged without another
