@@ -78,6 +78,7 @@ struct AnchoredSurface::Impl {
     double strain = std::numeric_limits<double>::quiet_NaN();
     Vec3 strain_gradient = Vec3::Zero();
     double noise_floor = 0;  // residual variance the probes saw here
+    double strain_h = 0;     // the strain field's own bandwidth here (widened surfaces)
   };
   std::vector<Anchor> anchors;              // sorted by key
   std::vector<std::size_t> adjacency_offset;  // CSR: anchors near each anchor, itself first
@@ -139,6 +140,7 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
   std::vector<double> floors(probes.size(), 0.0);
   std::vector<double> smallest(probes.size(), 0.0);  // smallest scale that could be fitted
   std::vector<double> limited(probes.size(), 0.0);
+  std::vector<std::uint8_t> capped(probes.size(), 0);  // h stopped at the effective-count cap
 
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probes.size(), 8), [&](const auto& range) {
     FitScratch scratch;
@@ -163,7 +165,10 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
         if (best == 0) smallest[p] = h;
         floor_variance = std::min(floor_variance, fit->residual_variance);
         best = h;
-        if (fit->effective_count >= params.max_effective_count) break;
+        if (fit->effective_count >= params.max_effective_count) {
+          capped[p] = 1;
+          break;
+        }
       }
       floors[p] = std::isfinite(floor_variance) ? floor_variance : 0.0;
       chosen[p] = best > 0 ? best : h_start * std::pow(params.scale_step, params.max_scales - 1);
@@ -185,6 +190,8 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
     if (typical > 0) floors[p] = std::min(floors[p] > 0 ? floors[p] : typical, 2.0 * typical);
   }
 
+  stats.count_capped_share =
+      static_cast<double>(std::count(capped.begin(), capped.end(), std::uint8_t{1})) / static_cast<double>(probes.size());
   probe_points.reserve(probes.size());
   for (std::uint32_t i : probes) probe_points.push_back(points[i]);
   probe_tree = std::make_unique<KdTree>(probe_points);
@@ -295,8 +302,10 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
   const std::vector<double>& narrow = h_field->values();
   stats.narrow_bandwidth = summarize(narrow);
   const double largest = stats.narrow_bandwidth.max * std::pow(params.scale_step, params.wide_scales - 1);
+  // The finest cells serve fits twice the typical narrow h; narrower fits read the points. Finer
+  // cells would hold one or two points each and cost as much memory as the points themselves.
   pyramid = std::make_unique<detail::CellPyramid>(points, tree, pointWeights(), strain,
-                                                  stats.narrow_bandwidth.median / detail::kCellsPerBandwidth, largest);
+                                                  2.0 * stats.narrow_bandwidth.median / detail::kCellsPerBandwidth, largest);
   for (int l = 0; l < pyramid->levels(); ++l) stats.pyramid_cells += pyramid->cells(l);
   stats.pyramid_bytes = pyramid->bytes();
   // The narrow anchors have given the point weights; the wide ones replace them.
@@ -352,6 +361,15 @@ void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
       anchor.surface = choice.fit->surface;
       anchor.strain = choice.fit->strain;
       anchor.strain_gradient = choice.fit->strain_gradient;
+      if (strain) {
+        // From a third of the narrow h up to the shape's own.
+        const double h_low = h_narrow / (params.scale_step * params.scale_step * params.scale_step);
+        const Vec3 foot = anchor.surface.project(anchor.centre);
+        const int strain_scales =
+            1 + static_cast<int>(std::ceil(std::log(std::max(anchor.h / h_low, 1.0)) / std::log(params.scale_step) - 1e-9));
+        anchor.strain_h = detail::chooseStrainBandwidth(*pyramid, foot, anchor.surface.normal(foot), h_low, params.scale_step,
+                                                        std::min(strain_scales, 8), params.agreement_sigmas, scratch);
+      }
     }
   });
   if (progress) progress("anchors", 1.0);
@@ -520,10 +538,29 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     result.normal = sum_n.normalized();
     if (strain) result.scalar = sum_c / sum_w;
   }
+  // Strain has a scale of its own: the widened bandwidth suits the shape, whose noise is averaged
+  // down over many points, not the strain field, which changes faster than the shape's curvature
+  // (it follows the stretch). Where the fits were widened, strain is fitted at the narrow scale the
+  // data's spacing called for, exactly at the projected point.
+  double strain_h = h_mean;
+  if (pyramid) {
+    double sum_sh = 0, sum_shw = 0;
+    for (const Contribution& c : near)
+      if (c.anchor->strain_h > 0) {
+        sum_sh += c.phi * c.anchor->strain_h;
+        sum_shw += c.phi;
+      }
+    strain_h = sum_shw > 0 ? sum_sh / sum_shw : pointField().at(x, 4);
+  }
+  if (strain && pyramid && params.scalar == ScalarFieldType::Smooth && sum_w > 0) {
+    thread_local detail::CellFitScratch scratch;
+    const double smooth = detail::strainNear(*pyramid, x, result.normal, strain_h, scratch);
+    if (std::isfinite(smooth)) result.scalar = smooth;
+  }
   if (strain && params.scalar == ScalarFieldType::Shepard) {
     thread_local std::vector<Neighbor> data;
     thread_local std::vector<ScalarSample> samples;
-    const double R = kSupport * h_mean;
+    const double R = kSupport * strain_h;
     tree.radius(x, R, data);
     samples.clear();
     for (const Neighbor& nb : data) samples.push_back({points[nb.index], (*strain)[nb.index], 1.0});
@@ -555,7 +592,8 @@ AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& 
   impl_->fitAnchors(progress);
   lap("anchor fits");
   impl_->step_tolerance = params.tolerance * stats_.bandwidth.median;
-  if (params.widen) {
+  if (params.widen && stats_.count_capped_share >= params.widen_min_capped_share) {
+    stats_.widened = true;
     impl_->widenBandwidths(stats_, progress);
     lap("widening");
     impl_->buildAnchors();
@@ -643,7 +681,7 @@ Projection AnchoredSurface::Impl::checkedAgainstLocalFit(const Vec3& x, const Pr
   return kept;
 }
 
-double AnchoredSurface::bandwidthAt(const Vec3& x) const { return impl_->h_field->at(x, 4); }
+double AnchoredSurface::bandwidthAt(const Vec3& x) const { return impl_->pointField().at(x, 4); }
 
 bool AnchoredSurface::hasScalar() const { return impl_->strain != nullptr; }
 

@@ -221,7 +221,7 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
   const std::optional<LocalSurface> plane = LocalSurface::fitPlane(plane_sums);
   if (!plane || plane->tangentSpread() < kMinTangentSpread) return std::nullopt;
   const Vec3 normal = frame_normal ? *frame_normal : plane->normal(centre);
-  QuadricPatch::Sums sums(frameAround(normal), centre, h);
+  QuadricPatch::Sums sums(frameAround(normal), centre, h, /*order=*/3);
   double sum_w = 0, sum_w2 = 0;
   for (std::size_t k = 0; k < s.near.size(); ++k) {
     const CellElement e = pyramid.element(level, s.near[k].index);
@@ -256,6 +256,68 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
   return fit;
 }
 
+double strainNear(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h, CellFitScratch& s) {
+  const int level = pyramid.levelFor(h);
+  pyramid.near(level, x, kSupport * h, s.near);
+  const double h_sq = h * h;
+  s.samples.clear();
+  for (const Neighbor& nb : s.near) {
+    const CellElement e = pyramid.element(level, nb.index);
+    if (std::isfinite(e.strain)) s.samples.push_back({e.centroid, e.strain, gaussianWeightSq(nb.distance_sq, h_sq) * e.weight});
+  }
+  return smoothScalar(x, n, s.samples);
+}
+
+double chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start, double step,
+                             int scales, double gamma, CellFitScratch& s) {
+  constexpr double kLeastEffectiveCount = 8;  // a linear field has three parameters
+  double chosen = 0, noise_sd = -1;
+  struct Accepted {
+    double value, factor;  // the fit's value at x and its SD per unit of strain noise
+  };
+  std::vector<Accepted> accepted;
+  double h = h_start;
+  for (int j = 0; j < scales; ++j, h *= step) {
+    const int level = pyramid.levelFor(h);
+    pyramid.near(level, x, kSupport * h, s.near);
+    const double h_sq = h * h;
+    s.samples.clear();
+    double sw = 0, sw2 = 0;
+    for (const Neighbor& nb : s.near) {
+      const CellElement e = pyramid.element(level, nb.index);
+      if (!std::isfinite(e.strain)) continue;
+      const double g = gaussianWeightSq(nb.distance_sq, h_sq);
+      s.samples.push_back({e.centroid, e.strain, g * e.weight});
+      sw += g * e.weight;
+      sw2 += g * g * e.weight_sq;
+    }
+    if (!(sw > 0) || sw * sw / sw2 < kLeastEffectiveCount) continue;  // too little data yet: wider
+    const auto field = fitTangentLinear(x, n, s.samples);
+    if (!field) continue;
+    const double n_eff = sw * sw / sw2;
+    const double factor = std::sqrt(sw2) / sw;
+    if (noise_sd < 0) {
+      // The strain noise from this fit's residuals (a cell's mean strain is an average: its
+      // residual is scaled back to one point's by its weight).
+      double swr2 = 0;
+      for (const ScalarSample& q : s.samples) {
+        const double r = q.value - field->value - field->gradient.dot(q.position - x);
+        swr2 += q.weight * r * r;
+      }
+      noise_sd = std::sqrt(swr2 / sw * n_eff / (n_eff - 3.0));
+    }
+    const double sd = noise_sd * factor;
+    const bool agrees = std::all_of(accepted.begin(), accepted.end(), [&](const Accepted& a) {
+      const double a_sd = noise_sd * a.factor;
+      return std::abs(field->value - a.value) <= gamma * std::sqrt(std::max(a_sd * a_sd - sd * sd, kLeastDifferenceVariance * a_sd * a_sd));
+    });
+    if (!agrees) break;
+    accepted.push_back({field->value, factor});
+    chosen = h;
+  }
+  return chosen;
+}
+
 BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, double h_start, double step,
                                 int scales, double noise_sigma, double gamma, bool with_strain, CellFitScratch& scratch) {
   BandwidthChoice choice;
@@ -268,7 +330,8 @@ BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, 
   double h = h_start;
   for (int j = 0; j < scales; ++j, h *= step) {
     // One height axis for every scale, the first fit's: the offsets are then comparable.
-    auto fit = fitOnCells(pyramid, centre, h, false, choice.fit ? &normal : nullptr, scratch);
+    // The strain field comes with every fit: which one is kept is known only once a wider one fails.
+    auto fit = fitOnCells(pyramid, centre, h, with_strain, choice.fit ? &normal : nullptr, scratch);
     if (!fit) {
       if (choice.fit) break;  // the data end: a wider support would not hold more of this surface
       continue;               // too few cells yet: try wider
@@ -290,9 +353,6 @@ BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, 
     accepted.push_back({fit->offset, sd});
     choice.fit = std::move(fit);
     choice.h = h;
-  }
-  if (choice.fit && with_strain) {
-    if (auto refit = fitOnCells(pyramid, centre, choice.h, true, &normal, scratch)) choice.fit = std::move(refit);
   }
   return choice;
 }

@@ -91,7 +91,8 @@ class CellPyramid {
   std::vector<std::unique_ptr<Level>> levels_;
 };
 
-// A quadric patch fitted to the cells of the pyramid around `centre` with Gaussian weights of
+// A cubic height patch (quadric_patch.hpp, order 3: the wide patches are read up to a bandwidth
+// from their centres) fitted to the cells of the pyramid around `centre` with Gaussian weights of
 // bandwidth h (Eq. (3)) times the cells' weights, with what the bandwidth choice needs.
 struct CellFit {
   QuadricPatch surface;
@@ -114,6 +115,19 @@ struct CellFitScratch {
 // along one direction); otherwise it is the weighted plane's normal (Eqs. (2), (6), (7)).
 std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre, double h, bool with_strain,
                                   const Vec3* frame_normal, CellFitScratch& scratch);
+
+// The smooth strain field (scalar_field.hpp: linear in the tangent plane at x, normal n) over the
+// elements within the support of bandwidth h around x, with Gaussian weights times the elements'
+// weights. NaN where no element carries strain.
+double strainNear(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h, CellFitScratch& scratch);
+
+// The strain field's own bandwidth around x by the same balancing rule as chooseBandwidth below:
+// linear strain fits at h_j = h_start * step^j; the strain noise is estimated from the residuals
+// of the narrowest fit with enough data. Strain changes faster than the shape's curvature where
+// the sheet stretches, so its bandwidth is mostly narrower than the shape's. Returns 0 where no
+// element carries strain.
+double chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start, double step,
+                             int scales, double gamma, CellFitScratch& scratch);
 
 // The bandwidth by Lepski's balancing rule (Lepski, Mammen & Spokoiny 1997), the same idea as the
 // intersection of confidence intervals (Katkovnik 1999): fits at h_j = h_start * step^j, each

@@ -47,7 +47,7 @@ void sortUnique(std::vector<Key>& keys) {
 Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
   const ImplicitSurface& surface = fitted.surface();
   const std::vector<Vec3>& data_points = fitted.input().positions;
-  const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().bandwidth.median);
+  const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().data_bandwidth.median);
   if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
   const Bounds bounds = boundsOf(projected.positions);
   const double span = bounds.extent().maxCoeff() / cell;

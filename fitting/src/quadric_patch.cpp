@@ -10,10 +10,14 @@ namespace stampscan::fitting {
 QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double scale)
     : origin_(origin), inv_scale_(1.0 / scale), frame_(frameAround(plane.normal(origin))) {}
 
-QuadricPatch::Sums::Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale)
-    : origin_(origin), inv_scale_(1.0 / scale), frame_(frame) {}
+QuadricPatch::Sums::Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order)
+    : origin_(origin), inv_scale_(1.0 / scale), frame_(frame), order_(order == 3 ? 3 : 2) {}
 
 void QuadricPatch::Sums::add(const Vec3& p, double w) {
+  if (order_ == 3) {  // a point is a cell without spread
+    addCell(p, Eigen::Matrix3d::Zero(), w, w * w);
+    return;
+  }
   const Vec3 d = (p - origin_) * inv_scale_;
   const double u = frame_.col(0).dot(d), v = frame_.col(1).dot(d), h = frame_.col(2).dot(d);
   const double uu = u * u, uv = u * v, vv = v * v;
@@ -56,10 +60,21 @@ void QuadricPatch::Sums::addCell(const Vec3& mean, const Eigen::Matrix3d& covari
   const double u = t1.dot(d), v = t2.dot(d), h = frame_.col(2).dot(d);
   const double s2 = inv_scale_ * inv_scale_;
   const double cuu = t1.dot(covariance * t1) * s2, cuv = t1.dot(covariance * t2) * s2, cvv = t2.dot(covariance * t2) * s2;
-  // E[phi] over the cell's points: the means of u^2, uv, v^2 carry the in-plane covariance.
-  const double phi[6] = {1.0, u, v, u * u + cuu, u * v + cuv, v * v + cvv};
+  // E[phi] over the cell's points: the means of u^2, uv, v^2 carry the in-plane covariance (and
+  // those of the cubic terms the covariance times the mean).
+  const double phi[10] = {1.0,
+                          u,
+                          v,
+                          u * u + cuu,
+                          u * v + cuv,
+                          v * v + cvv,
+                          u * u * u + 3 * u * cuu,
+                          u * u * v + v * cuu + 2 * u * cuv,
+                          u * v * v + u * cvv + 2 * v * cuv,
+                          v * v * v + 3 * v * cvv};
+  const int n = terms();
   int k = 0;
-  for (int i = 0; i < 6; ++i) {
+  for (int i = 0; i < n; ++i) {
     for (int j = 0; j <= i; ++j, ++k) {
       ata_[k] += w * phi[i] * phi[j];
       var_ata_[k] += variance_weight * phi[i] * phi[j];
@@ -70,41 +85,46 @@ void QuadricPatch::Sums::addCell(const Vec3& mean, const Eigen::Matrix3d& covari
 }
 
 namespace {
-using Matrix6 = Eigen::Matrix<double, 6, 6>;
-Matrix6 unpack(const double (&lower)[21]) {
-  Matrix6 a;
+using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 10, 10>;
+using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 10, 1>;
+Matrix unpack(const double (&lower)[55], int n) {
+  Matrix a(n, n);
   int k = 0;
-  for (int i = 0; i < 6; ++i)
+  for (int i = 0; i < n; ++i)
     for (int j = 0; j <= i; ++j) a(i, j) = a(j, i) = lower[k++];
   return a;
 }
-// Ridge on the curvature terms only: where the neighbours do not span two directions (a row of
-// repeats, an edge) the patch stays close to the plane instead of curling at random. `a` is
+// Ridge on the curvature (and cubic) terms only: where the neighbours do not span two directions (a
+// row of repeats, an edge) the patch stays close to the plane instead of curling at random. `a` is
 // normalised by its total weight.
-void addRidge(Matrix6& a) {
+void addRidge(Matrix& a) {
   const double ridge = 1e-4 * (a(3, 3) + a(5, 5)) + 1e-12;
   for (int i = 3; i < 6; ++i) a(i, i) += ridge;
+  // The cubic terms' own scale is their diagonal; the ridge keeps them determined at an edge.
+  for (int i = 6; i < a.rows(); ++i) a(i, i) += 1e-4 * a(i, i) + 1e-12;
   a(1, 1) += 1e-12;
   a(2, 2) += 1e-12;
 }
 }  // namespace
 
 double QuadricPatch::offsetVarianceFactor(const Sums& s) {
-  Matrix6 a = unpack(s.ata_);
+  const int n = s.terms();
+  Matrix a = unpack(s.ata_, n);
   const double total = a(0, 0);
   if (!(total > 0)) return std::numeric_limits<double>::infinity();
   a /= total;
   addRidge(a);
-  const Matrix6 b = unpack(s.var_ata_) / (total * total);
-  const Eigen::Matrix<double, 6, 1> row = a.ldlt().solve(Eigen::Matrix<double, 6, 1>::Unit(0));
+  const Matrix b = unpack(s.var_ata_, n) / (total * total);
+  const Vector row = a.ldlt().solve(Vector::Unit(n, 0));
   const double factor = row.dot(b * row);
   return std::isfinite(factor) && factor >= 0 ? factor : std::numeric_limits<double>::infinity();
 }
 
 std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
-  Matrix6 a = unpack(s.ata_);
-  Eigen::Matrix<double, 6, 1> b;
-  for (int i = 0; i < 6; ++i) b(i) = s.atb_[i];
+  const int n = s.terms();
+  Matrix a = unpack(s.ata_, n);
+  Vector b(n);
+  for (int i = 0; i < n; ++i) b(i) = s.atb_[i];
   const double total = a(0, 0);
   if (!(total > 0)) return std::nullopt;
   a /= total;
@@ -114,8 +134,9 @@ std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
   patch.origin_ = s.origin_;
   patch.scale_ = 1.0 / s.inv_scale_;
   patch.frame_ = s.frame_;
-  patch.c_ = a.ldlt().solve(b);
-  if (!patch.c_.allFinite()) return std::nullopt;
+  const Vector c = a.ldlt().solve(b);
+  if (!c.allFinite()) return std::nullopt;
+  patch.c_.head(n) = c;
   return patch;
 }
 

@@ -62,6 +62,8 @@ FittedSurface::FittedSurface(const Cloud& input, const FitParams& params) : inpu
     auto anchored = std::make_unique<AnchoredSurface>(points, *tree_, input.hasStrain() ? &input.strain : nullptr, ap,
                                                       params.progress);
     prep_stats_.bandwidth = anchored->stats().bandwidth;
+    prep_stats_.widened = anchored->stats().widened;
+    prep_stats_.data_bandwidth = prep_stats_.widened ? anchored->stats().narrow_bandwidth : anchored->stats().bandwidth;
     prep_stats_.anchors = anchored->stats().anchors;
     prep_stats_.probes = anchored->stats().probes;
     prep_stats_.orientation_components = anchored->stats().orientation_components;
@@ -98,6 +100,7 @@ FittedSurface::FittedSurface(const Cloud& input, const FitParams& params) : inpu
     bandwidths_ = std::make_unique<BandwidthField>(points, *tree_, std::move(smoothed));
   }
   prep_stats_.bandwidth = summarize(bandwidths_->values());
+  prep_stats_.data_bandwidth = prep_stats_.bandwidth;
   prep_stats_.stage_seconds["bandwidth"] = secondsSince(t0);
   if (params.progress) params.progress("bandwidth", 1.0);
 

@@ -27,7 +27,8 @@ struct FitOptions {
   std::string input, output, mesh;
   std::string method = "auto", bandwidth = "auto", kernel = "gaussian", scalar = "smooth";
   int sig_r = 7;
-  bool ascii = false, doubles = false, colors = false, quiet = false, widen = false;
+  bool ascii = false, doubles = false, colors = false, quiet = false;
+  std::string widen = "auto";
   int threads = 0;
   std::vector<double> viewpoint;
 };
@@ -83,7 +84,8 @@ void printFitSummary(const ReadReport& read, const FitParams& params, const FitO
   const FitStats& s = o.stats;
   std::printf("  points      %zu read, %zu skipped (non-finite)\n", read.points_read, read.skipped_nonfinite);
   std::printf("  method      %s\n", toString(params.method).c_str());
-  std::printf("  bandwidth   %.4g .. %.4g mm (median %.4g)\n", s.bandwidth.min, s.bandwidth.max, s.bandwidth.median);
+  std::printf("  bandwidth   %.4g .. %.4g mm (median %.4g)%s\n", s.bandwidth.min, s.bandwidth.max, s.bandwidth.median,
+              s.widened ? ", widened where the shape allows" : "");
   std::printf("  iterations  mean %.2f, max %d, not converged %zu\n", s.mean_iterations, s.max_iterations, s.not_converged);
   if (s.invalid) std::printf("  unfitted    %zu points had no weighted neighbours and were left in place\n", s.invalid);
   if (s.anchors) std::printf("  anchors     %zu local fits (bandwidth chosen at %zu probes)\n", s.anchors, s.probes);
@@ -128,9 +130,10 @@ CommandRunner addFitCommand(CLI::App& app) {
   cmd->add_option("--viewpoint", opt->viewpoint, "Orient normals towards this point X Y Z (default: propagate, facing +z)")
       ->expected(3);
   cmd->add_option("--mesh", opt->mesh, "Also write a triangle mesh of the surface, coloured by strain");
-  cmd->add_flag("--widen", opt->widen,
-                "Method auto: widen the bandwidth where the surface is smooth (fits on a pyramid of cell moments; "
-                "better on smooth parts, worse near tight radii)");
+  cmd->add_option("--widen", opt->widen,
+                  "Method auto: widen the bandwidth where the surface allows (auto: when the data are dense against "
+                  "the shape, default | always | never)")
+      ->check(CLI::IsMember({"auto", "always", "never"}));
   cmd->add_flag("--ascii", opt->ascii, "Write ASCII PLY (default binary little-endian)");
   cmd->add_flag("--double", opt->doubles, "Write double precision (default float)");
   cmd->add_flag("--colors", opt->colors, "Add red green blue from the strain temperature map");
@@ -142,7 +145,8 @@ CommandRunner addFitCommand(CLI::App& app) {
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(opt->threads));
     FitParams params = fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
-    params.anchored.widen = opt->widen;
+    params.anchored.widen = opt->widen != "never";
+    if (opt->widen == "always") params.anchored.widen_min_capped_share = 0.0;
     // Check where the results go before the work: a missing folder should not cost a fit, and a
     // failure after the first file is written would leave half a result.
     for (const std::string& path : {opt->output, opt->mesh}) {

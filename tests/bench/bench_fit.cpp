@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
   bool per_point = false;
   std::vector<double> radii = {0.75, 1.0, 1.5, 2.0, 3.0};
   std::string shape_name = "pan";
-  fitting::AnchoredParams anchored;  // the default's parameters; --narrow and --gamma change them
+  fitting::AnchoredParams anchored;  // the default's parameters; --widen and --gamma change them
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&]() { return std::string(i + 1 < argc ? argv[++i] : ""); };
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
     else if (a == "--seed") seed = std::stoull(next());
     else if (a == "--skip-pcl") skip_pcl = true;
     else if (a == "--shape") shape_name = next();
-    else if (a == "--narrow") anchored.widen = false;
+    else if (a == "--widen") anchored.widen = true;
     else if (a == "--gamma") anchored.agreement_sigmas = std::stod(next());
     else if (a == "--per-point") per_point = true;
     else if (a == "--radii") {
@@ -106,7 +106,7 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
     } else {
-      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
+      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
       return 2;
     }
   }

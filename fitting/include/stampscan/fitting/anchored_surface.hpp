@@ -58,12 +58,14 @@ struct AnchoredParams {
   double blend_radius = 1.6;    // partition-of-unity support as a multiple of the anchor cell size
   // Widening: after the narrow fits above, each region's bandwidth is chosen again by Lepski's rule
   // over fits on the cell pyramid, from the narrow h up to h * scale_step^(wide_scales - 1), and
-  // the anchors are fitted there (see the header's comment). Off by default: it wins on smooth
-  // surfaces and loses near tight radii (the figures are in tests/bench/README.md).
-  bool widen = false;
+  // the anchors are fitted there (see the header's comment). It is done where the data are dense
+  // against the shape: when at least widen_min_capped_share of the probes stopped at the count cap
+  // rather than at misfit (0 widens always). On sparse data the narrow fits are as good or better.
+  bool widen = true;
+  double widen_min_capped_share = 0.7;
   int wide_scales = 10;
   double agreement_sigmas = 1.5;  // a wider fit must agree with the narrower ones to this many SDs
-  double wide_anchor_spacing = 0.5;  // anchor cell size as a multiple of the wide h
+  double wide_anchor_spacing = 1.0;  // anchor cell size as a multiple of the wide h
   bool robust = true;
   int max_iterations = 10;
   double tolerance = 1e-3;      // the projection stops when a step is below tolerance * h
@@ -78,6 +80,8 @@ struct AnchoredStats {
   std::size_t probes = 0;
   std::size_t anchors = 0;
   std::size_t invalid_anchors = 0;
+  double count_capped_share = 0;      // probes whose narrow h stopped at max_effective_count
+  bool widened = false;
   std::size_t pyramid_cells = 0;      // over all levels (0 without widening)
   std::size_t pyramid_bytes = 0;
   double shape_limited_share = 0;       // probes whose widening the shape stopped (not the cap)

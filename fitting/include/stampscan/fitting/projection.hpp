@@ -59,7 +59,9 @@ class ImplicitSurface {
   virtual Projection projectPoint(std::size_t i) const = 0;
   // Projects any point x onto the surface.
   virtual Projection project(const Vec3& x) const = 0;
-  // The bandwidth the surface uses around x.
+  // The data's scale around x: the bandwidth the surface uses there, or where the default method
+  // widened its fits, the narrower bandwidth the data's spacing called for (meshing and gap
+  // detection go by it).
   virtual double bandwidthAt(const Vec3& x) const = 0;
   // Whether projections carry a scalar (strain).
   virtual bool hasScalar() const = 0;

@@ -1,5 +1,10 @@
 // A local quadric height field over a tangent frame: w = c0 + c1 u + c2 v + c3 u^2 + c4 uv + c5 v^2,
-// with (u, v, w) the coordinates of a point in a frame (t1, t2, n) at `origin`, scaled by 1/scale.
+// with (u, v, w) the coordinates of a point in a frame (t1, t2, n) at `origin`, scaled by 1/scale;
+// optionally with the cubic terms c6 u^3 + c7 u^2 v + c8 u v^2 + c9 v^3 (order 3).
+//
+// The cubic terms leave the height at the origin as it is for a support symmetric about it (odd
+// terms average out), but a patch read away from its origin follows the surface much longer: the
+// widened fits of anchored_surface.hpp, read up to a bandwidth from their centres, use them.
 //
 // Beyond the paper: unlike the plane of Eq. (1) it follows curvature (no shrinkage at peaks), and
 // unlike a sphere it takes different curvatures in different directions, as on the cylindrical
@@ -20,26 +25,30 @@ class QuadricPatch {
   class Sums {
    public:
     Sums(const LocalSurface& plane, const Vec3& origin, double scale);
-    // The same in a frame of one's own (columns t1, t2, n).
-    Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale);
+    // The same in a frame of one's own (columns t1, t2, n); order 2 (quadric) or 3 (cubic).
+    Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order = 2);
     void add(const Vec3& p, double w);
     // A cell of points given by their weighted centroid and covariance (the pyramid of
     // cell_pyramid.hpp): its design row is the mean of its points' rows, which the covariance makes
     // exact for the quadratic terms, so the cell adds no curvature bias. `variance_weight` is the
     // sum of the squared weights its points carry in this fit; it feeds offsetVariance.
+    // (For order 3 the cell's third central moments are taken as zero: cells are small against h.)
     void addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w, double variance_weight);
     std::size_t count() const { return count_; }
 
    private:
     friend class QuadricPatch;
+    int terms() const { return order_ == 3 ? 10 : 6; }
     Vec3 origin_;
     double inv_scale_;
     Eigen::Matrix3d frame_;  // columns t1, t2, n
-    // Lower triangle of sum w phi phi^T (21 entries, row by row) and sum w w_height phi, kept as
-    // plain sums so the accumulation loop vectorises.
-    double ata_[21] = {};
-    double atb_[6] = {};
-    double var_ata_[21] = {};  // the same with the variance weights (addCell only)
+    int order_ = 2;
+    // Lower triangle of sum w phi phi^T (21 entries for the quadric, 55 for the cubic, row by row;
+    // the quadric's are the first 21 of the cubic's) and sum w w_height phi, kept as plain sums so
+    // the accumulation loop vectorises.
+    double ata_[55] = {};
+    double atb_[10] = {};
+    double var_ata_[55] = {};  // the same with the variance weights (addCell only)
     std::size_t count_ = 0;
   };
 
@@ -71,15 +80,17 @@ class QuadricPatch {
  private:
   Vec3 toLocal(const Vec3& x) const { return frame_.transpose() * (x - origin_) / scale_; }
   double height(double u, double v) const {
-    return c_(0) + c_(1) * u + c_(2) * v + c_(3) * u * u + c_(4) * u * v + c_(5) * v * v;
+    return c_(0) + c_(1) * u + c_(2) * v + c_(3) * u * u + c_(4) * u * v + c_(5) * v * v +
+           u * u * (c_(6) * u + c_(7) * v) + v * v * (c_(8) * u + c_(9) * v);
   }
   Eigen::Vector2d slope(double u, double v) const {
-    return {c_(1) + 2 * c_(3) * u + c_(4) * v, c_(2) + c_(4) * u + 2 * c_(5) * v};
+    return {c_(1) + 2 * c_(3) * u + c_(4) * v + 3 * c_(6) * u * u + 2 * c_(7) * u * v + c_(8) * v * v,
+            c_(2) + c_(4) * u + 2 * c_(5) * v + c_(7) * u * u + 2 * c_(8) * u * v + 3 * c_(9) * v * v};
   }
   Vec3 origin_ = Vec3::Zero();
   double scale_ = 1;
   Eigen::Matrix3d frame_ = Eigen::Matrix3d::Identity();
-  Eigen::Matrix<double, 6, 1> c_ = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 10, 1> c_ = Eigen::Matrix<double, 10, 1>::Zero();  // cubic terms 0 for a quadric
 };
 
 }  // namespace stampscan::fitting

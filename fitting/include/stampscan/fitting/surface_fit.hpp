@@ -50,7 +50,10 @@ struct FitParams {
 
 struct FitStats {
   std::size_t points = 0;
-  BandwidthSummary bandwidth;
+  BandwidthSummary bandwidth;       // the smoothing bandwidth of the fits
+  BandwidthSummary data_bandwidth;  // the data's own scale (the same, except where auto widened it):
+                                    // what meshing and gap detection go by
+  bool widened = false;             // auto: the bandwidth was widened (anchored_surface.hpp)
   double mean_iterations = 0;
   int max_iterations = 0;
   std::size_t not_converged = 0;
