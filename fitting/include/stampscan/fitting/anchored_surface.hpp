@@ -15,18 +15,21 @@
 //    repeats work. Fits are made at anchors spaced one or two h apart and blended with a compact
 //    partition of unity (as in multi-level partition-of-unity implicits, Ohtake et al. 2003); the
 //    work per point no longer grows with the neighbourhood size.
-//  - Widening (AnchoredParams::widen, off by default). The cap on the effective count keeps the cost
-//    bounded but stops accuracy from growing with density. With widening, every point gets a weight
-//    from its narrow patch (Tukey's biweight: outliers get none) and the weighted moments (count,
-//    centroid, covariance, strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp).
-//    A fit at bandwidth h reads the level whose cells are about h/3 wide, so its cost is bounded
-//    whatever h and the density, and no point's contribution is subsampled away. Probes and then
-//    anchors choose h by Lepski's rule: the widest fit whose offset agrees with every narrower
-//    fit's to within agreement_sigmas standard deviations of their difference. The widened patches
-//    are read within about a quarter h of their centres (wide_anchor_spacing), since the shape's
-//    cubic terms, which cancel at the centre, grow away from it. Measured: on flat and gently curved
-//    regions the error falls several-fold; near tight radii the blend of wide and narrow patches
-//    is worse than the narrow fits, which is why it is not yet the default.
+//  - Widening (AnchoredParams::widen). The cap on the effective count keeps the cost bounded but
+//    stops accuracy from growing with density. Where the data are dense against the shape (most
+//    probes stopped at the cap, not at misfit), every point gets a weight from its narrow patch
+//    (Tukey's biweight: outliers get none) and the weighted moments (count, centroid, covariance,
+//    strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp). A fit at bandwidth h
+//    reads the level whose cells are about h/3 wide, so its cost is bounded whatever h and the
+//    density, and no point's contribution is subsampled away. Probes and then anchors choose h by
+//    Lepski's balancing rule: the widest fit whose offset agrees with every narrower fit's to
+//    within agreement_sigmas standard deviations of their difference. The widened patches are cubic
+//    height fields: the cubic terms leave the offset at the centre as it is, but let a patch be read
+//    up to a bandwidth away, where a quadric's error grows with the shape's third derivatives; so
+//    the anchors stay about one h apart. Strain gets a bandwidth of its own by the same rule (it
+//    changes faster than the curvature where the sheet stretches) and is fitted at each projected
+//    point. On sparse data (the probes stopped by misfit) the narrow fits are kept: there the
+//    widened ones were measured as good or worse.
 //
 // Thread safety: after construction every method is const and safe from many threads.
 #pragma once
