@@ -367,8 +367,10 @@ void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
         const Vec3 foot = anchor.surface.project(anchor.centre);
         const int strain_scales =
             1 + static_cast<int>(std::ceil(std::log(std::max(anchor.h / h_low, 1.0)) / std::log(params.scale_step) - 1e-9));
-        anchor.strain_h = detail::chooseStrainBandwidth(*pyramid, foot, anchor.surface.normal(foot), h_low, params.scale_step,
-                                                        std::min(strain_scales, 8), params.agreement_sigmas, scratch);
+        const detail::StrainChoice field =
+            detail::chooseStrainBandwidth(*pyramid, foot, anchor.surface.normal(foot), h_low, params.scale_step,
+                                          std::min(strain_scales, 8), params.agreement_sigmas, scratch);
+        anchor.strain_h = field.h;
       }
     }
   });

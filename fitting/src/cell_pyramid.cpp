@@ -159,8 +159,8 @@ CellPyramid::~CellPyramid() = default;
 
 double CellPyramid::cellSize(int level) const { return levels_[static_cast<std::size_t>(level)]->size; }
 
-int CellPyramid::levelFor(double h) const {
-  const double ratio = h / (kCellsPerBandwidth * base_cell_);
+int CellPyramid::levelFor(double h, double cells_per_bandwidth) const {
+  const double ratio = h / (cells_per_bandwidth * base_cell_);
   if (ratio < 1) return -1;
   return std::min(static_cast<int>(std::floor(std::log2(ratio) + 1e-9)), levels() - 1);
 }
@@ -257,7 +257,7 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
 }
 
 double strainNear(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h, CellFitScratch& s) {
-  const int level = pyramid.levelFor(h);
+  const int level = pyramid.levelFor(h, kStrainCellsPerBandwidth);
   pyramid.near(level, x, kSupport * h, s.near);
   const double h_sq = h * h;
   s.samples.clear();
@@ -268,17 +268,18 @@ double strainNear(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, doub
   return smoothScalar(x, n, s.samples);
 }
 
-double chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start, double step,
-                             int scales, double gamma, CellFitScratch& s) {
+StrainChoice chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start,
+                                   double step, int scales, double gamma, CellFitScratch& s) {
   constexpr double kLeastEffectiveCount = 8;  // a linear field has three parameters
-  double chosen = 0, noise_sd = -1;
+  StrainChoice chosen;
+  double noise_sd = -1;
   struct Accepted {
     double value, factor;  // the fit's value at x and its SD per unit of strain noise
   };
   std::vector<Accepted> accepted;
   double h = h_start;
   for (int j = 0; j < scales; ++j, h *= step) {
-    const int level = pyramid.levelFor(h);
+    const int level = pyramid.levelFor(h, kStrainCellsPerBandwidth);
     pyramid.near(level, x, kSupport * h, s.near);
     const double h_sq = h * h;
     s.samples.clear();
@@ -313,7 +314,7 @@ double chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Ve
     });
     if (!agrees) break;
     accepted.push_back({field->value, factor});
-    chosen = h;
+    chosen = {h, field->value, field->gradient};
   }
   return chosen;
 }

@@ -4,7 +4,7 @@
 // the bandwidth, and with the density. Here each cell keeps the weighted count, centroid and
 // covariance of its points (and their mean strain); each level's cells are twice the size of the
 // level below. A fit at bandwidth h reads the level whose cells are about h / kCellsPerBandwidth
-// wide, so it visits a bounded number of cells (a few hundred) whatever h and the density, while
+// wide, so it visits a bounded number of cells (some tens) whatever h and the density, while
 // every point still contributes through its cell's moments: the variance reduction of the wide
 // support is kept, not subsampled away.
 //
@@ -30,10 +30,14 @@
 
 namespace stampscan::fitting::detail {
 
-// Cells per bandwidth at the level a fit reads: with 3, a Gaussian of width h spans ~13 cells across
-// its support of 2.2 h each way (about 130 cells on a surface). The weight is taken at each cell's
-// centroid, which smooths the kernel a little but, being symmetric, biases nothing.
-inline constexpr double kCellsPerBandwidth = 3.0;
+// Cells per bandwidth at the level a strain fit reads: a linear field needs far fewer elements than
+// a cubic patch, and the strain is measured per grid element anyway.
+inline constexpr double kStrainCellsPerBandwidth = 1.0;
+// Cells per bandwidth at the level a fit reads: with 2, a Gaussian of width h spans ~9 cells across
+// its support of 2.2 h each way (about 60 cells on a surface). The weight is taken at each cell's
+// centroid, which smooths the kernel a little but, being symmetric, biases nothing; 2, 2.5 and 3
+// cells per h gave the same accuracy on the benchmark's shapes.
+inline constexpr double kCellsPerBandwidth = 2.0;
 
 // Single precision beside a double centroid: the covariance of a cell a fraction of a millimetre
 // wide needs no more, and the pyramid stays within the memory budget of the fit.
@@ -71,8 +75,8 @@ class CellPyramid {
 
   int levels() const { return static_cast<int>(levels_.size()); }
   double cellSize(int level) const;
-  // The level a fit at bandwidth h reads (-1: the points).
-  int levelFor(double h) const;
+  // The level a fit at bandwidth h reads (-1: the points): cells at most h / cells_per_bandwidth.
+  int levelFor(double h, double cells_per_bandwidth = kCellsPerBandwidth) const;
   // Elements of `level` whose centroid lies within `radius` of x.
   void near(int level, const Vec3& x, double radius, std::vector<Neighbor>& out) const;
   CellElement element(int level, std::uint32_t index) const;
@@ -124,9 +128,14 @@ double strainNear(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, doub
 // The strain field's own bandwidth around x by the same balancing rule as chooseBandwidth below:
 // linear strain fits at h_j = h_start * step^j; the strain noise is estimated from the residuals
 // of the narrowest fit with enough data. Strain changes faster than the shape's curvature where
-// the sheet stretches, so its bandwidth is mostly narrower than the shape's. Returns 0 where no
+// the sheet stretches, so its bandwidth is mostly narrower than the shape's. h is 0 where no
 // element carries strain.
-double chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start, double step,
+struct StrainChoice {
+  double h = 0;
+  double value = std::numeric_limits<double>::quiet_NaN();  // at x
+  Vec3 gradient = Vec3::Zero();
+};
+StrainChoice chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, const Vec3& n, double h_start, double step,
                              int scales, double gamma, CellFitScratch& scratch);
 
 // The bandwidth by Lepski's balancing rule (Lepski, Mammen & Spokoiny 1997), the same idea as the

@@ -20,7 +20,7 @@
 //    probes stopped at the cap, not at misfit), every point gets a weight from its narrow patch
 //    (Tukey's biweight: outliers get none) and the weighted moments (count, centroid, covariance,
 //    strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp). A fit at bandwidth h
-//    reads the level whose cells are about h/3 wide, so its cost is bounded whatever h and the
+//    reads the level whose cells are about h/2 wide, so its cost is bounded whatever h and the
 //    density, and no point's contribution is subsampled away. Probes and then anchors choose h by
 //    Lepski's balancing rule: the widest fit whose offset agrees with every narrower fit's to
 //    within agreement_sigmas standard deviations of their difference. The widened patches are cubic
