@@ -119,9 +119,9 @@ void compareRoute(HmiServer::Impl& impl, const httplib::Request& req, httplib::R
               {"matched", c.matched}, {"unmatched", a.size() - c.matched}, {"mean", round3(c.mean)},
               {"rms", round3(c.rms)}, {"min", round3(c.min)}, {"max", round3(c.max)}};
   const auto values = [](const std::vector<std::optional<double>>& v) {
-    json out = json::array();
-    for (const auto& x : v) out.push_back(x ? json(round3(*x)) : json(nullptr));
-    return out;
+    json list = json::array();
+    for (const auto& x : v) list.push_back(x ? json(round3(*x)) : json(nullptr));
+    return list;
   };
   json xyz = json::array();
   for (const auto& p : a.positions)
