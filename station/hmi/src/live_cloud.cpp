@@ -1,6 +1,7 @@
 #include "stampscan/hmi/live_cloud.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace stampscan::hmi {
 
@@ -26,8 +27,8 @@ LivePoints LiveCloud::add(const std::vector<registration::GridElement>& elements
   const std::size_t step = (elements.size() + room - 1) / room;
   for (std::size_t i = 0; i < elements.size(); i += step) {
     const auto& g = elements[i];
-    for (int k = 0; k < 3; ++k) kept.xyz.push_back(static_cast<float>(g.position[k]));
-    kept.thickness.push_back(static_cast<float>(g.thickness_strain));
+    for (int k = 0; k < 3; ++k) kept.xyz.push_back(std::round(g.position[k] * 100) / 100);
+    kept.thickness.push_back(std::round(g.thickness_strain * 1e5) / 1e5);
   }
   state_.points.xyz.insert(state_.points.xyz.end(), kept.xyz.begin(), kept.xyz.end());
   state_.points.thickness.insert(state_.points.thickness.end(), kept.thickness.begin(), kept.thickness.end());

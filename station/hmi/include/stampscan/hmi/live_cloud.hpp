@@ -20,9 +20,11 @@
 
 namespace stampscan::hmi {
 
+// Rounded for the wire (a hundredth of a millimetre, 1e-5 of strain): the view needs no more, and
+// the events stay short.
 struct LivePoints {
-  std::vector<float> xyz;        // mm, machine frame, three per point
-  std::vector<float> thickness;  // thickness true strain, one per point
+  std::vector<double> xyz;        // mm, machine frame, three per point
+  std::vector<double> thickness;  // thickness true strain, one per point
   std::size_t size() const { return thickness.size(); }
 };
 
