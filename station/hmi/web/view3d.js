@@ -61,6 +61,7 @@ function makeView(el, onTap) {
   };
   // Replaces a named object of the scene (its geometry freed).
   v.put = (name, object) => {
+    if (v[name] === object) return;
     if (v[name]) { scene.remove(v[name]); v[name].geometry.dispose(); }
     v[name] = object;
     if (object) scene.add(object);
