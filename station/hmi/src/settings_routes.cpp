@@ -63,7 +63,9 @@ void changeSettings(HmiServer::Impl& impl, const httplib::Request& req, httplib:
   json detail = json::object();
   const auto old_values = settingsOf(before);
   for (const auto& [key, value] : changes) detail[key] = {{"from", old_values.at(key)}, {"to", value}};
-  impl.recordAction(who, "settings change", {{"changes", detail}, {"cell_file", cellFile(impl).string()}}, req);
+  json what = {{"changes", detail}};
+  if (const auto file = cellFile(impl); !file.empty()) what["cell_file"] = file.string();
+  impl.recordAction(who, "settings change", what, req);
   sendJson(res, settingsJson(impl));
 }
 

@@ -50,7 +50,11 @@ async function waitFor(page, what, fn, timeoutMs, ...args) {
   }
 }
 async function shot(page, name) {
-  if (shotDir) await page.screenshot({ path: path.join(shotDir, name), fullPage: true });
+  // From the top: a tap scrolls, and a full-page shot of a scrolled page paints the sticky header mid-page.
+  if (shotDir) {
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.screenshot({ path: path.join(shotDir, name), fullPage: true });
+  }
 }
 
 try {
