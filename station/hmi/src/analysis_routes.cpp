@@ -50,7 +50,9 @@ void elementsRoute(HmiServer::Impl& impl, const httplib::Request& req, httplib::
   const fs::path dir = runFolder(impl.runsDir(), req.matches[1]);
   const RunElements e = loadRunElements(dir / "cloud4d.ply");
   const std::size_t step = (e.size() + kMaxElementsShown - 1) / kMaxElementsShown;
-  json xyz = json::array(), thickness = json::array(), major = json::array(), minor = json::array(), dirs = json::array();
+  json xyz = json::array(), thickness = json::array(), major = json::array(), minor = json::array(), dirs = json::array(),
+       normals = json::array();
+  const bool has_normals = e.normals.size() == e.size();
   for (std::size_t i = 0; i < e.size(); i += std::max<std::size_t>(step, 1)) {
     for (int k = 0; k < 3; ++k) xyz.push_back(round3(e.positions[i][k]));
     thickness.push_back(round6(e.thickness[i]));
@@ -58,10 +60,13 @@ void elementsRoute(HmiServer::Impl& impl, const httplib::Request& req, httplib::
     minor.push_back(round6(e.minor[i]));
     if (e.hasDirections())
       for (int k = 0; k < 3; ++k) dirs.push_back(round6(e.directions[i][k]));
+    if (has_normals)
+      for (int k = 0; k < 3; ++k) normals.push_back(round6(e.normals[i][k]));
   }
   json out = {{"run_id", dir.filename().string()}, {"elements", e.size()}, {"shown", thickness.size()},
               {"xyz", xyz}, {"thickness", thickness}, {"major", major}, {"minor", minor},
-              {"has_directions", e.hasDirections()}, {"major_direction", e.hasDirections() ? dirs : json(nullptr)}};
+              {"has_directions", e.hasDirections()}, {"major_direction", e.hasDirections() ? dirs : json(nullptr)},
+              {"normal", has_normals ? normals : json(nullptr)}};
   if (!e.hasDirections())
     out["note"] = "cloud4d.ply has no major_dir_x/y/z (written before the measurement kept the direction): no arrows";
   sendJson(res, out);

@@ -30,6 +30,7 @@ RunElements loadRunElements(const fs::path& cloud4d) {
   e.minor = std::move(scalar("minor_strain"));
   e.thickness = std::move(cloud.strain);
   e.positions = std::move(cloud.positions);
+  e.normals = std::move(cloud.normals);
   const auto has = [&](const char* name) { return cloud.scalars.contains(name); };
   if (has("major_dir_x") && has("major_dir_y") && has("major_dir_z")) {
     const auto &x = cloud.scalars["major_dir_x"], &y = cloud.scalars["major_dir_y"], &z = cloud.scalars["major_dir_z"];

@@ -9,22 +9,23 @@ const analysis = { runId: null, elements: null, arrows: null, axis: null, at: 0,
 
 // Arrows: a bar along the major direction through the element, its length growing with the major
 // strain, with heads pointing out where the sheet is stretched (major > 0), in where it is compressed.
+// The heads open in the surface (across the direction, about the element's normal), and the arrow is
+// lifted a little off the surface along the normal so that the surface hides only the far side's.
 function arrowGeometry(e) {
   const seg = [];
   let maxMajor = 1e-9;
   for (const m of e.major) maxMajor = Math.max(maxMajor, Math.abs(m));
   const n = e.thickness.length;
-  const P = (i) => new THREE.Vector3(e.xyz[3 * i], e.xyz[3 * i + 1], e.xyz[3 * i + 2]);
+  const V = (a, i) => new THREE.Vector3(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
   for (let i = 0; i < n; ++i) {
-    const d = new THREE.Vector3(e.major_direction[3 * i], e.major_direction[3 * i + 1], e.major_direction[3 * i + 2]);
+    const d = V(e.major_direction, i);
     if (d.lengthSq() < 0.5) continue;  // no direction measured for this element
+    const normal = e.normal ? V(e.normal, i) : new THREE.Vector3(0, 0, 1);
     const len = 2.2 * (0.25 + 0.75 * Math.abs(e.major[i]) / maxMajor);  // mm; the grid's pitch is 2.54
-    const up = new THREE.Vector3(0, 0, 1);
-    // The side vector in the surface, for the heads: across the direction, away from the view axis.
-    let side = new THREE.Vector3().crossVectors(d, up);
-    if (side.lengthSq() < 1e-6) side = new THREE.Vector3(1, 0, 0);
+    let side = new THREE.Vector3().crossVectors(normal, d);
+    if (side.lengthSq() < 1e-6) side = new THREE.Vector3().crossVectors(new THREE.Vector3(0, 0, 1), d);
     side.normalize();
-    const p = P(i);
+    const p = V(e.xyz, i).addScaledVector(normal, 0.3);
     const head = 0.45, out = e.major[i] >= 0 ? 1 : -1;
     for (const s of [1, -1]) {
       const tip = p.clone().addScaledVector(d, (s * len) / 2);
@@ -40,10 +41,7 @@ function showArrows(on) {
   $('arrows').setAttribute('aria-pressed', on ? 'true' : 'false');
   $('arrows').classList.toggle('on', on);
   if (on && !analysis.arrows && analysis.elements && analysis.elements.has_directions) {
-    // Drawn on top of the surface so that no arrow is half hidden in it.
-    analysis.arrows = new THREE.LineSegments(arrowGeometry(analysis.elements),
-      new THREE.LineBasicMaterial({ color: 0x000000, depthTest: false, transparent: true, opacity: 0.85 }));
-    analysis.arrows.renderOrder = 2;
+    analysis.arrows = new THREE.LineSegments(arrowGeometry(analysis.elements), new THREE.LineBasicMaterial({ color: 0x000000 }));
   }
   view.put('arrowLines', on ? analysis.arrows : null);
   document.body.dataset.arrows = on && analysis.arrows ? String(analysis.arrows.geometry.attributes.position.count / 12) : '0';
@@ -168,4 +166,12 @@ async function loadAnalysis(runId, files) {
   if (e.note) $('arrows-note').textContent = e.note;
   showArrows(e.has_directions && $('arrows').classList.contains('on'));
   document.body.dataset.elements = String(e.elements);
+}
+
+// A tap on the surface while a section is on places the section there.
+function sectionTapped(point) {
+  if (!analysis.axis) return;
+  const slider = $('section-at');
+  slider.value = String(point[analysis.axis]);
+  moveSection(Number(slider.value));
 }

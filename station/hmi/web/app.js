@@ -216,6 +216,7 @@ function pick(e) {
   view.marker.position.copy(hit.point);
   view.marker.visible = true;
   view.draw();
+  sectionTapped(hit.point);
   let best = null, bestD = Infinity;
   for (const el of view.elements) {
     const d = (el.x - hit.point.x) ** 2 + (el.y - hit.point.y) ** 2 + (el.z - hit.point.z) ** 2;

@@ -7,7 +7,7 @@ const compare = { runs: [], a: null, b: null, syncing: false };
 
 function compareViews() {
   if (!compare.a) {
-    compare.a = makeView($('cmp-view-a'));
+    compare.a = makeView($('cmp-view-a'), pickDifference);
     compare.b = makeView($('cmp-view-b'));
     if (!compare.a || !compare.b) return false;
     // Side by side, turning one turns the other.
@@ -85,6 +85,7 @@ async function showSideBySide() {
     $(`cmp-legend-${k}`).innerHTML = `<span>${num(lo)} %</span><span>thinning, one scale for both</span><span>${num(hi)} %</span>`;
   }
   $('cmp-info').textContent = 'Side by side: the thinning of both runs on one colour scale; turning one view turns the other.';
+  $('cmp-pick').textContent = '';
   document.body.dataset.compare = 'side';
 }
 
@@ -94,6 +95,8 @@ async function showDifference() {
   const r = await api(`/api/compare?a=${encodeURIComponent($('cmp-a').value)}&b=${encodeURIComponent($('cmp-b').value)}&strain=${strain}`);
   if (!r.ok) { $('cmp-info').textContent = r.body.error; return; }
   const c = r.body;
+  compare.last = c;
+  $('cmp-pick').textContent = 'Tap the surface to read the difference there.';
   const name = { thinning: 'thinning', major: 'major strain', minor: 'minor strain' }[c.strain];
   // Symmetric about zero, so that white is "no change".
   const span = Math.max(0.5, Math.abs(c.min), Math.abs(c.max));
@@ -121,6 +124,28 @@ async function showDifference() {
     `from <b>${num(c.min, 2)}</b> to <b>${num(c.max, 2)}</b> percentage points.`;
   document.body.dataset.compare = 'diff';
   document.body.dataset.compareMatched = String(c.matched);
+}
+
+// A tap on the difference map: the nearest element of A that has a match, and its B − A.
+function pickDifference(e) {
+  const c = compare.last, v = compare.a;
+  if (document.body.dataset.compare !== 'diff' || !c || !v.mesh) return;
+  const r = v.renderer.domElement.getBoundingClientRect();
+  const ray = new THREE.Raycaster();
+  ray.setFromCamera(new THREE.Vector2(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1), v.camera);
+  const hit = ray.intersectObject(v.mesh)[0];
+  if (!hit) return;
+  let best = -1, bestD = Infinity;
+  const xyz = c.elements.xyz;
+  for (let i = 0; i < c.elements.difference.length; ++i) {
+    if (c.elements.difference[i] === null) continue;
+    const d = (xyz[3 * i] - hit.point.x) ** 2 + (xyz[3 * i + 1] - hit.point.y) ** 2 + (xyz[3 * i + 2] - hit.point.z) ** 2;
+    if (d < bestD) { bestD = d; best = i; }
+  }
+  if (best < 0) return;
+  const dv = c.elements.difference[best];
+  $('cmp-pick').innerHTML = `Element ${best} of A at (${num(xyz[3 * best])}, ${num(xyz[3 * best + 1])}, ${num(xyz[3 * best + 2])}) mm, ` +
+    `${num(Math.sqrt(bestD), 2)} mm from the tap: B − A <b>${dv > 0 ? '+' : ''}${num(dv, 2)}</b> percentage points of ${esc(c.strain)}`;
 }
 
 $('cmp-side').addEventListener('click', showSideBySide);

@@ -187,6 +187,15 @@ try {
   await tap('#cmp-diff');
   await waitFor(page, 'the difference map', () => document.body.dataset.compare === 'diff' && Number(document.body.dataset.compareMatched || 0) > 0, 20000);
   const comparison = await page.$eval('#cmp-info', (el) => el.innerText);
+  // A finger on the map reads the difference there.
+  const diffBox = await (await page.$('#cmp-view-a canvas')).boundingBox();
+  for (const [fx, fy] of [[0.5, 0.5], [0.45, 0.55], [0.55, 0.45], [0.4, 0.4], [0.6, 0.6]]) {
+    await page.touchscreen.tap(diffBox.x + diffBox.width * fx, diffBox.y + diffBox.height * fy);
+    await sleep(300);
+    if (await page.$eval('#cmp-pick', (el) => el.innerText.includes('B − A'))) break;
+  }
+  await waitFor(page, 'the difference read at a tapped spot', () => document.getElementById('cmp-pick').innerText.includes('B − A'), 5000);
+  const diffPicked = await page.$eval('#cmp-pick', (el) => el.innerText);
   await shot(page, '6-compare-difference.png');
 
   await page.click('button[data-tab="history"]');
@@ -212,7 +221,7 @@ try {
   console.log(`door opened mid-scan, the page shows: ${doorFault.replace(/\s+/g, ' ')}`);
   console.log(`live cloud: ${firstCloud} points at first, then ${grownCloud.points} after ${grownCloud.batches} batches`);
   console.log(`result: ${arrows} major-strain arrows; section ${section.at} with ${section.points} elements plotted`);
-  console.log(`comparison: ${comparison.replace(/\s+/g, ' ')}`);
+  console.log(`comparison: ${comparison.replace(/\s+/g, ' ')}; tapped: ${diffPicked.replace(/\s+/g, ' ')}`);
   console.log(`verdict: ${verdict.replace(/\s+/g, ' ')}; picked: ${picked.replace(/\s+/g, ' ')}; FLD ${fld.w}x${fld.h}; PDF ${files.pdf.size} bytes`);
   if (consoleErrors.length) fail(`errors in the browser console:\n  ${consoleErrors.join('\n  ')}`);
   console.log('PASSED');

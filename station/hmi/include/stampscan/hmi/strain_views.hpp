@@ -23,6 +23,7 @@ namespace stampscan::hmi {
 // A run's grid elements (cloud4d.ply), one entry per element in the file's order.
 struct RunElements {
   std::vector<fitting::Vec3> positions;   // mm, machine frame
+  std::vector<fitting::Vec3> normals;     // unit surface normal (sensor side); empty when the file has none
   std::vector<fitting::Vec3> directions;  // unit major-strain direction in the surface; empty when the file has none
   std::vector<double> thickness, major, minor;  // true strains
   std::size_t size() const { return positions.size(); }
