@@ -11,7 +11,12 @@ let jobBusy = false;
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? '').replace(/[&<>"']/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;' }[c]));
-const num = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v) ? '–' : Number(v).toFixed(d));
+// A value that rounds to zero shows as 0, not -0.0.
+const num = (v, d = 1) => {
+  if (v === null || v === undefined || Number.isNaN(v)) return '–';
+  const t = Number(v).toFixed(d);
+  return /^-0\.?0*$/.test(t) ? t.slice(1) : t;
+};
 
 async function api(path, options = {}) {
   const init = { credentials: 'same-origin', headers: {} };

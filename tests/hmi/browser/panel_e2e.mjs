@@ -221,7 +221,7 @@ try {
   console.log(`door opened mid-scan, the page shows: ${doorFault.replace(/\s+/g, ' ')}`);
   console.log(`live cloud: ${firstCloud} points at first, then ${grownCloud.points} after ${grownCloud.batches} batches`);
   console.log(`result: ${arrows} major-strain arrows; section ${section.at} with ${section.points} elements plotted`);
-  console.log(`comparison: ${comparison.replace(/\s+/g, ' ')}; tapped: ${diffPicked.replace(/\s+/g, ' ')}`);
+  console.log(`comparison: ${comparison.replace(/\s+/g, ' ')} Tapped: ${diffPicked.replace(/\s+/g, ' ')}`);
   console.log(`verdict: ${verdict.replace(/\s+/g, ' ')}; picked: ${picked.replace(/\s+/g, ' ')}; FLD ${fld.w}x${fld.h}; PDF ${files.pdf.size} bytes`);
   if (consoleErrors.length) fail(`errors in the browser console:\n  ${consoleErrors.join('\n  ')}`);
   console.log('PASSED');
