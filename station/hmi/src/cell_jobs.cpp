@@ -32,7 +32,8 @@ class HubObserver final : public station::ScanJobObserver {
         on_scan_done_(std::move(on_scan_done)), live_cloud_(live_cloud) {}
 
   void runFolder(const fs::path& dir) override {
-    if (on_run_folder_) on_run_folder_(dir.filename().string());
+    run_id_ = dir.filename().string();
+    if (on_run_folder_) on_run_folder_(run_id_);
     hub_.publish("run", json{{"kind", kind_}, {"run_id", dir.filename().string()}}.dump());
   }
   void checkPassed(const std::string& what) override {
@@ -63,10 +64,10 @@ class HubObserver final : public station::ScanJobObserver {
   void elementsMeasured(std::string_view stage, const std::vector<registration::GridElement>& elements) override {
     if (!live_cloud_) return;
     const LivePoints kept = live_cloud_->add(elements);
-    const LiveCloud::Snapshot now = live_cloud_->snapshot();
-    hub_.publish("cloud", json{{"kind", kind_}, {"stage", std::string(stage)}, {"run_id", now.run_id},
-                               {"xyz", kept.xyz}, {"thickness", kept.thickness}, {"measured", now.measured},
-                               {"shown", now.points.size()}}.dump());
+    const auto [measured, shown] = live_cloud_->counts();
+    hub_.publish("cloud", json{{"kind", kind_}, {"stage", std::string(stage)}, {"run_id", run_id_},
+                               {"xyz", kept.xyz}, {"thickness", kept.thickness}, {"measured", measured},
+                               {"shown", shown}}.dump());
   }
 
  private:
@@ -76,6 +77,7 @@ class HubObserver final : public station::ScanJobObserver {
   std::function<void(const std::string&)> on_run_folder_;
   std::function<void()> on_scan_done_;
   LiveCloud* live_cloud_;
+  std::string run_id_;  // set before any measuring starts (the run folder comes first)
   std::chrono::steady_clock::time_point last_progress_{};
 };
 

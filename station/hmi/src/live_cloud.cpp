@@ -35,6 +35,11 @@ LivePoints LiveCloud::add(const std::vector<registration::GridElement>& elements
   return kept;
 }
 
+std::pair<std::size_t, std::size_t> LiveCloud::counts() const {
+  std::lock_guard lock(mutex_);
+  return {state_.measured, state_.points.size()};
+}
+
 LiveCloud::Snapshot LiveCloud::snapshot() const {
   std::lock_guard lock(mutex_);
   return state_;

@@ -16,6 +16,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace stampscan::hmi {
@@ -46,6 +47,8 @@ class LiveCloud {
     std::size_t batches = 0;
   };
   Snapshot snapshot() const;
+  // The counts alone (measured, shown), without copying the points.
+  std::pair<std::size_t, std::size_t> counts() const;
 
  private:
   std::size_t batch_limit_, total_limit_;
