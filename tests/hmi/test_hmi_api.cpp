@@ -331,5 +331,30 @@ TEST_F(HmiTest, MaintenanceSettingsAreCheckedAppliedAndLogged) {
   EXPECT_NE(log.find(R"("action":"settings refused")"), std::string::npos) << log;
 }
 
+TEST_F(HmiTest, SettingsGoIntoTheCellFileWhenThereIsOne) {
+  // A cell of its own file, whose devices are nowhere (the panel serves all the same; they show as
+  // faulted): a change of its settings is written into that file, comments kept.
+  const fs::path cell = root_ / "cell.toml";
+  std::ofstream(cell) << "name = \"press line 4\"\n[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\n"
+                         "right_address = \"127.0.0.4\"\n\n[calibration]  # the rules\nvalidity_days = 7   # a week\n";
+  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  const json before = body(client_->Get("/api/settings"));
+  EXPECT_TRUE(before["persisted"].get<bool>()) << before.dump();
+  EXPECT_EQ(before["cell_file"], cell.string());
+  auto changed = post("/api/settings", R"({"validity_days": 3, "size_mpe_mm": 0.02})", csrf());
+  ASSERT_TRUE(changed);
+  ASSERT_EQ(changed->status, 200) << changed->body;
+  const std::string text = readText(cell);
+  EXPECT_NE(text.find("validity_days = 3.0   # a week"), std::string::npos) << text;
+  EXPECT_NE(text.find("size_mpe_mm = 0.02"), std::string::npos) << text;
+  EXPECT_NE(text.find("name = \"press line 4\""), std::string::npos) << text;
+  EXPECT_NE(readText(root_ / "runs" / "hmi-actions.jsonl").find(cell.string()), std::string::npos)
+      << "the actions log names the file changed";
+  // A panel started again on that file starts with the new rules.
+  station_->stop();
+  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["validity_days"], 3);
+}
+
 }  // namespace
 }  // namespace stampscan::hmi::test
