@@ -191,6 +191,7 @@ void ScanMeasurer::measureSweep(const ScanTrace& trace, const SweepWindow& sweep
       grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, sweep_id, &stats)
                         : detectLaserSquares(profiles, track, out_.digitizer, squares_, sweep_id, &stats);
   laser_.insert(laser_.end(), found.begin(), found.end());
+  if (observer_) observer_->elementsMeasured("laser", found);
   out_.laser_stats.candidates += stats.candidates;
   out_.laser_stats.rejected_size += stats.rejected_size;
   out_.laser_stats.rejected_gap += stats.rejected_gap;
@@ -218,6 +219,7 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
   });
   for (std::size_t k = 0; k < part.size(); ++k) {
     laser_.insert(laser_.end(), per_sweep[k].begin(), per_sweep[k].end());
+    if (observer_) observer_->elementsMeasured("laser", per_sweep[k]);
     out_.laser_stats.candidates += stats[k].candidates;
     out_.laser_stats.rejected_size += stats[k].rejected_size;
     out_.laser_stats.rejected_gap += stats[k].rejected_gap;
@@ -268,6 +270,7 @@ bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint3
       }
     }
     stereo_.insert(stereo_.end(), view.begin(), view.end());
+    if (observer_) observer_->elementsMeasured("stereo", view);
   } else if (stereo_.empty() && out_.stereo_note.empty() && !laser_positions.empty()) {
     // Say why when it is the images' scale: the line's centre needs the line to span pixels.
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();

@@ -114,6 +114,10 @@ class SerialObserver final : public ScanJobObserver {
     std::lock_guard lock(mutex_);
     if (to_) to_->stageDone(stage, text);
   }
+  void elementsMeasured(std::string_view stage, const std::vector<registration::GridElement>& elements) override {
+    std::lock_guard lock(mutex_);
+    if (to_) to_->elementsMeasured(stage, elements);
+  }
 
  private:
   ScanJobObserver* to_;

@@ -2,6 +2,7 @@
 # on the virtual cell, whose fake GigE cameras hold UDP 3956 on 127.0.0.1/127.0.0.2, so they take
 # the lock of the other tests that serve cameras (tests/station/station_test_lock.cmake).
 set_tests_properties(HmiTest.ServesThePageDebiansScriptsAndTheCell HmiTest.AScanStreamsEventsRefusesASecondStartAndAborts
-  HmiTest.BadInputGetsAClearJsonErrorNeverAFile HmiAuthTest.OffLoopbackAUsersFileIsRequired
+  HmiTest.BadInputGetsAClearJsonErrorNeverAFile HmiTest.TheAnalysisViewsOfTwoRunsOfOneProgram
+  HmiTest.MaintenanceSettingsAreCheckedAppliedAndLogged HmiAuthTest.OffLoopbackAUsersFileIsRequired
   HmiAuthTest.UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRefused
   PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

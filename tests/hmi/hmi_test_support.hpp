@@ -89,6 +89,31 @@ class StationHmi {
   int port_ = 0;
 };
 
+// A run folder as `station scan` leaves it, made by hand for the analysis views: run.json,
+// cloud4d.ply (a 10 x 8 grid of elements at the 2.54 mm pitch on the slope z = 0.1 x, uniform
+// strains, major direction x) and mesh.ply (a triangulated plate over the grid).
+inline void writeSyntheticRun(const fs::path& dir, const std::string& part_id, const std::string& program,
+                              double thickness_strain, double shift_x_mm) {
+  fs::create_directories(dir);
+  std::ofstream(dir / "run.json") << json{{"part_id", part_id}, {"program", program}}.dump();
+  std::ofstream cloud(dir / "cloud4d.ply");
+  cloud << "ply\nformat ascii 1.0\nelement vertex 80\n";
+  for (const char* p : {"x", "y", "z", "nx", "ny", "nz", "strain", "major_strain", "minor_strain", "major_dir_x",
+                        "major_dir_y", "major_dir_z"})
+    cloud << "property float " << p << "\n";
+  cloud << "end_header\n";
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 8; ++j) {
+      const double x = i * 2.54 + shift_x_mm;
+      cloud << x << ' ' << j * 2.54 << ' ' << 0.1 * x << " 0 0 1 " << thickness_strain << " 0.04 0.01 1 0 0\n";
+    }
+  std::ofstream mesh(dir / "mesh.ply");
+  mesh << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+          "property float strain\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
+  mesh << "0 0 0 " << thickness_strain << "\n22.86 0 2.286 " << thickness_strain << "\n22.86 17.78 2.286 "
+       << thickness_strain << "\n0 17.78 0 " << thickness_strain << "\n3 0 1 2\n3 0 2 3\n";
+}
+
 class HmiTest : public ::testing::Test {
  protected:
   void SetUp() override {

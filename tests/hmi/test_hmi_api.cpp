@@ -5,6 +5,7 @@
 #include "hmi_test_support.hpp"
 
 #include <atomic>
+#include <cmath>
 #include <mutex>
 
 namespace stampscan::hmi::test {
@@ -128,6 +129,19 @@ TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
   EXPECT_NE(body(second)["error"].get<std::string>().find("a scan is running"), std::string::npos) << second->body;
   EXPECT_TRUE(body(client_->Get("/api/status"))["busy"].get<bool>());
 
+  // The live cloud grows as the part's sweeps are measured: the elements arrive as `cloud` events,
+  // and a page opened now gets them all at once.
+  ASSERT_TRUE(events.waitFor("cloud", std::chrono::seconds(120))) << events.text();
+  const json cloud = events.events("cloud").front();
+  ASSERT_GT(cloud["thickness"].size(), 0u) << cloud.dump();
+  EXPECT_EQ(cloud["xyz"].size(), 3 * cloud["thickness"].size());
+  EXPECT_GE(cloud["measured"].get<std::size_t>(), cloud["shown"].get<std::size_t>());
+  EXPECT_EQ(cloud["run_id"], run_id);
+  const json so_far = body(client_->Get("/api/scan/cloud"));
+  EXPECT_EQ(so_far["run_id"], run_id);
+  EXPECT_GE(so_far["shown"].get<std::size_t>(), cloud["thickness"].size());
+  EXPECT_EQ(so_far["xyz"].size(), 3 * so_far["shown"].get<std::size_t>());
+
   auto aborted = post("/api/scan/abort", "{}", token);
   ASSERT_TRUE(aborted);
   EXPECT_EQ(aborted->status, 202);
@@ -207,6 +221,139 @@ TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
   EXPECT_EQ(fld->body, "not really a png");
   // And the server is still there.
   EXPECT_EQ(client_->Get("/api/session")->status, 200);
+}
+
+TEST_F(HmiTest, TheAnalysisViewsOfTwoRunsOfOneProgram) {
+  // Run B is thinner by a known amount and its grid lies 0.3 mm off A's; run C is of another program.
+  writeSyntheticRun(root_ / "runs" / "20261125-080000-a", "a", "OP20", -0.05, 0);
+  writeSyntheticRun(root_ / "runs" / "20261125-090000-b", "b", "OP20", -0.08, 0.3);
+  writeSyntheticRun(root_ / "runs" / "20261125-100000-c", "c", "OP30", -0.05, 0);
+  startPanel();
+
+  // The elements, with the measurement's major direction for the arrows.
+  const json e = body(client_->Get("/api/runs/20261125-080000-a/elements"));
+  ASSERT_EQ(e["elements"], 80) << e.dump();
+  EXPECT_EQ(e["xyz"].size(), 240u);
+  EXPECT_EQ(e["major"].size(), 80u);
+  EXPECT_TRUE(e["has_directions"].get<bool>());
+  ASSERT_EQ(e["major_direction"].size(), 240u);
+  EXPECT_NEAR(e["major_direction"][0].get<double>(), 1.0, 1e-6);
+
+  // A section through the fourth column of elements: eight of them, in order, 7 pitches long.
+  const json cut = body(client_->Get("/api/runs/20261125-080000-a/section?axis=x&at=7.62"));
+  ASSERT_EQ(cut["points"].size(), 8u) << cut.dump();
+  EXPECT_NEAR(cut["points"][7]["along_mm"].get<double>(), 17.78, 1e-3);
+  EXPECT_NEAR(cut["points"][0]["thinning_percent"].get<double>(), (1 - std::exp(-0.05)) * 100, 1e-3);
+  EXPECT_NEAR(cut["points"][0]["major_percent"].get<double>(), (std::exp(0.04) - 1) * 100, 1e-3);
+  EXPECT_NEAR(cut["range_mm"][1].get<double>(), 22.86, 1e-3);
+  EXPECT_EQ(body(client_->Get("/api/runs/20261125-080000-a/section?axis=y&at=0&width=1"))["points"].size(), 10u);
+
+  // B minus A on A's surface: every element matched, the known difference everywhere.
+  const json diff = body(client_->Get("/api/compare?a=20261125-080000-a&b=20261125-090000-b"));
+  const double expected = (1 - std::exp(-0.08)) * 100 - (1 - std::exp(-0.05)) * 100;
+  ASSERT_EQ(diff["matched"], 80) << diff.dump();
+  EXPECT_EQ(diff["strain"], "thinning");
+  EXPECT_NEAR(diff["mean"].get<double>(), expected, 2e-3);
+  EXPECT_NEAR(diff["max"].get<double>(), expected, 2e-3);
+  EXPECT_EQ(diff["elements"]["difference"].size(), 80u);
+  ASSERT_TRUE(diff["mesh"].is_object());
+  ASSERT_EQ(diff["mesh"]["difference"].size(), 4u) << "one value per vertex of A's mesh";
+  EXPECT_NEAR(diff["mesh"]["difference"][2].get<double>(), expected, 2e-3);
+  EXPECT_EQ(diff["a"]["part_id"], "a");
+  EXPECT_EQ(diff["b"]["part_id"], "b");
+  const json major = body(client_->Get("/api/compare?a=20261125-080000-a&b=20261125-090000-b&strain=major"));
+  EXPECT_NEAR(major["rms"].get<double>(), 0, 1e-3) << "the same major strain in both";
+
+  const auto expectError = [&](const char* path, int status, const std::string& says) {
+    auto r = client_->Get(path);
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, status) << path << ": " << r->body;
+    EXPECT_NE(body(r)["error"].get<std::string>().find(says), std::string::npos) << path << ": " << r->body;
+  };
+  expectError("/api/compare?a=20261125-080000-a&b=20261125-100000-c", 400, "one program");
+  expectError("/api/compare?a=20261125-080000-a", 400, "two runs");
+  expectError("/api/compare?a=20261125-080000-a&b=20261125-090000-b&strain=stress", 400, "stress");
+  expectError("/api/compare?a=20261125-080000-a&b=20261125-090000-b&max_distance=-1", 400, "max_distance");
+  expectError("/api/compare?a=20261125-080000-a&b=..%2Fsecret", 400, "not a run id");
+  expectError("/api/runs/20261125-080000-a/section?axis=w&at=1", 400, "axis");
+  expectError("/api/runs/20261125-080000-a/section?axis=x&at=left", 400, "'at' must be a number");
+  expectError("/api/runs/20261125-080000-a/section?axis=x", 400, "'at' is required");
+  expectError("/api/runs/20261125-080000-a/section?axis=x&at=1&width=0", 400, "width");
+  expectError("/api/runs/no-such-run/elements", 404, "no run");
+  // A run folder without grid elements (an aborted scan) says so.
+  fs::remove(root_ / "runs" / "20261125-100000-c" / "cloud4d.ply");
+  expectError("/api/runs/20261125-100000-c/elements", 404, "no grid elements");
+
+  // No scan yet: the live cloud is empty.
+  const json live = body(client_->Get("/api/scan/cloud"));
+  EXPECT_EQ(live["shown"], 0) << live.dump();
+  EXPECT_EQ(live["xyz"].size(), 0u);
+}
+
+TEST_F(HmiTest, MaintenanceSettingsAreCheckedAppliedAndLogged) {
+  startPanel();
+  const std::string token = csrf();
+  // On loopback the local user has the maintenance role.
+  const json before = body(client_->Get("/api/settings"));
+  EXPECT_EQ(before["settings"]["validity_days"], 7) << before.dump();
+  EXPECT_FALSE(before["persisted"].get<bool>()) << "the built-in virtual cell has no cell file";
+  EXPECT_EQ(before["ranges"].size(), 4u);
+
+  auto changed = post("/api/settings", R"({"validity_days": 2.5, "form_mpe_mm": 0.08})", token);
+  ASSERT_TRUE(changed);
+  ASSERT_EQ(changed->status, 200) << changed->body;
+  EXPECT_EQ(body(changed)["settings"]["validity_days"], 2.5);
+  EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["form_mpe_mm"], 0.08);
+  // Applied: the calibration status judges the calibration in use by the new validity.
+  const json calibration = body(client_->Get("/api/calibration"));
+  EXPECT_EQ(calibration["sensors"][0]["valid_days"], 2.5) << calibration.dump();
+
+  const auto refused = [&](const std::string& payload, int status, const std::string& says, httplib::Headers h = {},
+                           const std::string& t = "") {
+    auto r = post("/api/settings", payload, t.empty() ? token : t, std::move(h));
+    ASSERT_TRUE(r) << payload;
+    EXPECT_EQ(r->status, status) << payload << ": " << r->body;
+    EXPECT_NE(body(r)["error"].get<std::string>().find(says), std::string::npos) << payload << ": " << r->body;
+  };
+  refused(R"({"validity_days": 7000})", 400, "validity_days");
+  refused(R"({"validity_days": "7"})", 400, "must be a number");
+  refused(R"({"results_database": 1})", 400, "no setting 'results_database'");
+  refused("{}", 400, "settings to change");
+  refused("not json", 400, "settings to change");
+  refused(R"({"validity_days": 3})", 403, "CSRF", {}, "forged");
+  refused(R"({"validity_days": 3})", 403, "another site", {{"Origin", "http://evil.example"}});
+  EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["validity_days"], 2.5) << "nothing refused was applied";
+
+  // Who changed what, from what to what; and the refusals.
+  const std::string log = readText(root_ / "runs" / "hmi-actions.jsonl");
+  EXPECT_NE(log.find(R"("action":"settings change")"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("validity_days":{"from":7.0,"to":2.5})"), std::string::npos) << log;
+  EXPECT_NE(log.find(R"("action":"settings refused")"), std::string::npos) << log;
+}
+
+TEST_F(HmiTest, SettingsGoIntoTheCellFileWhenThereIsOne) {
+  // A cell of its own file, whose devices are nowhere (the panel serves all the same; they show as
+  // faulted): a change of its settings is written into that file, comments kept.
+  const fs::path cell = root_ / "cell.toml";
+  std::ofstream(cell) << "name = \"press line 4\"\n[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\n"
+                         "right_address = \"127.0.0.4\"\n\n[calibration]  # the rules\nvalidity_days = 7   # a week\n";
+  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  const json before = body(client_->Get("/api/settings"));
+  EXPECT_TRUE(before["persisted"].get<bool>()) << before.dump();
+  EXPECT_EQ(before["cell_file"], cell.string());
+  auto changed = post("/api/settings", R"({"validity_days": 3, "size_mpe_mm": 0.02})", csrf());
+  ASSERT_TRUE(changed);
+  ASSERT_EQ(changed->status, 200) << changed->body;
+  const std::string text = readText(cell);
+  EXPECT_NE(text.find("validity_days = 3.0   # a week"), std::string::npos) << text;
+  EXPECT_NE(text.find("size_mpe_mm = 0.02"), std::string::npos) << text;
+  EXPECT_NE(text.find("name = \"press line 4\""), std::string::npos) << text;
+  EXPECT_NE(readText(root_ / "runs" / "hmi-actions.jsonl").find(cell.string()), std::string::npos)
+      << "the actions log names the file changed";
+  // A panel started again on that file starts with the new rules.
+  station_->stop();
+  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["validity_days"], 3);
 }
 
 }  // namespace

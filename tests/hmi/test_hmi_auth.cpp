@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <sstream>
 #include <thread>
 
 namespace stampscan::hmi::test {
@@ -80,6 +81,14 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   auto calibrate = post("/api/calibrate", R"({"sensors": "digitizer"})", op_csrf);
   ASSERT_TRUE(calibrate);
   EXPECT_EQ(calibrate->status, 403) << calibrate->body;
+  // Nor read or change the cell's settings.
+  EXPECT_EQ(client_->Get("/api/settings")->status, 403);
+  auto settings = post("/api/settings", R"({"validity_days": 30})", op_csrf);
+  ASSERT_TRUE(settings);
+  EXPECT_EQ(settings->status, 403) << settings->body;
+  EXPECT_NE(body(settings)["error"].get<std::string>().find("maintenance"), std::string::npos) << settings->body;
+  // The analysis views are the operator's too.
+  EXPECT_EQ(client_->Get("/api/scan/cloud")->status, 200);
   // State-changing requests without the CSRF token, or from another site, are refused.
   EXPECT_EQ(post("/api/scan/abort", "{}", "")->status, 403);
   EXPECT_EQ(post("/api/scan/abort", "{}", "forged")->status, 403);
@@ -93,6 +102,13 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   // Maintenance may verify (and abort it again at once).
   const std::string mt_csrf = login("max", "mt-secret");
   EXPECT_EQ(post("/api/verify", "{}", "")->status, 403) << "no CSRF token";
+  EXPECT_EQ(post("/api/settings", R"({"validity_days": 30})", "")->status, 403) << "no CSRF token";
+  EXPECT_EQ(post("/api/settings", R"({"validity_days": 30})", mt_csrf, {{"Origin", "http://evil.example"}})->status, 403);
+  EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["validity_days"], 7) << "nothing refused was applied";
+  auto changed = post("/api/settings", R"({"validity_days": 30})", mt_csrf);
+  ASSERT_TRUE(changed);
+  EXPECT_EQ(changed->status, 200) << changed->body;
+  EXPECT_EQ(body(changed)["settings"]["validity_days"], 30);
   auto started = post("/api/verify", "{}", mt_csrf);
   ASSERT_TRUE(started);
   EXPECT_EQ(started->status, 202) << started->body;
@@ -120,6 +136,17 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   EXPECT_NE(log.find(R"("action":"verify start")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("action":"calibrate start")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("user":"max")"), std::string::npos) << log;
+  bool max_changed_settings = false;
+  std::istringstream lines(log);
+  for (std::string line; std::getline(lines, line);) {
+    const json entry = json::parse(line, nullptr, false);
+    max_changed_settings |= entry.value("action", "") == "settings change" && entry.value("user", "") == "max" &&
+                            entry.value("role", "") == "maintenance";
+  }
+  EXPECT_TRUE(max_changed_settings) << log;
+  EXPECT_NE(log.find(R"("validity_days":{"from":7.0,"to":30.0})"), std::string::npos) << log;
+  // The operator's try was refused for the role, and recorded with the path.
+  EXPECT_NE(log.find(R"("path":"/api/settings")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("action":"login refused")"), std::string::npos) << log;
   EXPECT_EQ(log.find("secret"), std::string::npos) << "passwords never go into the log";
 

@@ -1,5 +1,6 @@
-// The cell and its jobs: GET /api/cell, /api/status, /api/materials, /api/calibration;
-// POST /api/scan/start, /api/scan/abort, /api/verify, /api/calibrate; GET /api/actions. See API.md.
+// The cell and its jobs: GET /api/cell, /api/status, /api/materials, /api/calibration,
+// /api/scan/cloud; POST /api/scan/start, /api/scan/abort, /api/verify, /api/calibrate;
+// GET /api/actions. See API.md.
 #include "json_views.hpp"
 #include "server_impl.hpp"
 #include "stampscan/report/material.hpp"
@@ -71,9 +72,15 @@ void addApiRoutes(HmiServer::Impl& impl) {
     sendJson(res, {{"materials", names}, {"default", report::kDefaultMaterial}});
   });
   s.Get("/api/calibration", [&impl](const httplib::Request&, httplib::Response& res) {
-    json j = calibrationJson(impl.jobs.setup().calibration_dir, impl.jobs.cell().config());
+    json j = calibrationJson(impl.jobs.setup().calibration_dir, configInUse(impl.jobs));
     j["verify_available"] = impl.jobs.setup().verify.has_value();
     sendJson(res, j);
+  });
+  s.Get("/api/scan/cloud", [&impl](const httplib::Request&, httplib::Response& res) {
+    // Everything the live view has been sent so far, for a page opened mid-scan (live_cloud.hpp).
+    const LiveCloud::Snapshot c = impl.jobs.liveCloud().snapshot();
+    sendJson(res, {{"run_id", c.run_id}, {"measured", c.measured}, {"shown", c.points.size()}, {"batches", c.batches},
+                   {"xyz", c.points.xyz}, {"thickness", c.points.thickness}});
   });
   s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {

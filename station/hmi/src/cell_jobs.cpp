@@ -26,12 +26,14 @@ json progressJson(const acquisition::ScanProgress& p) {
 class HubObserver final : public station::ScanJobObserver {
  public:
   HubObserver(EventHub& hub, acquisition::Cell& cell, std::string kind,
-              std::function<void(const std::string&)> on_run_folder = {}, std::function<void()> on_scan_done = {})
+              std::function<void(const std::string&)> on_run_folder = {}, std::function<void()> on_scan_done = {},
+              LiveCloud* live_cloud = nullptr)
       : hub_(hub), cell_(cell), kind_(std::move(kind)), on_run_folder_(std::move(on_run_folder)),
-        on_scan_done_(std::move(on_scan_done)) {}
+        on_scan_done_(std::move(on_scan_done)), live_cloud_(live_cloud) {}
 
   void runFolder(const fs::path& dir) override {
-    if (on_run_folder_) on_run_folder_(dir.filename().string());
+    run_id_ = dir.filename().string();
+    if (on_run_folder_) on_run_folder_(run_id_);
     hub_.publish("run", json{{"kind", kind_}, {"run_id", dir.filename().string()}}.dump());
   }
   void checkPassed(const std::string& what) override {
@@ -58,6 +60,15 @@ class HubObserver final : public station::ScanJobObserver {
   void stageDone(std::string_view stage, const std::string& text) override {
     hub_.publish("stage", json{{"kind", kind_}, {"stage", std::string(stage)}, {"text", text}}.dump());
   }
+  // A sweep's (or view's) elements as they are measured, decimated (live_cloud.hpp), to the pages.
+  void elementsMeasured(std::string_view stage, const std::vector<registration::GridElement>& elements) override {
+    if (!live_cloud_) return;
+    const LivePoints kept = live_cloud_->add(elements);
+    const auto [measured, shown] = live_cloud_->counts();
+    hub_.publish("cloud", json{{"kind", kind_}, {"stage", std::string(stage)}, {"run_id", run_id_},
+                               {"xyz", kept.xyz}, {"thickness", kept.thickness}, {"measured", measured},
+                               {"shown", shown}}.dump());
+  }
 
  private:
   EventHub& hub_;
@@ -65,6 +76,8 @@ class HubObserver final : public station::ScanJobObserver {
   std::string kind_;
   std::function<void(const std::string&)> on_run_folder_;
   std::function<void()> on_scan_done_;
+  LiveCloud* live_cloud_;
+  std::string run_id_;  // set before any measuring starts (the run folder comes first)
   std::chrono::steady_clock::time_point last_progress_{};
 };
 
@@ -144,6 +157,7 @@ class CellJobs::RunningJob {
 
 std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const std::string& user) {
   if (auto refused = begin("scan", user, request.part_id)) return refused;
+  live_cloud_.reset();
   hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"part_id", request.part_id},
                                {"program", request.program}}.dump());
   worker_ = std::thread(&CellJobs::runScan, this, request, user);
@@ -162,7 +176,10 @@ std::optional<std::string> CellJobs::startCalibrate(const std::string& sensors, 
   if (!setup_.calibrate) return std::string("this cell offers no calibration");
   if (sensors != "digitizer" && sensors != "cameras" && sensors != "all")
     return std::string("sensors must be digitizer, cameras or all, not '") + sensors + "'";
-  station::CalibrateJobOptions options = *setup_.calibrate;
+  station::CalibrateJobOptions options = [this] {
+    std::lock_guard lock(mutex_);
+    return *setup_.calibrate;
+  }();
   options.digitizer = sensors != "cameras";
   options.cameras = sensors != "digitizer";
   try {
@@ -192,6 +209,23 @@ JobStatus CellJobs::status() const {
   return status_;
 }
 
+acquisition::CalibrationPolicy CellJobs::calibrationPolicy() const {
+  std::lock_guard lock(mutex_);
+  return setup_.scan.calibration_policy;
+}
+
+void CellJobs::setCalibrationPolicy(const acquisition::CalibrationPolicy& policy) {
+  std::lock_guard lock(mutex_);
+  // Every job's copy of the rules: the scan's check of the calibration in use, the calibration's
+  // acceptance limits, the verification's MPEs.
+  setup_.scan.calibration_policy = policy;
+  if (setup_.calibrate) setup_.calibrate->policy = policy;
+  if (setup_.verify) {
+    setup_.verify->sphere.form_mpe_mm = policy.form_mpe_mm;
+    setup_.verify->sphere.size_mpe_mm = policy.size_mpe_mm;
+  }
+}
+
 void CellJobs::finish(const std::string& event_json) {
   {
     std::lock_guard lock(mutex_);
@@ -204,7 +238,10 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
   json done = {{"kind", "scan"}, {"user", user}, {"part_id", request.part_id}, {"ok", false}};
   try {
     std::lock_guard cell_lock(cell_mutex_);
-    station::ScanJobOptions options = setup_.scan;
+    station::ScanJobOptions options = [this] {
+      std::lock_guard lock(mutex_);
+      return setup_.scan;
+    }();
     options.part_id = request.part_id;
     options.program = request.program;
     options.material = request.material;
@@ -212,13 +249,15 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     HubObserver observer(
         hub_, *setup_.cell, "scan",
         [this](const std::string& run_id) {
+          live_cloud_.setRun(run_id);
           std::lock_guard lock(mutex_);
           status_.run_id = run_id;
         },
         [this] {
           std::lock_guard lock(mutex_);
           status_.measuring = true;
-        });
+        },
+        &live_cloud_);
     station::ScanJob job(*setup_.cell, &observer);
     station::ScanJobResult r;
     {
@@ -253,7 +292,10 @@ void CellJobs::runVerify(std::string user) {
   json done = {{"kind", "verify"}, {"user", user}, {"ok", false}};
   try {
     std::lock_guard cell_lock(cell_mutex_);
-    station::VerifyJobOptions options = *setup_.verify;
+    station::VerifyJobOptions options = [this] {
+      std::lock_guard lock(mutex_);
+      return *setup_.verify;
+    }();
     options.history = setup_.calibration_dir / "history";
     if (const fs::path stored = setup_.calibration_dir / "digitizer.json"; fs::exists(stored))
       station::verifyWithCalibration(options, stored);

@@ -245,6 +245,8 @@ HmiServer::HmiServer(CellSetup setup, HmiOptions options)
       std::rethrow_exception(ep);
     } catch (const RunFileError& e) {
       sendError(res, e.status(), e.what());
+    } catch (const BadRequest& e) {
+      sendError(res, 400, e.what());
     } catch (const std::exception& e) {
       sendError(res, 500, e.what());
     }
@@ -257,6 +259,8 @@ HmiServer::HmiServer(CellSetup setup, HmiOptions options)
   addEventRoute(impl);
   addApiRoutes(impl);
   addRunRoutes(impl);
+  addAnalysisRoutes(impl);
+  addSettingsRoutes(impl);
 }
 
 HmiServer::~HmiServer() { stop(); }

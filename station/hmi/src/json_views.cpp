@@ -108,8 +108,14 @@ json cellJson(const CellJobs& jobs) {
     }
   }
   j["plc"] = plc_json;
-  j["calibration"] = calibrationJson(jobs.setup().calibration_dir, cell.config());
+  j["calibration"] = calibrationJson(jobs.setup().calibration_dir, configInUse(jobs));
   return j;
+}
+
+acquisition::CellConfig configInUse(const CellJobs& jobs) {
+  acquisition::CellConfig config = jobs.cell().config();
+  config.calibration = jobs.calibrationPolicy();
+  return config;
 }
 
 json runRecordJson(const results::RunRecord& r) {

@@ -21,6 +21,8 @@ nlohmann::json cellJson(const CellJobs& jobs);
 nlohmann::json checksJson(const std::vector<registration::RecordCheck>& checks);
 // The calibration in use (each sensor as a scan would judge it, on this cell's rules) and the last records.
 nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir, const acquisition::CellConfig& cell);
+// The cell's config with the calibration rules the jobs apply now (maintenance may have changed them).
+acquisition::CellConfig configInUse(const CellJobs& jobs);
 nlohmann::json runRecordJson(const results::RunRecord& r);
 nlohmann::json statusJson(const JobStatus& s);
 

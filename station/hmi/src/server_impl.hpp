@@ -26,6 +26,7 @@ struct HmiServer::Impl {
   CellJobs jobs;
   httplib::Server server;
   std::mutex actions_mutex;
+  std::mutex settings_mutex;  // one change of the cell's settings (and its file) at a time
 
   // The session of a request (its cookie), or nothing.
   std::optional<Session> sessionOf(const httplib::Request& req);
@@ -35,12 +36,20 @@ struct HmiServer::Impl {
   std::filesystem::path runsDir() const { return jobs.setup().scan.runs_dir; }
 };
 
+// A request whose parameters are wrong: answered 400 with the message.
+class BadRequest : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // A JSON body with the status; errors are {"error": "..."} (and "advice" when there is some).
 void sendJson(httplib::Response& res, const nlohmann::json& body, int status = 200);
 void sendError(httplib::Response& res, int status, const std::string& error, const std::string& advice = "");
 
-// The routes under /api/ (api_routes.cpp) and the page and its scripts (hmi_server.cpp).
+// The routes under /api/ (api_routes.cpp, run_routes.cpp, ...) and the page and its scripts (hmi_server.cpp).
 void addApiRoutes(HmiServer::Impl& impl);
 void addRunRoutes(HmiServer::Impl& impl);
+void addAnalysisRoutes(HmiServer::Impl& impl);   // analysis_routes.cpp
+void addSettingsRoutes(HmiServer::Impl& impl);   // settings_routes.cpp
 
 }  // namespace stampscan::hmi

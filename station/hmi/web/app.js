@@ -11,7 +11,12 @@ let jobBusy = false;
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? '').replace(/[&<>"']/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;' }[c]));
-const num = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v) ? '–' : Number(v).toFixed(d));
+// A value that rounds to zero shows as 0, not -0.0.
+const num = (v, d = 1) => {
+  if (v === null || v === undefined || Number.isNaN(v)) return '–';
+  const t = Number(v).toFixed(d);
+  return /^-0\.?0*$/.test(t) ? t.slice(1) : t;
+};
 
 async function api(path, options = {}) {
   const init = { credentials: 'same-origin', headers: {} };
@@ -34,7 +39,9 @@ function showTab(name) {
   document.querySelectorAll('.panel').forEach((p) => p.classList.toggle('active', p.id === name));
   if (name === 'history') loadHistory();
   if (name === 'maintenance') loadMaintenance();
-  if (name === 'result') resize3d();
+  if (name === 'result') { resize3d(); sectionChartResize(); }
+  if (name === 'scan') liveCloudResize();
+  if (name === 'compare') loadCompareChoices();
 }
 document.querySelectorAll('.tab').forEach((b) => b.addEventListener('click', () => showTab(b.dataset.tab)));
 
@@ -172,8 +179,13 @@ function connectEvents() {
   });
   es.onopen = () => { $('live').className = 'live on'; };
   es.onerror = () => { $('live').className = 'live off'; };
-  on('hello', (d) => setBusy(d.job.busy, d.job));
-  on('started', (d) => { setBusy(true, d); log(`${d.kind} started by ${d.user}${d.part_id ? ' for ' + d.part_id : ''}`); });
+  on('hello', (d) => { setBusy(d.job.busy, d.job); if (d.job.busy && d.job.kind === 'scan') liveCloudLoad(); });
+  on('started', (d) => {
+    setBusy(true, d);
+    log(`${d.kind} started by ${d.user}${d.part_id ? ' for ' + d.part_id : ''}`);
+    if (d.kind === 'scan') liveCloudReset();
+  });
+  on('cloud', liveCloudAdd);
   on('run', (d) => log(`run folder ${d.run_id}`));
   on('check', (d) => log(`check: ${d.text}`));
   on('progress', onProgress);
@@ -186,61 +198,16 @@ function connectEvents() {
 
 // ---- result ----------------------------------------------------------------------------------
 let view = null;
-function ramp(t) {  // blue, cyan, green, yellow, red
-  const stops = [[0.13, 0.25, 1], [0.13, 0.82, 1], [0.19, 0.88, 0.19], [0.94, 0.88, 0.13], [1, 0.13, 0.13]];
-  const x = Math.min(Math.max(t, 0), 1) * (stops.length - 1);
-  const i = Math.min(Math.floor(x), stops.length - 2);
-  const f = x - i;
-  return stops[i].map((a, k) => a + (stops[i + 1][k] - a) * f);
-}
-function resize3d() {
-  if (!view) return;
-  const el = $('view3d');
-  view.renderer.setSize(el.clientWidth, el.clientHeight);
-  view.camera.aspect = el.clientWidth / Math.max(el.clientHeight, 1);
-  view.camera.updateProjectionMatrix();
-  view.draw();
-}
-window.addEventListener('resize', resize3d);
+function resize3d() { if (view) view.resize(); }
 function init3d() {
   if (view) return view;
-  const el = $('view3d');
-  let renderer;
-  try { renderer = new THREE.WebGLRenderer({ antialias: true }); } catch (e) {
-    el.textContent = 'This browser cannot show 3D (WebGL is off); the PDF report has the maps.';
-    return null;
-  }
-  renderer.setPixelRatio(window.devicePixelRatio || 1);
-  el.appendChild(renderer.domElement);
-  const scene = new THREE.Scene();
-  scene.background = new THREE.Color(0x0b0d10);
-  const camera = new THREE.PerspectiveCamera(40, 1, 0.1, 10000);
-  camera.up.set(0, 0, 1);
-  scene.add(new THREE.HemisphereLight(0xffffff, 0x444444, 1.0));
-  const light = new THREE.DirectionalLight(0xffffff, 0.5);
-  light.position.set(1, -1, 2);
-  scene.add(light);
-  const controls = new THREE.OrbitControls(camera, renderer.domElement);
-  const marker = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 12), new THREE.MeshBasicMaterial({ color: 0xffffff }));
-  marker.visible = false;
-  scene.add(marker);
-  view = { renderer, scene, camera, controls, marker, mesh: null, elements: [] };
-  // Drawn when something changes, not every frame: the panel PC also runs the scan.
-  let queued = false;
-  view.draw = () => {
-    if (queued) return;
-    queued = true;
-    requestAnimationFrame(() => { queued = false; renderer.render(scene, camera); });
-  };
-  controls.addEventListener('change', view.draw);
-  resize3d();
-  // A tap picks; a drag turns the view (OrbitControls) and picks nothing.
-  let down = null;
-  renderer.domElement.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
-  renderer.domElement.addEventListener('pointerup', (e) => {
-    if (down && Math.abs(e.clientX - down[0]) + Math.abs(e.clientY - down[1]) <= 6) pick(e);
-    down = null;
-  });
+  view = makeView($('view3d'), pick);
+  if (!view) return null;
+  view.marker = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 12), new THREE.MeshBasicMaterial({ color: 0xffffff }));
+  view.marker.visible = false;
+  view.scene.add(view.marker);
+  view.mesh = null;
+  view.elements = [];
   return view;
 }
 function pick(e) {
@@ -254,6 +221,7 @@ function pick(e) {
   view.marker.position.copy(hit.point);
   view.marker.visible = true;
   view.draw();
+  sectionTapped(hit.point);
   let best = null, bestD = Infinity;
   for (const el of view.elements) {
     const d = (el.x - hit.point.x) ** 2 + (el.y - hit.point.y) ** 2 + (el.z - hit.point.z) ** 2;
@@ -281,24 +249,14 @@ async function showMesh(runId, files) {
   const r = await api(`/api/runs/${encodeURIComponent(runId)}/mesh`);
   if (!r.ok) { $('pick').textContent = r.body.error; return; }
   const m = r.body;
-  if (v.mesh) { v.scene.remove(v.mesh); v.mesh.geometry.dispose(); }
-  const g = new THREE.BufferGeometry();
-  g.setAttribute('position', new THREE.Float32BufferAttribute(m.positions, 3));
-  g.setIndex(m.indices);
-  g.computeVertexNormals();
   const thinning = (m.strain || []).map((s) => (1 - Math.exp(s)) * 100);
   const lo = Math.min(0, ...thinning), hi = Math.max(1, ...thinning);
   const colours = [];
   for (let i = 0; i < m.positions.length / 3; ++i) colours.push(...ramp(thinning.length ? (thinning[i] - lo) / (hi - lo) : 0.5));
-  g.setAttribute('color', new THREE.Float32BufferAttribute(colours, 3));
-  v.mesh = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ vertexColors: THREE.VertexColors, side: THREE.DoubleSide }));
-  v.scene.add(v.mesh);
-  g.computeBoundingSphere();
-  const s = g.boundingSphere;
-  v.controls.target.copy(s.center);
-  v.camera.position.set(s.center.x + s.radius * 1.2, s.center.y - s.radius * 1.8, s.center.z + s.radius * 1.8);
+  v.put('mesh', colouredMesh(m.positions, m.indices, colours));
+  const s = v.mesh.geometry.boundingSphere;
+  v.frame(s);
   v.marker.scale.setScalar(s.radius * 0.02);
-  v.controls.update();
   $('legend').innerHTML = `<span>${num(lo)} %</span><span>thinning</span><span>${num(hi)} %</span>`;
   v.elements = files.includes('elements.csv') ? parseCsv((await api(`/api/runs/${encodeURIComponent(runId)}/files/elements.csv`)).body) : [];
   resize3d();
@@ -330,6 +288,7 @@ async function loadResult(runId) {
   $('pdf').href = fileUrl('report.pdf');
   $('pdf').classList.toggle('hidden', !files.includes('report.pdf'));
   if (files.includes('mesh.ply')) await showMesh(runId, files);
+  await loadAnalysis(runId, files);
 }
 
 // ---- history ---------------------------------------------------------------------------------
@@ -364,6 +323,7 @@ $('trend-program').addEventListener('change', loadHistory);
 async function loadMaintenance() {
   const c = await api('/api/calibration');
   if (c.ok) $('calibration').innerHTML = calibrationHtml(c.body);
+  loadSettings();
   const a = await api('/api/actions');
   if (a.ok) $('actions').innerHTML = '<tr><th>Time (UTC)</th><th>Who</th><th>Role</th><th>Action</th><th>Details</th></tr>' +
     a.body.actions.slice().reverse().map((x) => `<tr><td>${esc(x.time)}</td><td>${esc(x.user)}</td><td>${esc(x.role)}</td><td>${esc(x.action)}</td><td>${esc(JSON.stringify(x.detail))}</td></tr>`).join('');

@@ -1,7 +1,11 @@
 // End-to-end test of the operator's panel in a real browser: starts `station hmi` on the embedded
 // virtual cell, drives Debian's chromium (headless) with puppeteer-core, and goes the operator's
-// path: open the panel, start a scan of the sample part, see the progress move, see the verdict
-// and the 3D strain map, pick a spot on it, open the FLD and the PDF, see the run in the history.
+// path: open the panel, start a scan of the sample part, see the progress move and the cloud grow
+// sweep by sweep, see the verdict and the 3D strain map, pick a spot on it, show the major-strain
+// arrows, cut a section and see its strain profile, open the FLD and the PDF; a scan stopped by the
+// door; a second scan of the same program compared with the first (side by side and as a
+// difference map); the maintenance settings changed; the runs in the history. The new controls are
+// tapped (a touch screen), not clicked.
 // Fails on any error in the browser's console. Prints the page's load time and how late the live
 // events reach the page (publishing time on the station to arrival in the page, same clock).
 //
@@ -46,7 +50,11 @@ async function waitFor(page, what, fn, timeoutMs, ...args) {
   }
 }
 async function shot(page, name) {
-  if (shotDir) await page.screenshot({ path: path.join(shotDir, name), fullPage: true });
+  // From the top: a tap scrolls, and a full-page shot of a scrolled page paints the sticky header mid-page.
+  if (shotDir) {
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.screenshot({ path: path.join(shotDir, name), fullPage: true });
+  }
 }
 
 try {
@@ -66,7 +74,8 @@ try {
       '--enable-unsafe-swiftshader', '--use-angle=swiftshader', '--window-size=1400,1000'],
   });
   const page = await browser.newPage();
-  await page.setViewport({ width: 1400, height: 1000 });
+  await page.setViewport({ width: 1400, height: 1000, hasTouch: true });
+  const tap = async (selector) => { const el = await page.$(selector); if (!el) fail(`no ${selector} on the page`); await el.tap(); };
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
 
@@ -86,6 +95,11 @@ try {
   await waitFor(page, 'progress', () => Number(document.body.dataset.progress || 0) >= 1, 60000);
   const first = await page.evaluate(() => Number(document.body.dataset.progress));
   await waitFor(page, 'the progress moving on', (f) => Number(document.body.dataset.progress) > f, 60000, first);
+  // The cloud grows as the sweeps are measured: points first, then more of them.
+  await waitFor(page, 'the live cloud', () => Number(document.body.dataset.liveCloud || 0) > 0, 120000);
+  const firstCloud = await page.evaluate(() => Number(document.body.dataset.liveCloud));
+  await waitFor(page, 'the live cloud growing', (n) => Number(document.body.dataset.liveCloud) > n, 120000, firstCloud);
+  const grownCloud = await page.evaluate(() => ({ points: Number(document.body.dataset.liveCloud), batches: Number(document.body.dataset.liveBatches) }));
   await shot(page, '2-scan-progress.png');
   // A second start while the scan runs is refused, with the reason, on the page too.
   const session = await (await fetch(`${url}api/session`)).json();
@@ -109,6 +123,27 @@ try {
   await waitFor(page, 'a picked spot', () => document.getElementById('pick').innerText.includes('safety margin'), 5000);
   const picked = await page.$eval('#pick', (el) => el.innerText);
   await shot(page, '3-result-picked.png');
+
+  // The arrows of the major strain's direction on every element, then a section cut.
+  await waitFor(page, 'the grid elements for the arrows', () => Number(document.body.dataset.elements || 0) > 0 && !document.getElementById('arrows').disabled, 20000);
+  await tap('#arrows');
+  await waitFor(page, 'the arrows', () => Number(document.body.dataset.arrows || 0) > 0, 10000);
+  const arrows = await page.evaluate(() => Number(document.body.dataset.arrows));
+  await tap('.section-axis[data-axis="x"]');
+  await waitFor(page, 'the section profile', () => Number(document.body.dataset.section || 0) > 0, 20000);
+  const sectionAt = await page.$eval('#section-value', (el) => el.innerText);
+  await tap('#section-plus');
+  // Moved one pitch on, and the profile is the one of the new place (no request still under way).
+  await waitFor(page, 'the section moving on', (before) => {
+    const at = Number(document.getElementById('section-at').value).toFixed(1);
+    return document.getElementById('section-value').innerText !== before && !analysis.inFlight && !analysis.pending &&
+      document.getElementById('section-info').innerText.includes(`= ${at} mm`);
+  }, 20000, sectionAt);
+  const section = await page.evaluate(() => ({ at: document.getElementById('section-value').innerText, points: Number(document.body.dataset.section),
+    plotted: analysis.chart ? analysis.chart.data.datasets.map((d) => d.data.length) : [] }));
+  if (!section.plotted.length || section.plotted.some((n) => n !== section.points)) fail(`the section's profile is not plotted: ${JSON.stringify(section)}`);
+  await shot(page, '3-result-arrows-section.png');
+  const firstRun = await page.evaluate(() => lastRunId);
   const fld = await page.$eval('#fld', (img) => ({ w: img.naturalWidth, h: img.naturalHeight }));
   if (!fld.w) fail('the FLD image did not load');
   const files = await page.evaluate(async () => {
@@ -139,12 +174,44 @@ try {
   station.kill('SIGUSR2');
   await page.evaluate(() => { delete document.body.dataset.finished; });
 
+  // A second part of the same program, then the two compared.
+  await page.waitForFunction(() => !document.getElementById('start').disabled, { timeout: 30000 }).catch(() => fail('Start did not come back after the door'));
+  await page.$eval('#part-id', (el) => { el.value = 'sample-e2e-2'; });
+  await tap('#start');
+  await waitFor(page, 'the second part\'s result', (first) => document.body.dataset.finished === 'ok' && lastRunId !== first && Number(document.body.dataset.mesh || 0) > 0, 300000, firstRun);
+  await tap('button[data-tab="compare"]');
+  await waitFor(page, 'two runs of one program to compare', () => document.getElementById('cmp-b').options.length > 0 && !document.getElementById('cmp-side').disabled, 10000);
+  await tap('#cmp-side');
+  await waitFor(page, 'the two runs side by side', () => document.body.dataset.compare === 'side', 20000);
+  await shot(page, '5-compare-side-by-side.png');
+  await tap('#cmp-diff');
+  await waitFor(page, 'the difference map', () => document.body.dataset.compare === 'diff' && Number(document.body.dataset.compareMatched || 0) > 0, 20000);
+  const comparison = await page.$eval('#cmp-info', (el) => el.innerText);
+  // A finger on the map reads the difference there.
+  const diffBox = await (await page.$('#cmp-view-a canvas')).boundingBox();
+  for (const [fx, fy] of [[0.5, 0.5], [0.45, 0.55], [0.55, 0.45], [0.4, 0.4], [0.6, 0.6]]) {
+    await page.touchscreen.tap(diffBox.x + diffBox.width * fx, diffBox.y + diffBox.height * fy);
+    await sleep(300);
+    if (await page.$eval('#cmp-pick', (el) => el.innerText.includes('B − A'))) break;
+  }
+  await waitFor(page, 'the difference read at a tapped spot', () => document.getElementById('cmp-pick').innerText.includes('B − A'), 5000);
+  const diffPicked = await page.$eval('#cmp-pick', (el) => el.innerText);
+  await shot(page, '6-compare-difference.png');
+
   await page.click('button[data-tab="history"]');
   await waitFor(page, 'the run in the history', () => document.getElementById('runs').innerText.includes('sample-e2e'), 10000);
-  await shot(page, '5-history.png');
+  await shot(page, '7-history.png');
   await page.click('button[data-tab="maintenance"]');
   await waitFor(page, 'the actions log', () => document.getElementById('actions').innerText.includes('scan start'), 10000);
-  await shot(page, '6-maintenance.png');
+  // Maintenance (the loopback panel's local user) sets the calibration's validity.
+  await waitFor(page, 'the cell settings', () => document.body.dataset.settings === 'loaded', 10000);
+  await page.$eval('#settings-form input[name="validity_days"]', (el) => { el.value = '5'; });
+  await tap('#settings-save');
+  await waitFor(page, 'the settings saved', () => document.body.dataset.settingsSaved === 'validity_days' &&
+    document.getElementById('actions').innerText.includes('settings change'), 10000);
+  const settings = await (await fetch(`${url}api/settings`)).json();
+  if (settings.settings.validity_days !== 5) fail(`the validity did not change: ${JSON.stringify(settings)}`);
+  await shot(page, '8-maintenance.png');
 
   const stats = await page.evaluate(() => window.hmiStats);
   const lat = stats.latencies.slice().sort((a, b) => a - b);
@@ -152,6 +219,9 @@ try {
   console.log(`page load: ${loadMs} ms to ready (navigation load event ${Math.round(nav.load)} ms, DOMContentLoaded ${Math.round(nav.dcl)} ms)`);
   console.log(`live events: ${stats.events} received; latency from publishing to the page: median ${q(0.5)} ms, 95th percentile ${q(0.95)} ms, max ${lat[lat.length - 1]} ms`);
   console.log(`door opened mid-scan, the page shows: ${doorFault.replace(/\s+/g, ' ')}`);
+  console.log(`live cloud: ${firstCloud} points at first, then ${grownCloud.points} after ${grownCloud.batches} batches`);
+  console.log(`result: ${arrows} major-strain arrows; section ${section.at} with ${section.points} elements plotted`);
+  console.log(`comparison: ${comparison.replace(/\s+/g, ' ')} Tapped: ${diffPicked.replace(/\s+/g, ' ')}`);
   console.log(`verdict: ${verdict.replace(/\s+/g, ' ')}; picked: ${picked.replace(/\s+/g, ' ')}; FLD ${fld.w}x${fld.h}; PDF ${files.pdf.size} bytes`);
   if (consoleErrors.length) fail(`errors in the browser console:\n  ${consoleErrors.join('\n  ')}`);
   console.log('PASSED');

@@ -68,6 +68,9 @@ class MeasureObserver {
  public:
   virtual ~MeasureObserver() = default;
   virtual void stageDone(std::string_view stage, const std::string& text) = 0;
+  // The grid elements one part sweep (stage "laser") or one stereo view ("stereo") has just added,
+  // machine frame, so that a live view can show the cloud grow. Called from the measuring thread.
+  virtual void elementsMeasured(std::string_view /*stage*/, const std::vector<GridElement>& /*elements*/) {}
 };
 
 struct ScanMeasurement {

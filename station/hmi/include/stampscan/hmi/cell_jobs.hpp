@@ -1,5 +1,6 @@
-// The work the panel starts on the cell: a scan (station::ScanJob, as `station scan` runs it) or a
-// check of the digitizer (station::VerifyJob, as `station verify`), one at a time. The panel only
+// The work the panel starts on the cell: a scan (station::ScanJob, as `station scan` runs it), a
+// check of the digitizer (station::VerifyJob, as `station verify`) or a calibration
+// (station::CalibrateJob), one at a time. The panel only
 // chooses what to start; the jobs are the CLI's own, and their observer turns what they report into
 // events for the browsers (event_hub.hpp). The names and payloads of the events are in API.md.
 //
@@ -9,6 +10,7 @@
 
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/hmi/event_hub.hpp"
+#include "stampscan/hmi/live_cloud.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/scan_job.hpp"
 #include "stampscan/station/verify_job.hpp"
@@ -71,6 +73,15 @@ class CellJobs {
   // motion is over and only its measuring remains, which ends by itself).
   std::optional<std::string> abort(const std::string& reason);
   JobStatus status() const;
+  // The cloud of the scan under way (or the last one), as it grows.
+  const LiveCloud& liveCloud() const { return live_cloud_; }
+  // The cell's calibration rules the jobs apply (validity, acceptance limits, the verification's
+  // MPEs): the cell config's at first, then as maintenance sets them (cell_settings.hpp). A change
+  // applies from the next job on; one under way keeps the rules it started with.
+  acquisition::CalibrationPolicy calibrationPolicy() const;
+  void setCalibrationPolicy(const acquisition::CalibrationPolicy& policy);
+  // The setup's fields that no setting changes (the cell, the folders, what the cell offers); the
+  // jobs' options are copied under the lock when a job starts.
   const CellSetup& setup() const { return setup_; }
   acquisition::Cell& cell() const { return *setup_.cell; }
 
@@ -81,8 +92,9 @@ class CellJobs {
   void runCalibrate(station::CalibrateJobOptions options, std::string user);
   void finish(const std::string& event_json);
 
-  CellSetup setup_;
+  CellSetup setup_;  // its options and policy change only under mutex_ (setCalibrationPolicy)
   EventHub& hub_;
+  LiveCloud live_cloud_;
   std::mutex cell_mutex_;  // held by whoever drives the cell's devices: the connect, or a job
   mutable std::mutex mutex_;
   JobStatus status_;
