@@ -208,7 +208,8 @@ void checkAgainstSensors(const CalibrationInUse& in_use, const std::string& cell
 
 }  // namespace
 
-ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
+ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth,
+                             const std::vector<std::uint8_t>& visible) {
   ScanAccuracy a;
   if (truth.size() == 0 || !measured.hasStrain() || !truth.hasStrain()) return a;
   const fitting::KdTree tree(truth.positions);
@@ -225,6 +226,19 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   if (a.matched) {
     a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
     a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
+  }
+  if (visible.size() == truth.size() && measured.size() > 0) {
+    const fitting::KdTree found(measured.positions);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      found.knn(truth.positions[i], 1, nn);
+      const bool is_found = !nn.empty() && nn[0].distance_sq <= 0.5 * 0.5;
+      if (visible[i]) {
+        ++a.visible;
+        if (is_found) ++a.visible_found;
+      } else if (is_found) {
+        ++a.found_not_visible;
+      }
+    }
   }
   return a;
 }
@@ -336,11 +350,15 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
   if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
   if (o.truth) {
-    result.accuracy = accuracyAgainst(cloud, o.truth->elements);
+    result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
     record["accuracy"] = {{"matched", result.accuracy->matched},
                           {"position_rms_mm", result.accuracy->position_rms_mm},
                           {"strain_rms", result.accuracy->strain_rms},
                           {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
+    if (!o.truth->visible.empty())
+      record["accuracy"]["visible"] = {{"elements", result.accuracy->visible},
+                                       {"found", result.accuracy->visible_found},
+                                       {"found_not_visible", result.accuracy->found_not_visible}};
   }
   if (!o.replayed_trace.empty()) {
     // The recording measured as `station process` measures it: a replay must give the same cloud.
