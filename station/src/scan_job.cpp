@@ -335,6 +335,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;
   fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+  result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   MeshRequest mesh_request;
   FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
   colorByStrain(fit.surface);
@@ -347,6 +348,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
   record["measurement"] = {{"elements", cloud.size()},
                            {"seconds_after_scan", result.measure_seconds},
+                           {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
   if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
   if (o.truth) {

@@ -83,6 +83,7 @@ struct ScanJobResult {
   acquisition::ScanRunResult run;
   std::size_t elements = 0;
   double measure_seconds = 0;     // from the end of the scan to the files written
+  double cloud4d_seconds = 0;     // from the end of the scan to cloud4d.ply written (the fit comes after)
   registration::DigitizerCalibration digitizer;
   // Which calibration each sensor was measured with, in words (also in run.json as "calibration").
   std::string digitizer_calibration, camera_calibration;
