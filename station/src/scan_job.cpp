@@ -65,7 +65,13 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
                                   {"sweeps_over_loss_limit", r.sweeps_over_loss_limit},
                                   {"stereo_views", r.views_done},
                                   {"stereo_views_missing", r.views_missing},
-                                  {"positions", r.positions}}}};
+                                  {"positions", r.positions},
+                                  {"spent_seconds", {{"moving", r.spent.moving},
+                                                     {"settling", r.spent.settling},
+                                                     {"waiting_for_frames", r.spent.frames},
+                                                     {"clock_sync", r.spent.clock_sync},
+                                                     {"digitizer_start_drain_stop", r.spent.digitizer},
+                                                     {"other", r.spent.other}}}}}};
   for (const auto& d : r.devices)
     run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
   if (!r.completed) run["abort_reason"] = r.abort_reason;
