@@ -90,6 +90,8 @@ void readLimits(const toml::table& t, const std::string& file, MachineLimits& l)
   l.acceleration = number(t, "machine", "acceleration", l.acceleration, file, true);
   l.max_tilt = number(t, "machine", "max_tilt_deg", l.max_tilt / kDeg, file, true) * kDeg;
   l.max_turn = number(t, "machine", "max_turn_deg", l.max_turn / kDeg, file, true) * kDeg;
+  l.head_rate = number(t, "machine", "head_rate_deg_s", l.head_rate / kDeg, file, true) * kDeg;
+  l.head_acceleration = number(t, "machine", "head_acceleration_deg_s2", l.head_acceleration / kDeg, file, true) * kDeg;
 }
 
 void readCalibrationPolicy(const toml::table& t, const std::string& file, CalibrationPolicy& p) {

@@ -179,7 +179,18 @@ std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& li
 }
 
 double moveSeconds(const HeadPose& from, const HeadPose& to, double speed, const MachineLimits& limits) {
-  return moveSeconds(distance(from, to), speed, limits.acceleration);
+  // All axes of a GoTo on one trapezoidal progress from 0 to 1 (I++ DME §6.3.2.12: they start and
+  // finish together), as fast as the slowest axis group allows: the ram at `speed` and the
+  // acceleration, the head's angles at its own rate and acceleration.
+  const double length = distance(from, to);
+  const double turn = std::max(std::fabs(to.a - from.a), std::fabs(to.b - from.b));
+  if (turn <= 0) return moveSeconds(length, speed, limits.acceleration);
+  double rate = limits.head_rate / turn, accel = limits.head_acceleration / turn;
+  if (length > 0) {
+    rate = std::min(rate, speed / length);
+    accel = std::min(accel, limits.acceleration / length);
+  }
+  return moveSeconds(1.0, rate, accel);
 }
 
 double motionSeconds(const ScanPlan& plan, const MachineLimits& limits) {
@@ -187,16 +198,16 @@ double motionSeconds(const ScanPlan& plan, const MachineLimits& limits) {
   HeadPose at = plan.park;
   for (const PlanStep& step : plan.steps) {
     if (const auto* s = std::get_if<SweepStep>(&step)) {
-      t += moveSeconds(distance(at, s->start), plan.travel_speed, limits.acceleration);
-      t += moveSeconds(distance(s->start, s->end), s->speed, limits.acceleration);
+      t += moveSeconds(at, s->start, plan.travel_speed, limits);
+      t += moveSeconds(s->start, s->end, s->speed, limits);
       at = s->end;
     } else {
       const auto& v = std::get<StereoStep>(step);
-      t += moveSeconds(distance(at, v.pose), plan.travel_speed, limits.acceleration) + v.settle_s;
+      t += moveSeconds(at, v.pose, plan.travel_speed, limits) + v.settle_s;
       at = v.pose;
     }
   }
-  return t + moveSeconds(distance(at, plan.park), plan.travel_speed, limits.acceleration);
+  return t + moveSeconds(at, plan.park, plan.travel_speed, limits);
 }
 
 ScanPlan parseScanPlan(const std::string& text, const std::string& source) {

@@ -101,6 +101,9 @@ struct ScanRunner::Impl {
   // readings: the pair's error is at most half the request's round trip, so the tightest of a few
   // brackets is kept (a loaded host or bus delays some requests by milliseconds).
   void clockSync() {
+    timed(spent.clock_sync, [&] { clockSyncUntimed(); });
+  }
+  void clockSyncUntimed() {
     std::int64_t best_rtt = std::numeric_limits<std::int64_t>::max();
     msg::ClockSync best;
     for (int i = 0; i < 5; ++i) {
@@ -239,7 +242,23 @@ struct ScanRunner::Impl {
     }
   }
 
+  // Adds the time `f` takes to `slot` (ScanRunResult::TimeSpent).
+  template <typename F>
+  static void timed(double& slot, F&& f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    struct Add {
+      double& slot;
+      std::chrono::steady_clock::time_point t0;
+      ~Add() { slot += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
+    } add{slot, t0};
+    f();
+  }
+  ScanRunResult::TimeSpent spent;
+
   void move(SafetyInterlock& safety, const HeadPose& target, double speed) {
+    timed(spent.moving, [&] { moveUntimed(safety, target, speed); });
+  }
+  void moveUntimed(SafetyInterlock& safety, const HeadPose& target, double speed) {
     checkAbort(safety);
     MoveOutcome outcome;
     try {
@@ -423,16 +442,18 @@ struct ScanRunner::Impl {
           report(k, label);
           // Settle, then trigger both cameras and wait for the pair (the scene's end marker must
           // come after its frames).
-          std::this_thread::sleep_for(std::chrono::duration<double>(view->settle_s));
+          timed(spent.settling, [&] { std::this_thread::sleep_for(std::chrono::duration<double>(view->settle_s)); });
           checkAbort(safety);
           bool arrived = false;
-          try {
-            const std::uint64_t id = pair->trigger();
-            std::unique_lock lock(pair_mutex);
-            arrived = pair_arrived.wait_for(lock, params.frame_timeout, [&] { return last_pair_trigger >= id; });
-          } catch (const drivers::DeviceError& e) {
-            if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
-          }
+          timed(spent.frames, [&] {
+            try {
+              const std::uint64_t id = pair->trigger();
+              std::unique_lock lock(pair_mutex);
+              arrived = pair_arrived.wait_for(lock, params.frame_timeout, [&] { return last_pair_trigger >= id; });
+            } catch (const drivers::DeviceError& e) {
+              if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
+            }
+          });
           if (arrived) {
             ++result.views_done;
           } else {
@@ -459,6 +480,7 @@ struct ScanRunner::Impl {
           clockSync();
           const std::uint64_t lost_at_start = dev.digitizer.counters().lost_profiles;
           shutter(true);
+          const auto start_begin = std::chrono::steady_clock::now();
           dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
                                   drivers::digitizer::Profile&& p) {
             msg::LaserProfile m;
@@ -473,6 +495,7 @@ struct ScanRunner::Impl {
             last_profile_device_ns = p.device_time_ns;
             write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
           });
+          spent.digitizer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start_begin).count();
           report(k, label);
           event("sweep_begin", sweep_label);
           try {
@@ -484,8 +507,10 @@ struct ScanRunner::Impl {
           }
           event("sweep_end", sweep_label);
           samplePose();
-          drainDigitizer();
-          dev.digitizer.stop();
+          timed(spent.digitizer, [&] {
+            drainDigitizer();
+            dev.digitizer.stop();
+          });
           shutter(false);
           clockSync();
           motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
@@ -544,6 +569,9 @@ struct ScanRunner::Impl {
       if (observer) observer->safetyEvent(e.what);
     }
     result.wall_seconds = elapsed();
+    result.spent = spent;
+    result.spent.other = result.wall_seconds - spent.moving - spent.settling - spent.frames - spent.clock_sync -
+                         spent.digitizer;
     result.profiles = profiles;
     result.positions = positions;
     result.plc_states = plc_states;

@@ -1,5 +1,6 @@
 #include "stampscan/registration/measure_scan.hpp"
 
+#include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/registration/icp.hpp"
 #include "stampscan/registration/stereo_squares.hpp"
 
@@ -243,7 +244,26 @@ bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint3
     laser_positions.push_back(g.position);
     laser_normals.push_back(g.normal);
   }
-  if (!icp_) icp_ = std::make_unique<PointToPlaneIcp>(laser_positions, laser_normals);
+  if (!icp_) {
+    // One target point per grid element: the laser's overlapping strips find most elements twice, a
+    // few micrometres apart, and the ICP's test for pairs beyond the target's edge counts in the
+    // target's typical spacing (the nearest other point): with twins, a few micrometres, and every
+    // pair of a view lying a few hundredths of a millimetre to the side was dropped (so was the view's
+    // registration, now and then).
+    std::vector<Vec3> normals;
+    const fitting::KdTree all(laser_positions);
+    std::vector<char> taken(laser_positions.size(), 0);
+    std::vector<fitting::Neighbor> near;
+    const double twin = 0.25 * (grid_ == "circle" ? rings_.printed_radius * 2 : squares_.pitch);
+    for (std::size_t i = 0; i < laser_positions.size(); ++i) {
+      if (taken[i]) continue;
+      all.radius(laser_positions[i], twin, near);
+      for (const fitting::Neighbor& n : near) taken[n.index] = 1;
+      icp_target_.push_back(laser_positions[i]);
+      normals.push_back(laser_normals[i]);
+    }
+    icp_ = std::make_unique<PointToPlaneIcp>(icp_target_, std::move(normals));
+  }
   const StereoRig& rig = *out_.rig;
   const bool circles = grid_ == "circle";
   auto view = circles ? measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),

@@ -3,6 +3,7 @@
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <stdexcept>
 
 namespace stampscan::registration {
@@ -22,8 +23,15 @@ void ScanTraceBuilder::add(std::string_view topic, std::span<const std::byte> by
   try {
     if (topic == msg::topics::kCmmPosition) {
       const auto p = msg::decode<msg::CmmPosition>(bytes);
-      if (out_.head.empty() || p.station_time_ns > out_.head.back().time_ns)
-        out_.head.push_back({p.station_time_ns, Vec3(p.x, p.y, p.z), p.head_a, p.head_b});
+      // The runner writes positions from two threads (the CMM's move reports, and the pose it reads
+      // at each stop), so one may arrive after a later one. Each goes in at its time (a repeated
+      // instant once): a trace measured as it arrives then has the track a file gives, where the
+      // head stood still at a stop instead of a chord across it.
+      auto& head = out_.head;
+      const auto at = std::upper_bound(head.begin(), head.end(), p.station_time_ns,
+                                       [](std::int64_t t, const HeadSample& h) { return t < h.time_ns; });
+      if (at == head.begin() || std::prev(at)->time_ns != p.station_time_ns)
+        head.insert(at, {p.station_time_ns, Vec3(p.x, p.y, p.z), p.head_a, p.head_b});
     } else if (topic == msg::topics::kLaserProfile) {
       auto p = msg::decode<msg::LaserProfile>(bytes);
       Profile prof;

@@ -98,6 +98,12 @@ std::vector<ImageInterior> findImageInteriors(const cv::Mat& I, double nominal_a
   return out;
 }
 
+namespace {
+// How many cells the prior's neighbourhood of an element may widen to: the cells are a ring's
+// radius wide, so 6 reach some 5 mm beyond the 3 x 3 cells, across the widest glare spot.
+constexpr int kMaxPriorReach = 6;
+}  // namespace
+
 std::vector<StereoMatch> matchAcrossViews(const std::vector<Eigen::Vector2d>& left_centres,
                                           const std::vector<Eigen::Vector2d>& right_centres, const StereoRig& rig,
                                           const PairPoses& poses, const std::vector<Vec3>& prior, double window_px,
@@ -116,12 +122,22 @@ std::vector<StereoMatch> matchAcrossViews(const std::vector<Eigen::Vector2d>& le
   std::vector<StereoMatch> matches;
   for (std::size_t i = 0; i < left_centres.size(); ++i) {
     const int bx = static_cast<int>(std::floor(left_centres[i].x() / cell)), by = static_cast<int>(std::floor(left_centres[i].y() / cell));
+    // The prior around the element: the 3 x 3 cells about it, widened ring by ring while it holds
+    // too few points for a plane. The laser loses a polished spot of the sheet to glare (up to 9 mm
+    // across), and the elements there would otherwise go unmatched although both cameras see them;
+    // the sheet is smooth, so a plane through the prior a few millimetres around still puts the
+    // depth well within the pitch's ambiguity (some 6 mm along the epipolar line).
     std::vector<Vec3> z;
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dx = -1; dx <= 1; ++dx) {
-        const auto it = buckets.find({bx + dx, by + dy});
-        if (it != buckets.end()) z.insert(z.end(), it->second.begin(), it->second.end());
-      }
+    double reach_cells = 1;
+    for (int reach = 0; reach <= kMaxPriorReach && (reach <= 1 || z.size() < 6); ++reach) {
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx) {
+          if (std::max(std::abs(dx), std::abs(dy)) != reach) continue;  // the ring at this reach only
+          const auto it = buckets.find({bx + dx, by + dy});
+          if (it != buckets.end()) z.insert(z.end(), it->second.begin(), it->second.end());
+        }
+      reach_cells = std::max(1, reach);
+    }
     if (z.empty()) {
       ++st.without_prior;
       continue;
@@ -135,7 +151,8 @@ std::vector<StereoMatch> matchAcrossViews(const std::vector<Eigen::Vector2d>& le
       Eigen::MatrixXd A(static_cast<Eigen::Index>(z.size()), 3);
       Eigen::VectorXd b(static_cast<Eigen::Index>(z.size()));
       for (std::size_t k = 0; k < z.size(); ++k) {
-        A.row(static_cast<Eigen::Index>(k)) << 1, (z[k].x() - left_centres[i].x()) / cell, (z[k].y() - left_centres[i].y()) / cell;
+        A.row(static_cast<Eigen::Index>(k)) << 1, (z[k].x() - left_centres[i].x()) / (cell * reach_cells),
+            (z[k].y() - left_centres[i].y()) / (cell * reach_cells);
         b(static_cast<Eigen::Index>(k)) = z[k].z();
       }
       const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);

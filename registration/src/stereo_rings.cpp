@@ -157,8 +157,11 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   const double nominal = std::numbers::pi * inner_px * inner_px;
   // 1. Each ring roughly: its interior, the line's inner half-level crossing on rays from it,
   // moved out by half the line's apparent width, and an ellipse through those points.
-  std::vector<detail::ImageEllipse> first;
-  for (const detail::ImageInterior& in : detail::findImageInteriors(I, nominal, line_px, params.ink_ratio, 0.85)) {
+  // The interiors one by one on TBB's threads (each is independent), kept in their order.
+  const std::vector<detail::ImageInterior> interiors = detail::findImageInteriors(I, nominal, line_px, params.ink_ratio, 0.85);
+  std::vector<std::optional<detail::ImageEllipse>> rough(interiors.size());
+  tbb::parallel_for(std::size_t{0}, interiors.size(), [&](std::size_t index) {
+    const detail::ImageInterior& in = interiors[index];
     // Half way to the ink: a line foreshortened on a steep wall is not as dark as a line seen square.
     const double sheet_mid = in.sheet_level, dark = 0.5 * (1 + params.ink_ratio) * sheet_mid;
     const double cx = in.centroid.x(), cy = in.centroid.y();
@@ -203,7 +206,7 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
       directions.emplace_back(ux, uy);
       if (s_out > s_in) widths.push_back(s_out - s_in);
     }
-    if (static_cast<double>(inner_s.size()) < params.min_edge_share * kRays || widths.size() < kRays / 6) continue;
+    if (static_cast<double>(inner_s.size()) < params.min_edge_share * kRays || widths.size() < kRays / 6) return;
     const double half_width = 0.5 * median(widths);
     std::vector<cv::Point2f> line_points;
     for (std::size_t i = 0; i < inner_s.size(); ++i) {
@@ -212,7 +215,7 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     }
     const cv::RotatedRect box = cv::fitEllipse(line_points);
     const double a = 0.5 * box.size.width, b = 0.5 * box.size.height;
-    if (!(a > 1 && b > 1) || !std::isfinite(box.center.x) || !std::isfinite(box.center.y)) continue;
+    if (!(a > 1 && b > 1) || !std::isfinite(box.center.x) || !std::isfinite(box.center.y)) return;
     const double angle = box.angle * std::numbers::pi / 180;
     const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(angle).toRotationMatrix();
     detail::ImageEllipse e;
@@ -222,9 +225,12 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     // is four arcs bent the wrong way, far from any ellipse.
     std::vector<double> off;
     for (const auto& q : line_points) off.push_back(std::abs(e.distance(Eigen::Vector2d(q.x, q.y))));
-    if (median(off) > std::max(0.3, 0.02 * e.meanRadius())) continue;
-    first.push_back(e);
-  }
+    if (median(off) > std::max(0.3, 0.02 * e.meanRadius())) return;
+    rough[index] = e;
+  });
+  std::vector<detail::ImageEllipse> first;
+  for (auto& e : rough)
+    if (e) first.push_back(*e);
 
   // 2. The line's centre by a fit of the blurred line model to the pixels along it, leaving out the
   // pixels a touching neighbour's line reaches.
@@ -343,3 +349,4 @@ std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::
 }
 
 }  // namespace stampscan::registration
+

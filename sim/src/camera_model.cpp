@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <random>
 
@@ -103,13 +104,24 @@ GrayImage renderImage(const Scene& scene, const CameraIntrinsics& intrinsics, co
 
 GrayImage CameraRenderer::render(const Scene& scene, const CameraSensor& sensor,
                                  const Eigen::Isometry3d& machine_from_camera, std::uint64_t seed) const {
+  return expose(radiance(scene, sensor, machine_from_camera), sensor, seed);
+}
+
+std::vector<float> CameraRenderer::radiance(const Scene& scene, const CameraSensor& sensor,
+                                            const Eigen::Isometry3d& machine_from_camera,
+                                            const std::function<bool()>& cancelled) const {
   const CameraIntrinsics& in = intrinsics_;
   const int W = in.width, H = in.height;
   std::vector<float> radiance(static_cast<std::size_t>(W) * H);
   const Vec3 eye = machine_from_camera.translation();
   const Eigen::Matrix3d rotation = machine_from_camera.linear();
   const double footprint_per_mm = 1.0 / std::sqrt(in.fx * in.fy);  // one pixel's angular size
+  std::atomic<bool> stop{false};
   tbb::parallel_for(0, H, [&](int v) {
+    if (cancelled && (stop || (v % 16 == 0 && cancelled()))) {
+      stop = true;
+      return;
+    }
     double t_hint = -1;
     for (int u = 0; u < W; ++u) {
       const std::size_t i = static_cast<std::size_t>(v) * W + u;
@@ -132,8 +144,13 @@ GrayImage CameraRenderer::render(const Scene& scene, const CameraSensor& sensor,
       radiance[i] = value;
     }
   });
+  if (stop) return radiance;
   blur(radiance, W, H, sensor.blur_sigma);
+  return radiance;
+}
 
+GrayImage CameraRenderer::expose(const std::vector<float>& radiance, const CameraSensor& sensor, std::uint64_t seed) const {
+  const int W = intrinsics_.width, H = intrinsics_.height;
   GrayImage image;
   image.width = W;
   image.height = H;

@@ -57,7 +57,8 @@ void LiveMeasurement::loop() {
 void LiveMeasurement::pull() {
   live_.with([&](const registration::ScanTrace& t) {
     if (!mine_.session && t.session) mine_.session = t.session;
-    appendFrom(mine_.head, t.head, taken_head_);
+    // Whole: a late position report goes in before later ones (ScanTraceBuilder).
+    if (mine_.head.size() != t.head.size()) mine_.head = t.head;
     appendFrom(mine_.profiles, t.profiles, taken_profiles_);
     mine_.sweeps = t.sweeps;  // few; and a sweep run again replaces its discarded first run
     for (const auto& [device, pairs] : t.clock_pairs) appendFrom(mine_.clock_pairs[device], pairs, taken_pairs_[device]);

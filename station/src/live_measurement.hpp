@@ -46,7 +46,7 @@ class LiveMeasurement {
 
   // The thread's copy of the trace and how far into the live one it has copied.
   registration::ScanTrace mine_;
-  std::size_t taken_profiles_ = 0, taken_head_ = 0, taken_plate_ = 0, taken_part_ = 0;
+  std::size_t taken_profiles_ = 0, taken_plate_ = 0, taken_part_ = 0;
   std::map<std::string, std::size_t> taken_pairs_;
   std::size_t part_sweeps_measured_ = 0, part_views_measured_ = 0;
   std::size_t sphere_done_ = 0, plate_done_ = 0, part_sweeps_done_ = 0, part_views_done_ = 0;

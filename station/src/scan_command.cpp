@@ -6,6 +6,7 @@
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
@@ -109,9 +110,11 @@ CommandRunner addScanCommand(CLI::App& app) {
     if (virtual_cell) {
       hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
       config = hosted->config();
-      if (!replay)
+      if (!replay) {
         job.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
                                     hosted->cell().truth().digitizer_latency_ns};
+        job.truth->visible = sim::visibleElements(world, job.plan, job.truth->elements).visibleOr();
+      }
     }
     acquisition::Cell cell(config);
     job.part_id = opt->part_id;
@@ -135,8 +138,8 @@ CommandRunner addScanCommand(CLI::App& app) {
       const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
       r = scan.run(job);
     }
-    std::printf("  measured    %zu grid elements; cloud4d.ply, fitted.ply, mesh.ply (%.2f s after the scan)\n", r.elements,
-                r.measure_seconds);
+    std::printf("  measured    %zu grid elements; cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply %.2f s after it\n",
+                r.elements, r.cloud4d_seconds, r.measure_seconds);
     std::printf("  calibration digitizer: %s; cameras: %s\n", r.digitizer_calibration.c_str(), r.camera_calibration.c_str());
     if (r.accuracy && hosted)
       std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "
@@ -144,6 +147,12 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
                   static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                   static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
+    if (r.accuracy && r.accuracy->visible > 0)
+      std::printf("  visible     %zu of %zu visible elements found (%.1f %%; a sensor sees them whole from a pose of the "
+                  "plan); %zu more found that none sees whole\n",
+                  r.accuracy->visible_found, r.accuracy->visible,
+                  100.0 * static_cast<double>(r.accuracy->visible_found) / static_cast<double>(r.accuracy->visible),
+                  r.accuracy->found_not_visible);
     if (replay) printReplay(*replay, r);
     if (r.report) {
       std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",

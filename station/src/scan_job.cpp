@@ -65,7 +65,13 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
                                   {"sweeps_over_loss_limit", r.sweeps_over_loss_limit},
                                   {"stereo_views", r.views_done},
                                   {"stereo_views_missing", r.views_missing},
-                                  {"positions", r.positions}}}};
+                                  {"positions", r.positions},
+                                  {"spent_seconds", {{"moving", r.spent.moving},
+                                                     {"settling", r.spent.settling},
+                                                     {"waiting_for_frames", r.spent.frames},
+                                                     {"clock_sync", r.spent.clock_sync},
+                                                     {"digitizer_start_drain_stop", r.spent.digitizer},
+                                                     {"other", r.spent.other}}}}}};
   for (const auto& d : r.devices)
     run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
   if (!r.completed) run["abort_reason"] = r.abort_reason;
@@ -212,7 +218,8 @@ void checkAgainstSensors(const CalibrationInUse& in_use, const std::string& cell
 
 }  // namespace
 
-ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth) {
+ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth,
+                             const std::vector<std::uint8_t>& visible) {
   ScanAccuracy a;
   if (truth.size() == 0 || !measured.hasStrain() || !truth.hasStrain()) return a;
   const fitting::KdTree tree(truth.positions);
@@ -229,6 +236,19 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   if (a.matched) {
     a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
     a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
+  }
+  if (visible.size() == truth.size() && measured.size() > 0) {
+    const fitting::KdTree found(measured.positions);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      found.knn(truth.positions[i], 1, nn);
+      const bool is_found = !nn.empty() && nn[0].distance_sq <= 0.5 * 0.5;
+      if (visible[i]) {
+        ++a.visible;
+        if (is_found) ++a.visible_found;
+      } else if (is_found) {
+        ++a.found_not_visible;
+      }
+    }
   }
   return a;
 }
@@ -325,6 +345,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;
   fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+  result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   MeshRequest mesh_request;
   FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
   colorByStrain(fit.surface);
@@ -337,14 +358,19 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
   record["measurement"] = {{"elements", cloud.size()},
                            {"seconds_after_scan", result.measure_seconds},
+                           {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
   if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
   if (o.truth) {
-    result.accuracy = accuracyAgainst(cloud, o.truth->elements);
+    result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
     record["accuracy"] = {{"matched", result.accuracy->matched},
                           {"position_rms_mm", result.accuracy->position_rms_mm},
                           {"strain_rms", result.accuracy->strain_rms},
                           {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
+    if (!o.truth->visible.empty())
+      record["accuracy"]["visible"] = {{"elements", result.accuracy->visible},
+                                       {"found", result.accuracy->visible_found},
+                                       {"found_not_visible", result.accuracy->found_not_visible}};
   }
   if (!o.replayed_trace.empty()) {
     // The recording measured as `station process` measures it: a replay must give the same cloud.

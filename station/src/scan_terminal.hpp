@@ -36,6 +36,10 @@ class TerminalObserver final : public ScanJobObserver {
                 r.sweeps_done, r.views_done, r.wall_seconds, r.motion_seconds, static_cast<unsigned long long>(r.profiles),
                 static_cast<unsigned long long>(r.lost_profiles), static_cast<unsigned long long>(r.positions),
                 r.views_missing ? (", " + std::to_string(r.views_missing) + " views missing").c_str() : "");
+    const acquisition::ScanRunResult::TimeSpent& t = r.spent;
+    std::printf("  time        moving %.1f s, settling %.1f s, waiting for frames %.1f s, clock pairs %.1f s, digitizer "
+                "start/drain/stop %.1f s, other %.1f s\n",
+                t.moving, t.settling, t.frames, t.clock_sync, t.digitizer, t.other);
   }
   void stageDone(std::string_view stage, const std::string& text) override {
     bar_.finish();

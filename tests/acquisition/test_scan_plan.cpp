@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <numbers>
+
 #include <cmath>
 
 namespace stampscan::acquisition {
@@ -69,6 +71,28 @@ TEST(ScanPlan, MotionTimeOfOneSweep) {
   limits.acceleration = 1000;
   // 100 mm at 25 mm/s with 1000 mm/s^2: 4 s + 0.025 s; back 100 mm at 100 mm/s: 1 s + 0.1 s.
   EXPECT_NEAR(motionSeconds(plan, limits), 4.025 + 1.1, 1e-9);
+}
+
+// A move that turns the head takes as long as the turn needs: all axes start and finish together.
+TEST(ScanPlan, MotionTimeOfAViewThatTurnsTheHead) {
+  ScanPlan plan;
+  plan.park = {{0, 0, 100}, 0, 0};
+  plan.travel_speed = 100;
+  StereoStep v;
+  v.pose = {{10, 0, 100}, 0, std::numbers::pi / 2};  // 10 mm, and a quarter turn of B
+  v.settle_s = 0.5;
+  plan.steps.emplace_back(v);
+  MachineLimits limits;
+  limits.acceleration = 1000;
+  limits.head_rate = std::numbers::pi / 2;         // 90 degrees/s
+  limits.head_acceleration = 2 * std::numbers::pi;  // 360 degrees/s^2
+  // 90 degrees at 90 degrees/s with 360 degrees/s^2: 1 s + 0.25 s each way (the 10 mm alone would
+  // take 0.2 s), plus the settling.
+  EXPECT_NEAR(motionSeconds(plan, limits), 2 * 1.25 + 0.5, 1e-9);
+  // Without a turn, the ram's trapezoid alone: 10 mm at 1000 mm/s^2 is a triangle of 0.2 s.
+  limits.head_rate = 1e9;
+  limits.head_acceleration = 1e12;
+  EXPECT_NEAR(motionSeconds(plan, limits), 2 * 0.2 + 0.5, 1e-6);
 }
 
 TEST(ScanPlan, LimitsAreCheckedStepByStep) {

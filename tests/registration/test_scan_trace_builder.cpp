@@ -58,6 +58,22 @@ TEST(ScanTraceBuilder, ADiscardedSweepIsLeftOutAndItsRepeatKept) {
   EXPECT_EQ(t.sweeps[0].end_ns, 40);
 }
 
+// The runner writes positions from two threads, so a report can arrive after a later one: it goes
+// in at its time (as a trace file's reader, which sorts by log time, has it), a repeated one once.
+TEST(ScanTraceBuilder, ALatePositionGoesInAtItsTime) {
+  ScanTraceBuilder b;
+  position(b, 10);
+  position(b, 30);
+  position(b, 20);
+  position(b, 30);
+  position(b, 5);
+  position(b, 40);
+  const ScanTrace t = b.finish(false);
+  ASSERT_EQ(t.head.size(), 5u);
+  const std::int64_t expected[] = {5, 10, 20, 30, 40};
+  for (std::size_t i = 0; i < t.head.size(); ++i) EXPECT_EQ(t.head[i].time_ns, expected[i]);
+}
+
 TEST(ScanTraceBuilder, ASweepOpenAtACutEndsWithTheLastPosition) {
   ScanTraceBuilder b;
   position(b, 0);

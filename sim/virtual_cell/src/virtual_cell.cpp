@@ -66,6 +66,57 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
   }
 }
 
+std::vector<float> VirtualCell::radianceAt(int camera, const HeadKey& key, const std::function<bool()>& cancelled) const {
+  const HeadState head{Vec3(key.position[0], key.position[1], key.position[2]), key.a, key.b, 0};
+  const Eigen::Isometry3d machine_from_camera = head.pose() * (camera == 0 ? truth_.head_from_left : truth_.head_from_right);
+  return renderers_[camera]->radiance(*scene_, options_.world.camera_sensor, machine_from_camera, cancelled);
+}
+
+bool VirtualCell::laserSweeping() const {
+  return plc_->coil(drivers::plc::Coil::LaserShutterOpenRequest) &&
+         !plc_->input(drivers::plc::DiscreteInput::LaserShutterClosed);
+}
+
+void VirtualCell::renderAhead() {
+  std::unique_lock lock(ahead_mutex_);
+  for (;;) {
+    // Polled: a move's destination is known from its start, and travel takes a second or so.
+    ahead_changed_.wait_for(lock, std::chrono::milliseconds(20), [&] { return ahead_stop_; });
+    if (ahead_stop_) return;
+    if (laserSweeping()) continue;
+    const VirtualCmmStatus st = cmm_->status();
+    const HeadKey key{st.destination, st.destination_a, st.destination_b};
+    if (ahead_.head == key && (ahead_.ready || ahead_.rendering)) continue;
+    ahead_.head = key;
+    ahead_.ready = false;
+    ahead_.rendering = true;
+    lock.unlock();
+    // Given up when the head is sent elsewhere or the laser starts sweeping (its profiles are due
+    // in real time), or when the cell stops.
+    const auto moved_on = [&] {
+      const VirtualCmmStatus now = cmm_->status();
+      return !(HeadKey{now.destination, now.destination_a, now.destination_b} == key) || laserSweeping() ||
+             [&] {
+               std::lock_guard stop_lock(ahead_mutex_);
+               return ahead_stop_;
+             }();
+    };
+    std::array<std::vector<float>, 2> radiance;
+    bool complete = true;
+    for (int c = 0; c < 2 && complete; ++c) {
+      radiance[static_cast<std::size_t>(c)] = radianceAt(c, key, moved_on);
+      complete = !moved_on();
+    }
+    lock.lock();
+    ahead_.rendering = false;
+    if (complete && ahead_.head == key) {
+      ahead_.radiance = std::move(radiance);
+      ahead_.ready = true;
+    }
+    ahead_changed_.notify_all();
+  }
+}
+
 bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const {
   if (options_.replay) return replayFrame(camera, request, out);
   const CameraRenderer& renderer = *renderers_[camera];
@@ -73,11 +124,20 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
   // The image the camera is set to must be the size its optics are simulated at.
   if (static_cast<int>(request.width) != in.width || static_cast<int>(request.height) != in.height) return false;
   const VirtualCmmStatus st = options_.head_status ? options_.head_status() : cmm_->status();
-  const HeadState head{Vec3(st.position[0], st.position[1], st.position[2]), st.head_a, st.head_b, 0};
-  const Eigen::Isometry3d machine_from_camera = head.pose() * (camera == 0 ? truth_.head_from_left : truth_.head_from_right);
+  const HeadKey key{st.position, st.head_a, st.head_b};
   CameraSensor sensor = options_.world.camera_sensor;
   sensor.bits = request.bytes_per_pixel == 2 ? 16 : 8;
-  const GrayImage image = renderer.render(*scene_, sensor, machine_from_camera,
+  // The light rendered ahead for this very pose (waiting for it when it is under way), else now.
+  std::vector<float> radiance;
+  {
+    std::unique_lock lock(ahead_mutex_);
+    if (!st.moving && ahead_.head == key) {
+      ahead_changed_.wait(lock, [&] { return !ahead_.rendering || !(ahead_.head == key); });
+      if (ahead_.ready && ahead_.head == key) radiance = ahead_.radiance[static_cast<std::size_t>(camera)];
+    }
+  }
+  if (radiance.empty()) radiance = radianceAt(camera, key);
+  const GrayImage image = renderer.expose(radiance, sensor,
                                           options_.world.seed * 1000003ull + request.index * 2 + static_cast<std::uint64_t>(camera));
   const std::vector<std::uint8_t> bytes = image.bytes();
   if (bytes.size() != out.size()) return false;
@@ -110,9 +170,20 @@ void VirtualCell::start() {
     if (!lo.ok) throw std::runtime_error("virtual camera " + camera->options().serial + ": " + lo.reason);
     camera->start();
   }
+  // Rendering ahead needs this object's CMM (its destination) and a world to render.
+  if (!cameras_.empty() && !options_.replay && !options_.head_status && !ahead_thread_.joinable()) {
+    ahead_stop_ = false;
+    ahead_thread_ = std::thread([this] { renderAhead(); });
+  }
 }
 
 void VirtualCell::stop() noexcept {
+  {
+    std::lock_guard lock(ahead_mutex_);
+    ahead_stop_ = true;
+  }
+  ahead_changed_.notify_all();
+  if (ahead_thread_.joinable()) ahead_thread_.join();
   for (auto& camera : cameras_) camera->stop();
   plc_->stop();
   cmm_->stop();

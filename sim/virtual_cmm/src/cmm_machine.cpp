@@ -68,6 +68,11 @@ MachinePose CmmMachine::pose(Clock::time_point now) const {
   return poseLocked(now);
 }
 
+MachinePose CmmMachine::destination(Clock::time_point now) const {
+  std::lock_guard lock(mutex_);
+  return move_ ? move_->to : poseLocked(now);  // a followed move's `to` is where the recording arrived
+}
+
 bool CmmMachine::homed() const {
   std::lock_guard lock(mutex_);
   return homed_;

@@ -159,6 +159,11 @@ VirtualCmmStatus VirtualCmm::statusAt(std::chrono::steady_clock::time_point when
   s.head_a = pose.abc[0] * kRadPerDeg;
   s.head_b = pose.abc[1] * kRadPerDeg;
   s.head_c = pose.abc[2] * kRadPerDeg;
+  const detail::MachinePose destination = m.machine.destination(when);
+  s.destination = destination.xyz;
+  s.destination_a = destination.abc[0] * kRadPerDeg;
+  s.destination_b = destination.abc[1] * kRadPerDeg;
+  s.destination_c = destination.abc[2] * kRadPerDeg;
   s.homed = m.machine.homed();
   s.moving = m.machine.moving();
   s.active_tool = m.machine.activeToolName();

@@ -100,6 +100,10 @@ struct MachineLimits {
   std::array<double, 3> travel_min{-400, -300, -100}, travel_max{400, 300, 600};  // mm
   double min_speed = 1, max_speed = 500;      // mm/s
   double acceleration = 1000;                 // mm/s^2, for the motion time
+  // The articulating head's turning rate and acceleration, for the motion time: a move that turns
+  // the head takes as long as its slowest axis needs (all axes of a GoTo start and finish together).
+  double head_rate = 90 * 3.14159265358979323846 / 180;           // rad/s
+  double head_acceleration = 360 * 3.14159265358979323846 / 180;  // rad/s^2
   double max_tilt = 115 * 3.14159265358979323846 / 180;  // |a|, rad
   double max_turn = 3.14159265358979323846;              // |b|, rad
 };
@@ -110,7 +114,8 @@ std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& li
 
 // The time the machine needs for the plan: trapezoidal moves at the plan's speeds, settling times.
 double motionSeconds(const ScanPlan& plan, const MachineLimits& limits);
-// One straight move's time at up to `speed`: accelerate, cruise, brake (a triangle when short).
+// One straight move's time at up to `speed`: accelerate, cruise, brake (a triangle when short); a
+// move that turns the head is as slow as the turn needs at the head's rate and acceleration.
 double moveSeconds(const HeadPose& from, const HeadPose& to, double speed, const MachineLimits& limits);
 
 class PlanError : public std::runtime_error {

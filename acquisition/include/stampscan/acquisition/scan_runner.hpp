@@ -110,6 +110,13 @@ struct ScanRunResult {
   std::uint64_t profiles = 0, lost_profiles = 0, positions = 0, plc_states = 0;
   double wall_seconds = 0;    // from the first motion to parked
   double motion_seconds = 0;  // what the plan needs (motionSeconds), for comparison
+  // Where the wall time went (seconds): the CMM's moves (command to arrival), the settling before
+  // each view, the wait for each view's frames after the trigger, the digitizer's clock pairs, its
+  // start, drain and stop around each sweep; `other` is the rest (the shutter, pose reads, parking's
+  // checks, the observer).
+  struct TimeSpent {
+    double moving = 0, settling = 0, frames = 0, clock_sync = 0, digitizer = 0, other = 0;
+  } spent;
   std::vector<drivers::DeviceIdentity> devices;
   std::vector<std::string> safety_events;
 };

@@ -139,7 +139,10 @@ class ScanMeasurer {
   SquareDetectionParams squares_;
   std::int64_t camera_offset_ = 0;
   std::vector<GridElement> laser_, stereo_;
-  std::unique_ptr<PointToPlaneIcp> icp_;  // on the laser's elements, made at the first view
+  // The views are registered on the laser's elements, one point per grid element (the ICP keeps a
+  // reference to its target: it lives here, as long as the ICP).
+  std::vector<Vec3> icp_target_;
+  std::unique_ptr<PointToPlaneIcp> icp_;  // made at the first view
   double laser_seconds_ = 0, stereo_seconds_ = 0;
 };
 

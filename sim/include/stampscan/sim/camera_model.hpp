@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace stampscan::sim {
@@ -55,6 +56,14 @@ class CameraRenderer {
   explicit CameraRenderer(const CameraIntrinsics& intrinsics);
   GrayImage render(const Scene& scene, const CameraSensor& sensor, const Eigen::Isometry3d& machine_from_camera,
                    std::uint64_t seed) const;
+  // render() in its two stages: the light on each pixel (the scene's radiance through the optics,
+  // blurred; all the ray casting, and the same for every frame taken from one pose), then the
+  // sensor's exposure of it (noise drawn from `seed`, quantised). A simulated camera that stands
+  // still can do the first once, before its trigger. `cancelled`, when given, is asked now and then
+  // while casting: once it says yes the radiance is left incomplete (and must not be used).
+  std::vector<float> radiance(const Scene& scene, const CameraSensor& sensor, const Eigen::Isometry3d& machine_from_camera,
+                              const std::function<bool()>& cancelled = {}) const;
+  GrayImage expose(const std::vector<float>& radiance, const CameraSensor& sensor, std::uint64_t seed) const;
   const CameraIntrinsics& intrinsics() const { return intrinsics_; }
 
  private:

@@ -38,6 +38,9 @@ namespace stampscan::station {
 struct SimulationTruth {
   fitting::Cloud elements;                // the part's true grid elements
   std::int64_t digitizer_latency_ns = 0;  // the virtual digitizer's
+  // Per element of `elements`: 1 when a sensor sees it whole from a pose of the plan
+  // (sim/visibility.hpp); empty when not known.
+  std::vector<std::uint8_t> visible{};
 };
 
 struct ScanJobOptions {
@@ -70,6 +73,9 @@ struct ScanJobOptions {
 struct ScanAccuracy {
   std::size_t matched = 0;        // measured elements within 0.5 mm of a true one
   double position_rms_mm = 0, strain_rms = 0;
+  // With the truth's visibility: the visible true elements, and those of them that a measured
+  // element lies within 0.5 mm of (found); the true elements found that no sensor sees whole.
+  std::size_t visible = 0, visible_found = 0, found_not_visible = 0;
 };
 
 struct ScanJobResult {
@@ -77,6 +83,7 @@ struct ScanJobResult {
   acquisition::ScanRunResult run;
   std::size_t elements = 0;
   double measure_seconds = 0;     // from the end of the scan to the files written
+  double cloud4d_seconds = 0;     // from the end of the scan to cloud4d.ply written (the fit comes after)
   registration::DigitizerCalibration digitizer;
   // Which calibration each sensor was measured with, in words (also in run.json as "calibration").
   std::string digitizer_calibration, camera_calibration;
@@ -123,7 +130,9 @@ class ScanJob {
   std::optional<std::string> pending_abort_;
 };
 
-// Every measured element against the nearest true one.
-ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth);
+// Every measured element against the nearest true one; with `visible` (per true element, as
+// SimulationTruth::visible), also how many of the visible true elements were found.
+ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth,
+                             const std::vector<std::uint8_t>& visible = {});
 
 }  // namespace stampscan::station

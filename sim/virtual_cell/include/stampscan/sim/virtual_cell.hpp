@@ -12,6 +12,15 @@
 // made by the process that hosts it (it must exist before any libusb context); this class gives it
 // its options and its profile source.
 //
+// Rendering a full-resolution frame casts millions of rays; done at the trigger, the head would
+// wait for it at every view, on a machine that is also measuring. Since a camera frame is taken with
+// the head standing still, the cell renders the light the cameras will see at the CMM's
+// destination while the head travels there (and while the laser's shutter is closed: a sweeping
+// digitizer renders its own profiles in real time). At the trigger, with the head standing at that
+// very pose, only the sensor's exposure (noise, quantisation) is left to do; anywhere else the frame
+// is rendered whole, as before. The frames are the same either way, and still reach the station
+// over GigE Vision through its driver.
+//
 // Thread safety: start() and stop() from one thread; the profile source runs on the virtual
 // digitizer's thread and only reads the CMM's and the PLC's state (both thread-safe).
 #pragma once
@@ -25,9 +34,13 @@
 
 #include <Eigen/Geometry>
 
+#include <array>
+#include <condition_variable>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace stampscan::sim {
@@ -90,7 +103,29 @@ class VirtualCell {
 
  private:
   class WorldScene;
+  // The head pose a frame is rendered from: the CMM's six numbers, compared exactly (a machine at
+  // rest stands exactly at its commanded target).
+  struct HeadKey {
+    std::array<double, 3> position{};
+    double a = 0, b = 0;
+    bool operator==(const HeadKey&) const = default;
+  };
   bool renderFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
+  std::vector<float> radianceAt(int camera, const HeadKey& head, const std::function<bool()>& cancelled = {}) const;
+  bool laserSweeping() const;
+  void renderAhead();  // the render-ahead thread
+
+  // The light both cameras see from one head pose, rendered ahead (guarded by ahead_mutex_).
+  struct Ahead {
+    HeadKey head;
+    std::array<std::vector<float>, 2> radiance;
+    bool ready = false, rendering = false;
+  };
+  mutable std::mutex ahead_mutex_;
+  mutable std::condition_variable ahead_changed_;
+  Ahead ahead_;
+  bool ahead_stop_ = true;
+  std::thread ahead_thread_;
   bool replayFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
 
   VirtualCellOptions options_;

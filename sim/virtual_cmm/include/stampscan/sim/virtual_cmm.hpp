@@ -106,6 +106,10 @@ struct VirtualCmmStatus {
   // The head's angles a, b, c in radians (not the wire's degrees), now, also during a move, sampled
   // at the same instant as `position`: a simulated world renders the sensors from this pose.
   double head_a = 0, head_b = 0, head_c = 0;
+  // Where the move in progress ends (the position and head angles as above; at rest, where the
+  // machine stands): a simulated world may prepare what a sensor will see there before it arrives.
+  std::array<double, 3> destination{};
+  double destination_a = 0, destination_b = 0, destination_c = 0;
   bool homed = false;
   bool moving = false;
   bool connected = false;

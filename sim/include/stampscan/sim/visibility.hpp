@@ -1,0 +1,52 @@
+// Which grid elements of a part a scan plan can see at all, from the simulator's truth: the
+// yardstick for the share of the visible elements a scan finds. An element is visible when its
+// whole printed outline (the ring, or the square cell, out to the outer edge of its line) is seen
+// by one sensor at once:
+//
+// - the laser digitizer, in one part sweep of the plan: every point of the outline is crossed by
+//   the fan within its angle and its measuring range, with nothing of the part in between, and lit
+//   within the sensor's incidence limit (DigitizerSpec::max_incidence, where its triangulation
+//   camera sees nothing any more);
+// - the stereo pair, in one part view of the plan: every point of the outline is inside both
+//   images (clear of a border), neither camera's line of sight to it meets the part first, and both
+//   cameras see the element within `camera_max_incidence` of its normal.
+//
+// The sensors are placed through the cell's true mounts and intrinsics (drawCellTruth), the plan's
+// head poses as commanded. Nothing here looks at what was measured.
+#pragma once
+
+#include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/fitting/cloud.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <numbers>
+#include <vector>
+
+namespace stampscan::sim {
+
+struct VisibilityParams {
+  int outline_samples = 24;          // points around each element's outline
+  double image_border_px = 20;       // the outline must be this far inside each image
+  // Beyond 60 degrees a ring's minor axis is under half its size and its printed line well under a
+  // pixel wide in the images: the cameras cannot resolve it (the laser still may).
+  double camera_max_incidence = std::numbers::pi / 3;
+  double occlusion_tolerance_mm = 0.1;  // a line of sight may end this far before the point
+};
+
+struct ElementVisibility {
+  // Per element of the truth cloud, in its order: 1 when seen whole by that sensor.
+  std::vector<std::uint8_t> laser, stereo;
+  bool visible(std::size_t i) const { return laser[i] != 0 || stereo[i] != 0; }
+  std::size_t visibleCount() const;
+  // 1 where either sensor sees the element whole.
+  std::vector<std::uint8_t> visibleOr() const;
+};
+
+// `truth` is groundTruth(makePart(world), world.grid) (its material_u/v scalars give each element's
+// printed outline); the plan's part sweeps and part views are the poses considered.
+ElementVisibility visibleElements(const ScanParams& world, const acquisition::ScanPlan& plan,
+                                  const fitting::Cloud& truth, const VisibilityParams& params = {});
+
+}  // namespace stampscan::sim

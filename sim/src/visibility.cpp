@@ -1,0 +1,157 @@
+#include "stampscan/sim/visibility.hpp"
+
+#include "stampscan/sim/cmm_motion.hpp"
+#include "stampscan/sim/scene.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace stampscan::sim {
+
+std::size_t ElementVisibility::visibleCount() const {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < laser.size(); ++i) n += visible(i) ? 1 : 0;
+  return n;
+}
+
+std::vector<std::uint8_t> ElementVisibility::visibleOr() const {
+  std::vector<std::uint8_t> out(laser.size());
+  for (std::size_t i = 0; i < laser.size(); ++i) out[i] = visible(i) ? 1 : 0;
+  return out;
+}
+
+namespace {
+
+Eigen::Isometry3d headPose(const acquisition::HeadPose& p) {
+  return HeadState{Vec3(p.position[0], p.position[1], p.position[2]), p.a, p.b}.pose();
+}
+
+// The element's printed outline on the formed part: the ring's outer edge, or the square cell's
+// boundary out to the outer edge of its lines, mapped from the blank by the forming.
+std::vector<Vec3> outline(const FormedPart& part, const GridSpec& grid, const Vec2& centre, int samples) {
+  std::vector<Vec3> out;
+  out.reserve(static_cast<std::size_t>(samples));
+  for (int k = 0; k < samples; ++k) {
+    const double th = 2 * std::numbers::pi * k / samples;
+    const Vec2 dir(std::cos(th), std::sin(th));
+    Vec2 m;
+    if (grid.kind == GridKind::Circle) {
+      m = centre + (0.5 * grid.circle_diameter + 0.5 * grid.line_width) * dir;
+    } else {
+      // The square of half side pitch / 2 + line / 2, sampled along the same directions.
+      const double half = 0.5 * grid.pitch + 0.5 * grid.line_width;
+      m = centre + half / std::max(std::abs(dir.x()), std::abs(dir.y())) * dir;
+    }
+    out.push_back(part.position(m));
+  }
+  return out;
+}
+
+// Nothing of the part between `eye` and `q`.
+bool inSight(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
+  const Vec3 d = q - eye;
+  const double distance = d.norm();
+  const auto hit = scene.cast({eye, d / distance}, 0.0);
+  return hit && hit->t > distance - tolerance;
+}
+
+struct Sweep {
+  Eigen::Isometry3d start;  // machine_from_digitizer at the sweep's start (the orientation holds)
+  Vec3 travel;              // the mirror's displacement over the sweep
+};
+
+// The digitizer sees `q` during the sweep: the fan plane passes through it at some instant, where
+// it lies within the fan, the measuring range and the incidence limit, in sight of the mirror.
+bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, const Vec3& q, const Vec3& normal,
+               double tolerance) {
+  const Eigen::Matrix3d R = s.start.linear();
+  const Vec3 fan_normal = R.col(1);  // the fan is the sensor's x-z plane
+  const double rate = fan_normal.dot(s.travel);
+  if (std::abs(rate) < 1e-9) return false;
+  const double f = fan_normal.dot(q - s.start.translation()) / rate;
+  if (f < 0 || f > 1) return false;
+  const Vec3 mirror = s.start.translation() + f * s.travel;
+  const Vec3 local = R.transpose() * (q - mirror);
+  const double range = local.norm();
+  if (range < d.standoff - 0.5 * d.measuring_range || range > d.standoff + 0.5 * d.measuring_range) return false;
+  if (std::abs(std::atan2(local.x(), -local.z())) > d.half_angle) return false;
+  const double cos_incidence = normal.dot((mirror - q) / range);
+  if (cos_incidence <= std::cos(d.max_incidence)) return false;
+  return inSight(scene, mirror, q, tolerance);
+}
+
+}  // namespace
+
+ElementVisibility visibleElements(const ScanParams& world, const acquisition::ScanPlan& plan, const fitting::Cloud& truth,
+                                  const VisibilityParams& params) {
+  const auto mu = truth.scalars.find("material_u"), mv = truth.scalars.find("material_v");
+  if (mu == truth.scalars.end() || mv == truth.scalars.end() || truth.normals.size() != truth.size())
+    throw std::invalid_argument("visibleElements: the truth cloud needs normals and material_u/v (sim::groundTruth)");
+  const std::unique_ptr<FormedPart> part = makePart(world);
+  const PartScene scene(*part, world.grid);
+  const CellTruth cell = drawCellTruth(world);
+
+  std::vector<Sweep> sweeps;
+  std::vector<std::array<Eigen::Isometry3d, 2>> views;
+  for (const acquisition::PlanStep& step : plan.steps) {
+    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart) {
+      const Eigen::Isometry3d a = headPose(s->start) * cell.head_from_digitizer;
+      const Eigen::Isometry3d b = headPose(s->end) * cell.head_from_digitizer;
+      sweeps.push_back({a, b.translation() - a.translation()});
+    } else if (const auto* v = std::get_if<acquisition::StereoStep>(&step); v && v->scene == acquisition::kScenePart) {
+      const Eigen::Isometry3d head = headPose(v->pose);
+      views.push_back({head * cell.head_from_left, head * cell.head_from_right});
+    }
+  }
+  const CameraIntrinsics* cameras[2] = {&cell.left, &cell.right};
+  const double cos_camera = std::cos(params.camera_max_incidence);
+  const double tol = params.occlusion_tolerance_mm;
+
+  ElementVisibility out;
+  out.laser.assign(truth.size(), 0);
+  out.stereo.assign(truth.size(), 0);
+  tbb::parallel_for(std::size_t{0}, truth.size(), [&](std::size_t i) {
+    const std::vector<Vec3> ring = outline(*part, world.grid, Vec2(mu->second[i], mv->second[i]), params.outline_samples);
+    std::vector<Vec3> normals;
+    for (const Vec3& q : ring) normals.push_back(part->normal(q.x(), q.y()));
+    for (const Sweep& s : sweeps) {
+      bool all = true;
+      for (std::size_t k = 0; k < ring.size() && all; ++k) all = laserSees(scene, world.digitizer, s, ring[k], normals[k], tol);
+      if (all) {
+        out.laser[i] = 1;
+        break;
+      }
+    }
+    const Vec3& centre = truth.positions[i];
+    const Vec3& normal = truth.normals[i];
+    for (const auto& poses : views) {
+      bool all = true;
+      for (int c = 0; c < 2 && all; ++c) {
+        const Vec3 eye = poses[static_cast<std::size_t>(c)].translation();
+        all = normal.dot((eye - centre).normalized()) >= cos_camera;
+        const Eigen::Isometry3d camera_from_machine = poses[static_cast<std::size_t>(c)].inverse();
+        for (std::size_t k = 0; k < ring.size() && all; ++k) {
+          const Vec3 in_camera = camera_from_machine * ring[k];
+          if (in_camera.z() <= 0) {
+            all = false;
+            break;
+          }
+          const Vec2 px = cameras[c]->project(in_camera);
+          const double border = params.image_border_px;
+          all = px.x() >= border && px.y() >= border && px.x() <= cameras[c]->width - 1 - border &&
+                px.y() <= cameras[c]->height - 1 - border && inSight(scene, eye, ring[k], tol);
+        }
+      }
+      if (all) {
+        out.stereo[i] = 1;
+        break;
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace stampscan::sim

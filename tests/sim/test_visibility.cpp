@@ -1,0 +1,90 @@
+// Which grid elements a plan can see, from the simulator's truth (sim/visibility.hpp): the
+// yardstick of the share of visible elements a scan finds.
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/visibility.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <variant>
+
+namespace {
+
+using namespace stampscan;
+
+struct Counts {
+  std::size_t inside = 0, inside_laser = 0, outside = 0, outside_seen = 0;
+};
+
+// Elements well inside the scan region (machine xy) and well outside it.
+Counts countAround(const sim::ScanParams& p, const fitting::Cloud& truth, const sim::ElementVisibility& v,
+                   const std::vector<std::uint8_t>& seen) {
+  Counts c;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    const auto& x = truth.positions[i];
+    const bool inside = x.x() > p.scan_region.min.x() + 5 && x.x() < p.scan_region.max.x() - 5 &&
+                        x.y() > p.scan_region.min.y() + 8 && x.y() < p.scan_region.max.y() - 8;
+    const bool outside = std::abs(x.x()) > 60 || std::abs(x.y()) > 50;
+    if (inside) {
+      ++c.inside;
+      c.inside_laser += v.laser[i];
+    }
+    if (outside) {
+      ++c.outside;
+      c.outside_seen += seen[i];
+    }
+  }
+  return c;
+}
+
+TEST(Visibility, TheLaserSeesTheElementsUnderItsSweepsAndNoneFarAway) {
+  sim::ScanParams p = sim::ScanParams::quick();  // a 40 x 30 mm region of the dome
+  p.stereo = false;
+  const acquisition::ScanPlan plan = sim::planScan(p);
+  const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
+  const sim::ElementVisibility v = sim::visibleElements(p, plan, truth);
+  ASSERT_EQ(v.laser.size(), truth.size());
+  const Counts c = countAround(p, truth, v, v.visibleOr());
+  EXPECT_GT(c.inside, 50u);
+  EXPECT_EQ(c.inside_laser, c.inside);  // the dome's top: flat enough, within range, nothing in between
+  EXPECT_GT(c.outside, 500u);
+  EXPECT_EQ(c.outside_seen, 0u);
+  for (std::size_t i = 0; i < truth.size(); ++i) EXPECT_EQ(v.stereo[i], 0) << "no views in the plan";
+}
+
+TEST(Visibility, NothingIsVisibleToAPlanWithoutPartStepsOrOutOfTheDigitizersRange) {
+  sim::ScanParams p = sim::ScanParams::quick();
+  const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
+  acquisition::ScanPlan plan = sim::planScan(p);
+  std::erase_if(plan.steps, [](const acquisition::PlanStep& s) {
+    return std::visit([](const auto& step) { return step.scene == acquisition::kScenePart; }, s);
+  });
+  EXPECT_EQ(sim::visibleElements(p, plan, truth).visibleCount(), 0u);
+  // The same sweeps 200 mm higher: the part is beyond the measuring range.
+  plan = sim::planScan(p);
+  std::erase_if(plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
+  for (auto& s : plan.steps)
+    if (auto* sweep = std::get_if<acquisition::SweepStep>(&s)) {
+      sweep->start.position[2] += 200;
+      sweep->end.position[2] += 200;
+    }
+  EXPECT_EQ(sim::visibleElements(p, plan, truth).visibleCount(), 0u);
+}
+
+TEST(Visibility, TheStereoPairSeesTheElementsInBothImages) {
+  sim::ScanParams p = sim::ScanParams::quick();
+  p.laser = false;
+  const acquisition::ScanPlan plan = sim::planScan(p);
+  const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
+  const sim::ElementVisibility v = sim::visibleElements(p, plan, truth);
+  std::size_t stereo = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    EXPECT_EQ(v.laser[i], 0);
+    stereo += v.stereo[i];
+  }
+  // Two views 300 mm above the middle of the dome see much of it, but not its far corners.
+  EXPECT_GT(stereo, 500u);
+  EXPECT_LT(stereo, truth.size());
+}
+
+}  // namespace
