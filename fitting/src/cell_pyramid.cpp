@@ -35,6 +35,8 @@ Key parentOf(Key key) {
 constexpr std::size_t kMinCells = 10;
 // Least variance of the difference of two nested fits, as a share of the narrower one's variance.
 constexpr double kLeastDifferenceVariance = 0.1;
+// Share of h by which the data's weighted centre may lie to one side before a fit counts as one-sided.
+constexpr double kOneSidedShift = 0.5;
 // Least in-plane spread (in h^2) of a fit's cells, as for the point fits (robust_patch_fit.cpp).
 constexpr double kMinTangentSpread = 0.05;
 
@@ -211,17 +213,26 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
   const double h_sq = h * h;
   s.weight.resize(s.near.size());
   WeightedSums plane_sums(centre, h);
+  double plane_w = 0;
+  Vec3 plane_wp = Vec3::Zero();
   for (std::size_t k = 0; k < s.near.size(); ++k) {
     const CellElement e = pyramid.element(level, s.near[k].index);
     s.weight[k] = gaussianWeightSq(s.near[k].distance_sq, h_sq);  // Eq. (3), at the cell's centroid
     plane_sums.addCell(e.centroid, e.covariance(), s.weight[k] * e.weight);
+    plane_w += s.weight[k] * e.weight;
+    plane_wp += s.weight[k] * e.weight * (e.centroid - centre);
   }
   // Eqs. (2), (6), (7): the weighted plane gives the frame; its spread says whether the cells cover
   // two directions at all.
   const std::optional<LocalSurface> plane = LocalSurface::fitPlane(plane_sums);
   if (!plane || plane->tangentSpread() < kMinTangentSpread) return std::nullopt;
   const Vec3 normal = frame_normal ? *frame_normal : plane->normal(centre);
-  QuadricPatch::Sums sums(frameAround(normal), centre, h, /*order=*/3);
+  // At the edge of the data the support is one-sided and the cubic terms are poorly determined: a
+  // patch read there extrapolates them. Where the data's weighted centre lies more than half a
+  // bandwidth to one side, the quadric is fitted instead.
+  const Vec3 shift = plane_w > 0 ? Vec3(plane_wp / plane_w) : Vec3::Zero();
+  const bool one_sided = (shift - normal * normal.dot(shift)).norm() > kOneSidedShift * h;
+  QuadricPatch::Sums sums(frameAround(normal), centre, h, one_sided ? 2 : 3);
   double sum_w = 0, sum_w2 = 0;
   for (std::size_t k = 0; k < s.near.size(); ++k) {
     const CellElement e = pyramid.element(level, s.near[k].index);

@@ -18,10 +18,7 @@ TEST(Mesh, SphereCapMeshLiesOnTheSurface) {
   ASSERT_EQ(mesh.vertices.strain.size(), mesh.vertices.size());
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Vec3& v = mesh.vertices.positions[i];
-    // The mesh reaches up to a cell beyond the data's edge (polar angle 0.9), where the surface is
-    // extrapolated from one side and may stray a little more.
-    const double polar = std::acos(v.normalized().z());
-    EXPECT_NEAR(v.norm(), 10.0, polar <= 0.9 ? 0.02 : 0.03) << "vertex at polar angle " << polar;
+    EXPECT_NEAR(v.norm(), 10.0, 0.02) << "vertex at polar angle " << std::acos(v.normalized().z());
     EXPECT_NEAR(mesh.vertices.strain[i], -0.05 * v.z() / 10.0, 0.005);
     EXPECT_GT(mesh.vertices.normals[i].dot(v.normalized()), 0.9);
   }
