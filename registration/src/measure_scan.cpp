@@ -49,6 +49,14 @@ std::vector<Profile> profilesIn(const ScanTrace& t, const HeadTrack& track, cons
   return out;
 }
 
+// The sweep's returns in the machine frame (the profiles outside the head track are left out, as
+// the measurement leaves them out).
+std::vector<Vec3> surfacePointsOf(const std::vector<Profile>& profiles, const HeadTrack& track,
+                                  const DigitizerCalibration& calibration) {
+  std::vector<Vec3> points;
+  for (const Profile& p : profiles) profileToMachine(p, track, calibration, points);
+  return points;
+}
 
 }  // namespace
 
@@ -192,6 +200,10 @@ void ScanMeasurer::measureSweep(const ScanTrace& trace, const SweepWindow& sweep
       grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, sweep_id, &stats)
                         : detectLaserSquares(profiles, track, out_.digitizer, squares_, sweep_id, &stats);
   laser_.insert(laser_.end(), found.begin(), found.end());
+  if (params_.keep_surface_points) {
+    const std::vector<Vec3> returns = surfacePointsOf(profiles, track, out_.digitizer);
+    surface_points_.insert(surface_points_.end(), returns.begin(), returns.end());
+  }
   if (observer_) observer_->elementsMeasured("laser", found);
   out_.laser_stats.candidates += stats.candidates;
   out_.laser_stats.rejected_size += stats.rejected_size;
@@ -211,14 +223,18 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
   const HeadTrack track(trace.head);
   std::vector<std::vector<GridElement>> per_sweep(part.size());
   std::vector<RingDetectionStats> stats(part.size());
+  std::vector<std::vector<Vec3>> returns(part.size());
   tbb::parallel_for(std::size_t{0}, part.size(), [&](std::size_t k) {
     const auto profiles = profilesIn(trace, track, part[k], out_.digitizer.clock_offset_ns, out_.digitizer.latency_ns,
                                      params_.max_track_error_mm);
     const auto id = static_cast<std::uint32_t>(k);
     per_sweep[k] = grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, id, &stats[k])
                                      : detectLaserSquares(profiles, track, out_.digitizer, squares_, id, &stats[k]);
+    if (params_.keep_surface_points) returns[k] = surfacePointsOf(profiles, track, out_.digitizer);
   });
   for (std::size_t k = 0; k < part.size(); ++k) {
+    surface_points_.insert(surface_points_.end(), returns[k].begin(), returns[k].end());
+    std::vector<Vec3>().swap(returns[k]);
     laser_.insert(laser_.end(), per_sweep[k].begin(), per_sweep[k].end());
     if (observer_) observer_->elementsMeasured("laser", per_sweep[k]);
     out_.laser_stats.candidates += stats[k].candidates;
@@ -310,6 +326,7 @@ bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint3
 ScanMeasurement ScanMeasurer::finish() {
   out_.elements = laser_;
   out_.laser_elements = laser_.size();
+  out_.surface_points = std::move(surface_points_);
   tell("laser", format("%zu sweeps, %s grid: %zu grid elements (%zu incomplete and %zu poor fits left out) (%.2f s)",
                        out_.laser_sweeps, grid_.c_str(), out_.laser_elements, out_.laser_stats.rejected_gap,
                        out_.laser_stats.rejected_fit, laser_seconds_));

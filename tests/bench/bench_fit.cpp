@@ -5,7 +5,7 @@
 // Each system runs in a child process so that its peak memory is its own: after the cloud is made,
 // the child resets its peak-RSS counter (/proc/self/clear_refs) and reports the peak during the fit.
 //
-//   bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl]
+//   bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl] [--stages]
 //
 // The pan has tight radii and steep walls; the dome is smooth all over, where wide supports pay.
 #include "stampscan/fitting/surface_fit.hpp"
@@ -88,6 +88,7 @@ int main(int argc, char** argv) {
   bool per_point = false;
   std::vector<double> radii = {0.75, 1.0, 1.5, 2.0, 3.0};
   std::string shape_name = "pan";
+  bool stages = false;  // print the fit's time per stage
   fitting::AnchoredParams anchored;  // the default's parameters; --widen and --gamma change them
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -98,6 +99,7 @@ int main(int argc, char** argv) {
     else if (a == "--skip-pcl") skip_pcl = true;
     else if (a == "--shape") shape_name = next();
     else if (a == "--widen") anchored.widen = true;
+    else if (a == "--stages") stages = true;
     else if (a == "--gamma") anchored.agreement_sigmas = std::stod(next());
     else if (a == "--per-point") per_point = true;
     else if (a == "--radii") {
@@ -106,7 +108,7 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
     } else {
-      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl]\n");
+      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl] [--stages]\n");
       return 2;
     }
   }
@@ -167,6 +169,12 @@ int main(int argc, char** argv) {
     r.rms = e.rms;
     r.max = e.max;
     r.points = fit.surface.size();
+    if (stages) {
+      std::string line = "  stages:";
+      for (const auto& [stage, seconds] : fit.stats.stage_seconds) line += " " + stage + " " + std::to_string(seconds).substr(0, 5) + " s,";
+      std::printf("%s\n", line.c_str());
+      std::fflush(stdout);
+    }
     return r;
     });
   };

@@ -38,6 +38,9 @@ struct MeasureParams {
   // Profiles taken where the head track may be further than this from the true path are left out
   // (HeadTrack::chordError): a tenth of the goal for positions.
   double max_track_error_mm = 0.005;
+  // Also keep every laser return of the part sweeps in the machine frame (ScanMeasurement::
+  // surface_points): the dense shape a fit can take the part's surface from. 24 bytes a point.
+  bool keep_surface_points = false;
 };
 
 // The profiles of each sweep of a sphere scene (the reference sphere's, or the ball bar's second
@@ -75,6 +78,8 @@ class MeasureObserver {
 
 struct ScanMeasurement {
   std::vector<GridElement> elements;  // the laser's, then the stereo views'
+  // Every return of the part sweeps, machine frame, sweep after sweep (MeasureParams::keep_surface_points).
+  std::vector<Vec3> surface_points;
 
   DigitizerCalibration digitizer;                       // as used (clock offset from the trace)
   std::optional<SphereCalibrationResult> sphere;        // when calibrated from the trace's sphere sweeps
@@ -139,6 +144,7 @@ class ScanMeasurer {
   SquareDetectionParams squares_;
   std::int64_t camera_offset_ = 0;
   std::vector<GridElement> laser_, stereo_;
+  std::vector<Vec3> surface_points_;
   // The views are registered on the laser's elements, one point per grid element (the ICP keeps a
   // reference to its target: it lives here, as long as the ICP).
   std::vector<Vec3> icp_target_;

@@ -1,0 +1,105 @@
+// The shape from dense points, the strain from sparse carriers (shape_and_strain.hpp), against a
+// sphere cap whose strain field is known.
+#include "stampscan/fitting/shape_and_strain.hpp"
+
+#include "shapes.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace stampscan::fitting {
+namespace {
+
+constexpr double kRadius = 80.0;  // mm
+double trueStrain(const Vec3& p) { return 0.05 + 0.002 * p.x() + 1e-4 * p.y() * p.y(); }
+
+// Grid elements at a 2.54 mm pitch on the cap where x < x_max, with noisy positions and strain.
+Cloud carriersOnCap(double x_max, double position_noise, double strain_noise, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Cloud c;
+  for (double x = -30; x < x_max; x += 2.54)
+    for (double y = -30; y <= 30; y += 2.54) {
+      if (x * x + y * y > 26.0 * 26.0) continue;
+      const Vec3 on(x, y, std::sqrt(kRadius * kRadius - x * x - y * y));
+      c.positions.push_back(on + position_noise * Vec3(g(rng), g(rng), g(rng)));
+      c.strain.push_back(trueStrain(on) + strain_noise * g(rng));
+    }
+  return c;
+}
+
+TEST(ShapeAndStrain, DenseShapeCarriesTheElementsStrainAndStopsBeyondThem) {
+  const double noise = 0.03;
+  const Cloud shape = test::sampleSphereCap(150000, kRadius, 0.35, noise, 7);
+  const Cloud carriers = carriersOnCap(5.0, 0.01, 0.002, 8);
+  ShapeAndStrainParams params;
+  const ShapeAndStrain fit = fitShapeAndStrain(shape, carriers, params);
+
+  ASSERT_GT(fit.surface.size(), 5000u);  // ~2,400 mm^2 at 0.5 mm
+  ASSERT_EQ(fit.surface.strain.size(), fit.surface.size());
+  ASSERT_EQ(fit.surface.normals.size(), fit.surface.size());
+  std::vector<double> shape_error, strain_error;
+  std::size_t near_without = 0, near_total = 0, far_with = 0, far_total = 0;
+  for (std::size_t i = 0; i < fit.surface.size(); ++i) {
+    const Vec3& p = fit.surface.positions[i];
+    shape_error.push_back(p.norm() - kRadius);
+    EXPECT_GT(std::abs(fit.surface.normals[i].dot(p.normalized())), 0.99);
+    const double s = fit.surface.strain[i];
+    if (p.x() < -2.0 && p.head<2>().norm() < 22.0) {  // among the carriers, away from their edge
+      ++near_total;
+      if (std::isfinite(s)) strain_error.push_back(s - trueStrain(p));
+      else ++near_without;
+    }
+    if (p.x() > 20.0) {  // more than 15 mm from the last carrier
+      ++far_total;
+      far_with += std::isfinite(s);
+    }
+  }
+  // The shape is fitted to far below the points' noise; the strain to below the carriers' noise.
+  EXPECT_LT(test::rmsOf(shape_error), noise / 4);
+  EXPECT_EQ(near_without, 0u);
+  ASSERT_GT(strain_error.size(), 1000u);
+  EXPECT_LT(test::rmsOf(strain_error), 0.0015);
+  ASSERT_GT(far_total, 100u);
+  EXPECT_EQ(far_with, 0u) << "strain beyond the carriers must be left out, not extrapolated";
+  EXPECT_EQ(fit.without_strain, static_cast<std::size_t>(std::count_if(fit.surface.strain.begin(), fit.surface.strain.end(),
+                                                                      [](double s) { return !std::isfinite(s); })));
+  EXPECT_LT(fit.not_converged, fit.surface.size() / 1000 + 1);
+
+  // The mesh lies on the shape and carries the strain where the carriers are.
+  ASSERT_GT(fit.mesh.triangles.size(), 5000u);
+  ASSERT_EQ(fit.mesh.vertices.strain.size(), fit.mesh.vertices.size());
+  std::vector<double> mesh_shape, mesh_strain;
+  for (std::size_t i = 0; i < fit.mesh.vertices.size(); ++i) {
+    const Vec3& p = fit.mesh.vertices.positions[i];
+    mesh_shape.push_back(p.norm() - kRadius);
+    if (p.x() < -2.0 && p.head<2>().norm() < 22.0 && std::isfinite(fit.mesh.vertices.strain[i]))
+      mesh_strain.push_back(fit.mesh.vertices.strain[i] - trueStrain(p));
+  }
+  std::printf("shape RMS %.4f mm (points), %.4f mm (mesh); strain RMS %.5f (points), %.5f (mesh); strain h median %.2f mm\n",
+              test::rmsOf(shape_error), test::rmsOf(mesh_shape), test::rmsOf(strain_error), test::rmsOf(mesh_strain),
+              fit.strain_bandwidth.median);
+  EXPECT_LT(test::rmsOf(mesh_shape), noise / 4);
+  EXPECT_LT(test::rmsOf(mesh_strain), 0.0015);
+}
+
+TEST(ShapeAndStrain, RefusesWhatItCannotFit) {
+  const Cloud shape = test::sampleSphereCap(2000, kRadius, 0.35, 0.03, 1);
+  const Cloud carriers = carriersOnCap(30.0, 0.01, 0.002, 2);
+  EXPECT_THROW(fitShapeAndStrain(Cloud{}, carriers), std::invalid_argument);
+  EXPECT_THROW(fitShapeAndStrain(shape, Cloud{}), std::invalid_argument);
+  Cloud no_strain = carriers;
+  no_strain.strain.clear();
+  EXPECT_THROW(fitShapeAndStrain(shape, no_strain), std::invalid_argument);
+  EXPECT_THROW(fitShapeAndStrain(carriers, carriers), std::invalid_argument);  // shape with strain
+  ShapeAndStrainParams bad;
+  bad.output_spacing_mm = 0;
+  EXPECT_THROW(fitShapeAndStrain(shape, carriers, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace stampscan::fitting
