@@ -76,7 +76,9 @@ class CarrierStrain {
       std::vector<Neighbor> near;
       for (std::size_t i = range.begin(); i != range.end(); ++i) {
         tree_.knn(positions_[i], kStartRank + 1, near);
-        spacing[i] = near.size() > 1 ? std::sqrt(near[1].distance_sq) : 0.0;
+        // The grid's pitch: the fourth neighbour's distance, which twins (an element found in two
+        // overlapping strips) do not shorten: a square grid's four nearest are a pitch away.
+        spacing[i] = std::sqrt(near[std::min<std::size_t>(kPitchRank, near.size() - 1)].distance_sq);
         const double h_start = std::max(std::sqrt(near.back().distance_sq), 1e-6);
         const Projection foot = shape.project(positions_[i]);
         const detail::StrainChoice choice =
@@ -106,6 +108,7 @@ class CarrierStrain {
   // the widest is 1.5^7 = 17 times as wide.
   static constexpr int kStartRank = 8;
   static constexpr int kScales = 8;
+  static constexpr std::size_t kPitchRank = 4;
   const std::vector<Vec3>& positions_;
   KdTree tree_;
   detail::CellPyramid pyramid_;

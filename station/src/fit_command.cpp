@@ -80,6 +80,40 @@ FitOutcome runFit(const Cloud& input, FitParams params, const MeshRequest* mesh_
   return outcome;
 }
 
+ShapeAndStrain runShapeAndStrainFit(const Cloud& shape, const Cloud& elements, bool show_progress) {
+  std::unique_ptr<ProgressBar> bar;
+  ShapeAndStrainParams params;
+  if (show_progress) {
+    bar = std::make_unique<ProgressBar>();
+    params.shape.progress = [&bar](const std::string& stage, double f) { bar->update(stage, f); };
+  }
+  ShapeAndStrain fit = fitShapeAndStrain(shape, elements, params);
+  if (bar) bar->finish();
+  colorByStrain(fit.surface);
+  colorByStrain(fit.mesh.vertices);
+  return fit;
+}
+
+void printShapeAndStrainSummary(const ShapeAndStrain& fit) {
+  const FitStats& s = fit.shape_stats;
+  std::printf("  shape       %zu points: bandwidth %.3g .. %.3g mm (median %.3g)%s\n", fit.shape_points, s.bandwidth.min,
+              s.bandwidth.max, s.bandwidth.median, s.widened ? ", widened where the shape allows" : "");
+  std::printf("  strain      %zu grid elements %.3g mm apart: bandwidth %.3g .. %.3g mm (median %.3g)\n", fit.carriers,
+              fit.carrier_spacing, fit.strain_bandwidth.min, fit.strain_bandwidth.max, fit.strain_bandwidth.median);
+  std::printf("  surface     %zu points, %zu without strain (beyond the grid), %zu not converged\n", fit.surface.size(),
+              fit.without_strain, fit.not_converged);
+  if (!fit.mesh.triangles.empty())
+    std::printf("  mesh        %zu vertices, %zu triangles, cell %.3g mm\n", fit.mesh_stats.vertices, fit.mesh_stats.triangles,
+                fit.mesh_stats.cell_size);
+  std::printf("  fit time    %.2f s (", fit.seconds);
+  bool first = true;
+  for (const auto& [stage, sec] : s.stage_seconds) {
+    std::printf("%s%s %.2f", first ? "" : ", ", stage.c_str(), sec);
+    first = false;
+  }
+  std::printf(")\n");
+}
+
 void printFitSummary(const ReadReport& read, const FitParams& params, const FitOutcome& o, bool with_mesh) {
   const FitStats& s = o.stats;
   std::printf("  points      %zu read, %zu skipped (non-finite)\n", read.points_read, read.skipped_nonfinite);

@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct ProcessOptions {
-  std::string input, output, fit, calibration_dir, save_calibration;
+  std::string input, output, fit, mesh, calibration_dir, save_calibration;
   bool ascii = false, quiet = false, with_stereo = false, accept_damaged = false;
 };
 
@@ -60,7 +60,10 @@ CommandRunner addProcessCommand(CLI::App& app) {
                                                 "frame, printed circles, strains; writes a Cloud4D PLY");
   cmd->add_option("trace", opt->input, "Recorded or simulated trace (.mcap)")->required();
   cmd->add_option("-o,--output", opt->output, "Cloud4D PLY of the grid elements")->required();
-  cmd->add_option("--fit", opt->fit, "Also fit the surface (default method) and write it with strain");
+  cmd->add_option("--fit", opt->fit,
+                  "Also fit the surface: its shape from every laser return, the grid elements' strain on it; "
+                  "written as points 0.5 mm apart with normals and strain");
+  cmd->add_option("--mesh", opt->mesh, "Also write that surface as a triangle mesh with strain (needs --fit)");
   cmd->add_option("--calibration", opt->calibration_dir,
                   "Folder with digitizer.json (and cameras.json), used when the trace has no calibration scenes");
   cmd->add_option("--save-calibration", opt->save_calibration, "Write the calibrations made from the trace to this folder");
@@ -73,6 +76,8 @@ CommandRunner addProcessCommand(CLI::App& app) {
   return [opt]() {
     checkFolder(opt->output, "output");
     checkFolder(opt->fit, "fit output");
+    checkFolder(opt->mesh, "mesh output");
+    if (!opt->mesh.empty() && opt->fit.empty()) throw std::runtime_error("--mesh needs --fit");
     if (!opt->save_calibration.empty() && !fs::is_directory(opt->save_calibration))
       throw std::runtime_error("calibration folder '" + opt->save_calibration + "' does not exist");
     const auto start = std::chrono::steady_clock::now();
@@ -100,6 +105,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
 
     registration::MeasureParams params;
     params.with_stereo = opt->with_stereo;
+    params.keep_surface_points = !opt->fit.empty();
     const bool has_sphere = std::any_of(trace.sweeps.begin(), trace.sweeps.end(),
                                         [](const registration::SweepWindow& w) { return w.is("reference_sphere"); });
     if (!has_sphere && opt->calibration_dir.empty())
@@ -141,9 +147,17 @@ CommandRunner addProcessCommand(CLI::App& app) {
     std::printf("  wrote       %s: %zu points\n", opt->output.c_str(), cloud.size());
     if (!opt->fit.empty()) {
       const double before = since();
-      const FitOutcome outcome = runFit(cloud, fitting::FitParams{}, nullptr, !opt->quiet);
-      fitting::writePly(opt->fit, outcome.surface, w);
+      fitting::Cloud shape;
+      shape.positions = std::move(m.surface_points);
+      if (shape.empty()) throw std::runtime_error(opt->input + ": the part sweeps have no laser returns to fit a surface to");
+      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, !opt->quiet);
+      printShapeAndStrainSummary(fit);
+      fitting::writePly(opt->fit, fit.surface, w);
       std::printf("  fit         %s (%.2f s)\n", opt->fit.c_str(), since() - before);
+      if (!opt->mesh.empty()) {
+        fitting::writePly(opt->mesh, fit.mesh, w);
+        std::printf("  mesh        %s\n", opt->mesh.c_str());
+      }
     }
     const double total_s = since();
     std::printf("  time        %.2f s for a %.1f s scan (%.1fx faster than the scan)\n", total_s, trace.scan_seconds,

@@ -17,7 +17,8 @@ namespace {
 constexpr double kRadius = 80.0;  // mm
 double trueStrain(const Vec3& p) { return 0.05 + 0.002 * p.x() + 1e-4 * p.y() * p.y(); }
 
-// Grid elements at a 2.54 mm pitch on the cap where x < x_max, with noisy positions and strain.
+// Grid elements at a 2.54 mm pitch on the cap where x < x_max, with noisy positions and strain;
+// those with y > 0 measured twice (as where two laser strips overlap).
 Cloud carriersOnCap(double x_max, double position_noise, double strain_noise, unsigned seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0.0, 1.0);
@@ -26,8 +27,10 @@ Cloud carriersOnCap(double x_max, double position_noise, double strain_noise, un
     for (double y = -30; y <= 30; y += 2.54) {
       if (x * x + y * y > 26.0 * 26.0) continue;
       const Vec3 on(x, y, std::sqrt(kRadius * kRadius - x * x - y * y));
-      c.positions.push_back(on + position_noise * Vec3(g(rng), g(rng), g(rng)));
-      c.strain.push_back(trueStrain(on) + strain_noise * g(rng));
+      for (int twice = 0; twice < (y > 0 ? 2 : 1); ++twice) {
+        c.positions.push_back(on + position_noise * Vec3(g(rng), g(rng), g(rng)));
+        c.strain.push_back(trueStrain(on) + strain_noise * g(rng));
+      }
     }
   return c;
 }
@@ -68,6 +71,7 @@ TEST(ShapeAndStrain, DenseShapeCarriesTheElementsStrainAndStopsBeyondThem) {
   EXPECT_EQ(far_with, 0u) << "strain beyond the carriers must be left out, not extrapolated";
   EXPECT_EQ(fit.without_strain, static_cast<std::size_t>(std::count_if(fit.surface.strain.begin(), fit.surface.strain.end(),
                                                                       [](double s) { return !std::isfinite(s); })));
+  EXPECT_NEAR(fit.carrier_spacing, 2.54, 0.1);
   EXPECT_LT(fit.not_converged, fit.surface.size() / 1000 + 1);
 
   // The mesh lies on the shape and carries the strain where the carriers are.

@@ -31,8 +31,8 @@ struct ShapeAndStrainParams {
   FitParams strain;  // the carriers' strain field: its anchored.scale_step and agreement_sigmas
   double output_spacing_mm = 0.5;  // one output point per cube of this size that holds shape points
   bool with_mesh = true;           // mesh cells are output_spacing_mm wide
-  // Strain is read only within this many carrier spacings (the median distance between neighbouring
-  // carriers) of a carrier: a missing element or two is bridged; beyond, the surface has no strain
+  // Strain is read only within this many carrier spacings (the median distance from a carrier to its
+  // fourth nearest: a square grid's pitch, whether or not elements were found twice) of a carrier: a missing element or two is bridged; beyond, the surface has no strain
   // (NaN) rather than an extrapolation.
   double strain_reach = 2.0;
 };
@@ -42,7 +42,7 @@ struct ShapeAndStrain {
   Mesh mesh;      // empty unless asked for
   FitStats shape_stats;
   BandwidthSummary strain_bandwidth;  // the strain field's, chosen at the carriers
-  double carrier_spacing = 0;         // mm, median
+  double carrier_spacing = 0;         // mm: the grid's pitch, as strain_reach says
   MeshStats mesh_stats;
   std::size_t shape_points = 0, carriers = 0;
   std::size_t without_strain = 0;  // output points beyond the carriers' reach

@@ -4,6 +4,7 @@
 
 #include "stampscan/fitting/mesh.hpp"
 #include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/fitting/shape_and_strain.hpp"
 #include "stampscan/fitting/surface_fit.hpp"
 
 #include <string>
@@ -24,6 +25,11 @@ struct FitOutcome {
 fitting::FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth, const std::string& kernel,
                                  const std::string& scalar, int sig_r, const std::vector<double>& viewpoint);
 FitOutcome runFit(const fitting::Cloud& input, fitting::FitParams params, const MeshRequest* mesh, bool show_progress);
+// The shape from dense points (a laser's returns) with the strain of the grid elements on it
+// (fitting/shape_and_strain.hpp), with a progress bar; the surface and mesh coloured by strain.
+fitting::ShapeAndStrain runShapeAndStrainFit(const fitting::Cloud& shape, const fitting::Cloud& elements,
+                                             bool show_progress);
+void printShapeAndStrainSummary(const fitting::ShapeAndStrain& fit);
 void printFitSummary(const fitting::ReadReport& read, const fitting::FitParams& params, const FitOutcome& outcome,
                      bool with_mesh);
 // Colours a cloud (or mesh vertices) by thinning with the temperature map (no-op without strain).
