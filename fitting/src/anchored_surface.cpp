@@ -57,6 +57,9 @@ struct AnchoredSurface::Impl {
   // Bandwidth field: probe positions, their chosen h, and a tree over them.
   std::vector<Vec3> probe_points;
   std::unique_ptr<KdTree> probe_tree;
+  // The wide field's own probes (widening): a subset of the narrow ones.
+  std::vector<Vec3> wide_probe_points;
+  std::unique_ptr<KdTree> wide_probe_tree;
   std::unique_ptr<BandwidthField> h_field;
   // After widening: the narrow field the point fits use (h_field then holds the wide one).
   std::unique_ptr<BandwidthField> narrow_field;
@@ -120,6 +123,7 @@ struct AnchoredSurface::Impl {
   void fitAnchors(const Progress& progress);
   std::vector<float> pointWeights() const;
   void widenBandwidths(AnchoredStats& stats, const Progress& progress);
+  std::vector<std::size_t> thinnedProbes(double cube) const;
   void fitAnchorsOnCells(const Progress& progress);
   const BandwidthField& pointField() const { return narrow_field ? *narrow_field : *h_field; }
   void linkAnchors();
@@ -298,6 +302,23 @@ std::vector<float> AnchoredSurface::Impl::pointWeights() const {
   return weights;
 }
 
+std::vector<std::size_t> AnchoredSurface::Impl::thinnedProbes(double cube) const {
+  // The probes are in the kd-tree's spatial order; a probe is kept when its cube holds no kept one.
+  std::vector<std::pair<Key, std::size_t>> keyed(probe_points.size());
+  for (std::size_t p = 0; p < probe_points.size(); ++p) {
+    const Vec3 g = (probe_points[p] - grid_origin) / cube;
+    keyed[p] = {makeKey(0, static_cast<std::int64_t>(std::floor(g.x())), static_cast<std::int64_t>(std::floor(g.y())),
+                        static_cast<std::int64_t>(std::floor(g.z()))),
+                p};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<std::size_t> kept;
+  for (std::size_t k = 0; k < keyed.size(); ++k)
+    if (k == 0 || keyed[k].first != keyed[k - 1].first) kept.push_back(keyed[k].second);
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
+
 void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress& progress) {
   const std::vector<double>& narrow = h_field->values();
   stats.narrow_bandwidth = summarize(narrow);
@@ -312,26 +333,36 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
   std::vector<Anchor>().swap(anchors);
   std::vector<std::uint32_t>().swap(anchor_of_point);
 
-  std::vector<double> wide(narrow.size(), 0.0);
-  std::vector<double> limited(narrow.size(), 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, narrow.size(), 8), [&](const auto& range) {
+  // The wide field is only where each anchor's own choice starts (fitAnchorsOnCells re-chooses from
+  // two steps below it), so it needs probes about as far apart as the narrowest wide supports, not
+  // the narrow field's: where the data are dense, one probe per cube of wide_probe_spacing narrow
+  // bandwidths (the first in the kd-tree's spatial order) decides it.
+  const std::vector<std::size_t> kept = thinnedProbes(params.wide_probe_spacing * stats.narrow_bandwidth.median);
+  stats.wide_probes = kept.size();
+  std::vector<double> wide(kept.size(), 0.0);
+  std::vector<double> limited(kept.size(), 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kept.size(), 8), [&](const auto& range) {
     detail::CellFitScratch scratch;
-    for (std::size_t p = range.begin(); p != range.end(); ++p) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      const std::size_t p = kept[k];
       const double sigma = std::sqrt(std::max(noise_floor[p], 1e-12));
       const detail::BandwidthChoice choice = detail::chooseBandwidth(*pyramid, probe_points[p], narrow[p], params.scale_step,
                                                            params.wide_scales, sigma, params.agreement_sigmas, false, scratch);
       // Where no cell fit could be made the narrow choice stands.
-      wide[p] = choice.fit ? std::max(choice.h, narrow[p]) : narrow[p];
-      limited[p] = choice.limited ? 1.0 : 0.0;
+      wide[k] = choice.fit ? std::max(choice.h, narrow[p]) : narrow[p];
+      limited[k] = choice.limited ? 1.0 : 0.0;
     }
   });
-  stats.shape_limited_share = narrow.empty() ? 0.0 : static_cast<double>(std::count(limited.begin(), limited.end(), 1.0)) / static_cast<double>(narrow.size());
+  stats.shape_limited_share = kept.empty() ? 0.0 : static_cast<double>(std::count(limited.begin(), limited.end(), 1.0)) / static_cast<double>(kept.size());
   stats.bandwidth = summarize(wide);
   narrow_field = std::move(h_field);
   h0 = stats.bandwidth.min;
   levels = 1 + static_cast<int>(std::ceil(std::log(stats.bandwidth.max / h0) / std::log(params.scale_step) - 1e-9));
   levels = std::clamp(levels, 1, 60);
-  h_field = std::make_unique<BandwidthField>(probe_points, *probe_tree, std::move(wide), BandwidthField::Mean::Harmonic);
+  wide_probe_points.reserve(kept.size());
+  for (std::size_t p : kept) wide_probe_points.push_back(probe_points[p]);
+  wide_probe_tree = std::make_unique<KdTree>(wide_probe_points);
+  h_field = std::make_unique<BandwidthField>(wide_probe_points, *wide_probe_tree, std::move(wide), BandwidthField::Mean::Harmonic);
   curvature_limited = std::move(limited);
   if (progress) progress("bandwidth", 1.0);
 }

@@ -69,6 +69,9 @@ struct AnchoredParams {
   int wide_scales = 10;
   double agreement_sigmas = 1.5;  // a wider fit must agree with the narrower ones to this many SDs
   double wide_anchor_spacing = 1.0;  // anchor cell size as a multiple of the wide h
+  // Widening probes at most one per cube of this many narrow bandwidths (the median's): the wide
+  // field only says where each anchor starts its own choice.
+  double wide_probe_spacing = 3.0;
   bool robust = true;
   int max_iterations = 10;
   double tolerance = 1e-3;      // the projection stops when a step is below tolerance * h
@@ -83,6 +86,7 @@ struct AnchoredStats {
   std::size_t probes = 0;
   std::size_t anchors = 0;
   std::size_t invalid_anchors = 0;
+  std::size_t wide_probes = 0;        // probes the wide field was chosen at (widened)
   double count_capped_share = 0;      // probes whose narrow h stopped at max_effective_count
   bool widened = false;
   std::size_t pyramid_cells = 0;      // over all levels (0 without widening)
