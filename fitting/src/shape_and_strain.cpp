@@ -1,12 +1,18 @@
 #include "stampscan/fitting/shape_and_strain.hpp"
 
+#include "stampscan/fitting/kernels.hpp"
+#include "stampscan/fitting/local_fit.hpp"
+#include "stampscan/fitting/scalar_field.hpp"
+
 #include "cell_pyramid.hpp"
+#include "robust_patch_fit.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -56,39 +62,95 @@ std::vector<Vec3> cubeMeans(const std::vector<Vec3>& points, double size) {
 // The carriers' strain as a smooth field over the shape (scalar_field.hpp: linear in the tangent
 // plane, Gaussian weights, Eq. (3)) with a bandwidth of its own. The carriers' shape fit would lend
 // it the shape's bandwidth, which stops only at a count of carriers (some 16 mm on a 2.54 mm grid)
-// and flattens the strain peaks, the very spots a forming analysis is about. Here each carrier
-// chooses the strain field's bandwidth by Lepski's rule (cell_pyramid.hpp, chooseStrainBandwidth)
-// and a point between them takes the harmonic mean of its neighbours' choices, so the field
-// narrows where strain changes fast and smooths the noise where it does not.
+// and flattens the strain peaks, the very spots a forming analysis is about.
+//
+// The bandwidth is chosen by cross-validation, leaving one element out: at each carrier, the field
+// fitted to the others (its twins, within a quarter pitch, left out too: the same element found in
+// two strips) predicts its strain, at bandwidths from half a pitch to seven; each carrier takes the
+// bandwidth whose predictions were best over its neighbourhood. A prediction error is what a point
+// between elements sees: the noise, the bias of too wide a support and the variance of too narrow
+// a one, together. (Lepski's rule, which serves the shape, starts at the eight nearest carriers,
+// already wider than a strain peak between elements allows; cross-validation needs no start.) A
+// point between carriers takes the harmonic mean of its neighbours' bandwidths.
 class CarrierStrain {
  public:
-  CarrierStrain(const Cloud& carriers, const ImplicitSurface& shape, const ShapeAndStrainParams& params)
+  CarrierStrain(const Cloud& carriers, const ShapeAndStrainParams& params)
       : positions_(carriers.positions),
         tree_(positions_),
         // Cells wider than the part: every strain fit reads the carriers themselves (level -1).
         pyramid_(positions_, tree_, std::vector<float>(positions_.size(), 1.0f), &carriers.strain,
                  2.0 * boundsOf(positions_).diagonal() + 1.0, 0.0) {
     const std::size_t n = positions_.size();
-    std::vector<double> spacing(n, 0.0), h(n, 0.0);
-    const double step = params.strain.anchored.scale_step;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
-      detail::CellFitScratch scratch;
+    const std::vector<double>& strain = carriers.strain;
+    // The grid's pitch: the fourth neighbour's distance, which twins do not shorten (a square
+    // grid's four nearest are a pitch away).
+    std::vector<double> fourth(n, 0.0);
+    std::vector<Vec3> normals(n, Vec3::UnitZ());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
       std::vector<Neighbor> near;
       for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        tree_.knn(positions_[i], kStartRank + 1, near);
-        // The grid's pitch: the fourth neighbour's distance, which twins (an element found in two
-        // overlapping strips) do not shorten: a square grid's four nearest are a pitch away.
-        spacing[i] = std::sqrt(near[std::min<std::size_t>(kPitchRank, near.size() - 1)].distance_sq);
-        const double h_start = std::max(std::sqrt(near.back().distance_sq), 1e-6);
-        const Projection foot = shape.project(positions_[i]);
-        const detail::StrainChoice choice =
-            detail::chooseStrainBandwidth(pyramid_, positions_[i], foot.valid ? foot.normal : Vec3::UnitZ(), h_start, step,
-                                          kScales, params.strain.anchored.agreement_sigmas, scratch);
-        h[i] = choice.h > 0 ? choice.h : h_start * std::pow(step, kScales - 1);
+        tree_.knn(positions_[i], kPitchRank + 1, near);
+        fourth[i] = std::sqrt(near.back().distance_sq);
+        // The carriers' own plane gives the tangent plane of the strain fits there.
+        tree_.knn(positions_[i], kPoolSize, near);
+        WeightedSums sums(positions_[i], fourth[i] > 0 ? fourth[i] : 1.0);
+        for (const Neighbor& nb : near) sums.add(positions_[nb.index], 1.0);
+        if (const auto plane = LocalSurface::fitPlane(sums)) normals[i] = plane->normal(positions_[i]);
       }
     });
-    spacing_ = n > 1 ? summarize(spacing).median : 0.0;
+    spacing_ = summarize(fourth).median;
     reach_ = params.strain_reach * spacing_;
+    std::array<double, kCandidates> candidates{};
+    for (int k = 0; k < kCandidates; ++k) candidates[static_cast<std::size_t>(k)] = 0.5 * spacing_ * std::pow(kCandidateStep, k);
+
+    // Leave-one-element-out squared errors, per carrier and candidate (NaN: too few others).
+    std::vector<std::array<double, kCandidates>> error(n);
+    const double twin_sq = 0.0625 * spacing_ * spacing_;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
+      std::vector<Neighbor> near;
+      std::vector<ScalarSample> samples;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        for (int k = 0; k < kCandidates; ++k) {
+          const double h = candidates[static_cast<std::size_t>(k)];
+          double& e = error[i][static_cast<std::size_t>(k)];
+          e = std::numeric_limits<double>::quiet_NaN();
+          if (!std::isfinite(strain[i])) continue;
+          tree_.radius(positions_[i], detail::kSupport * h, near);
+          samples.clear();
+          for (const Neighbor& nb : near)
+            if (nb.distance_sq > twin_sq && std::isfinite(strain[nb.index]))
+              samples.push_back({positions_[nb.index], strain[nb.index], gaussianWeightSq(nb.distance_sq, h * h)});
+          if (samples.size() < 3) continue;
+          if (const auto field = fitTangentLinear(positions_[i], normals[i], samples)) {
+            const double r = field->value - strain[i];
+            e = r * r;
+          }
+        }
+      }
+    });
+    std::vector<double> h(n, candidates.back());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
+      std::vector<Neighbor> near;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        tree_.knn(positions_[i], kPoolSize, near);
+        double best = std::numeric_limits<double>::infinity();
+        for (int k = 0; k < kCandidates; ++k) {
+          double sum = 0;
+          std::size_t count = 0;
+          for (const Neighbor& nb : near) {
+            const double e = error[nb.index][static_cast<std::size_t>(k)];
+            if (std::isfinite(e)) {
+              sum += e;
+              ++count;
+            }
+          }
+          // A bandwidth that predicts fewer than half the neighbourhood is too narrow here.
+          if (2 * count < near.size() || !(sum / static_cast<double>(count) < best)) continue;
+          best = sum / static_cast<double>(count);
+          h[i] = candidates[static_cast<std::size_t>(k)];
+        }
+      }
+    });
     bandwidth_ = summarize(h);
     field_ = std::make_unique<BandwidthField>(positions_, tree_, std::move(h), BandwidthField::Mean::Harmonic);
   }
@@ -96,19 +158,36 @@ class CarrierStrain {
   // NaN beyond reach of every carrier.
   double at(const Vec3& x, const Vec3& normal, detail::CellFitScratch& scratch) const {
     std::uint32_t nearest = 0;
-    const double h = field_->at(x, 4, &nearest);
-    if ((positions_[nearest] - x).norm() > reach_) return std::numeric_limits<double>::quiet_NaN();
+    double h = field_->at(x, 4, &nearest);
+    if ((positions_[nearest] - x).squaredNorm() > reach_ * reach_) return std::numeric_limits<double>::quiet_NaN();
+    // The carriers' choice holds where a carrier's neighbours surround it; in a gap of the grid (an
+    // element not found, the grid's edge) one or two carriers would carry all the weight and the
+    // linear field's slope would be extrapolated from them. The support widens until enough
+    // carriers carry weight for a slope.
+    for (int widen = 0; widen < kCandidates; ++widen, h *= kCandidateStep) {
+      tree_.radius(x, detail::kSupport * h, scratch.near);
+      double sum = 0, sum_sq = 0;
+      for (const Neighbor& nb : scratch.near) {
+        const double w = gaussianWeightSq(nb.distance_sq, h * h);
+        sum += w;
+        sum_sq += w * w;
+      }
+      if (sum_sq > 0 && sum * sum >= kLeastEffectiveCarriers * sum_sq) break;
+    }
     return detail::strainNear(pyramid_, x, normal, h, scratch);
   }
   const BandwidthSummary& bandwidth() const { return bandwidth_; }
   double spacing() const { return spacing_; }
 
  private:
-  // A linear field has three parameters: the narrowest fit starts with eight carriers or so, and
-  // the widest is 1.5^7 = 17 times as wide.
-  static constexpr int kStartRank = 8;
-  static constexpr int kScales = 8;
+  // Candidate bandwidths: half a pitch times 1.4^k, up to seven pitches.
+  static constexpr int kCandidates = 9;
+  static constexpr double kCandidateStep = 1.4;
   static constexpr std::size_t kPitchRank = 4;
+  // A linear field has three parameters.
+  static constexpr double kLeastEffectiveCarriers = 3.0;
+  // A carrier's neighbourhood for the choice (and for its tangent plane): a few pitches across.
+  static constexpr std::size_t kPoolSize = 16;
   const std::vector<Vec3>& positions_;
   KdTree tree_;
   detail::CellPyramid pyramid_;
@@ -135,7 +214,7 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
   const FittedSurface shape_fit(shape, params.shape);
   out.shape_stats = shape_fit.preparationStats();
   auto t = Clock::now();
-  const CarrierStrain strain_field(carriers, shape_fit.surface(), params);
+  const CarrierStrain strain_field(carriers, params);
   out.strain_bandwidth = strain_field.bandwidth();
   out.carrier_spacing = strain_field.spacing();
   out.shape_stats.stage_seconds["strain field"] = secondsSince(t);

@@ -28,7 +28,6 @@ namespace stampscan::fitting {
 
 struct ShapeAndStrainParams {
   FitParams shape;   // the dense points' fit (its progress callback also reports the other stages)
-  FitParams strain;  // the carriers' strain field: its anchored.scale_step and agreement_sigmas
   double output_spacing_mm = 0.5;  // one output point per cube of this size that holds shape points
   bool with_mesh = true;           // mesh cells are output_spacing_mm wide
   // Strain is read only within this many carrier spacings (the median distance from a carrier to its
@@ -41,7 +40,7 @@ struct ShapeAndStrain {
   Cloud surface;  // points on the shape with normals and strain
   Mesh mesh;      // empty unless asked for
   FitStats shape_stats;
-  BandwidthSummary strain_bandwidth;  // the strain field's, chosen at the carriers
+  BandwidthSummary strain_bandwidth;  // the strain field's, chosen at the carriers by cross-validation
   double carrier_spacing = 0;         // mm: the grid's pitch, as strain_reach says
   MeshStats mesh_stats;
   std::size_t shape_points = 0, carriers = 0;
