@@ -85,11 +85,11 @@ TEST_F(StationTest, ProcessRefusesADamagedTraceUnlessAccepted) {
 
 TEST_F(StationTest, ProcessMeasuresASimulatedTraceAgainstItsTruth) {
   const fs::path trace = work() / "dome.mcap", truth = work() / "truth.ply", out = work() / "cloud4d.ply";
-  const fs::path calibration = work() / "calibration", fitted = work() / "fitted.ply";
+  const fs::path calibration = work() / "calibration", fitted = work() / "fitted.ply", mesh = work() / "mesh.ply";
   ASSERT_EQ(run("sim generate --quick --seed 7 -o " + quote(trace) + " --truth " + quote(truth)).exit_code, 0);
   fs::create_directories(calibration);
-  const RunResult r = run("process " + quote(trace) + " -o " + quote(out) + " --fit " + quote(fitted) +
-                          " --save-calibration " + quote(calibration) + " -q");
+  const RunResult r = run("process " + quote(trace) + " -o " + quote(out) + " --fit " + quote(fitted) + " --mesh " +
+                          quote(mesh) + " --save-calibration " + quote(calibration) + " -q");
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("calibrated on the reference sphere"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("faster than the scan"), std::string::npos) << r.out;
@@ -114,7 +114,39 @@ TEST_F(StationTest, ProcessMeasuresASimulatedTraceAgainstItsTruth) {
               std::sqrt(sq_pos / n), std::sqrt(sq_strain / n));
   EXPECT_LE(std::sqrt(sq_pos / n), 0.05);
   EXPECT_LE(std::sqrt(sq_strain / n), 0.005);
-  EXPECT_EQ(fitting::readPly(fitted).size(), measured.size());
+  // The fitted surface: its shape from the laser's returns, the elements' strain on it. At each
+  // true element, the surface passes through it and carries its strain.
+  const Cloud surface = fitting::readPly(fitted);
+  ASSERT_GT(surface.size(), 10 * measured.size()) << "one point per 0.5 mm, not per element";
+  ASSERT_TRUE(surface.hasStrain());
+  ASSERT_TRUE(surface.hasNormals());
+  const fitting::KdTree surface_tree(surface.positions);
+  const fitting::KdTree measured_tree(measured.positions);
+  double sq_off = 0, sq_surface_strain = 0;
+  std::size_t at_elements = 0, with_strain = 0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    measured_tree.knn(t.positions[i], 1, nn);
+    if (nn[0].distance_sq > 0.5 * 0.5) continue;  // an element the scan did not find
+    surface_tree.knn(t.positions[i], 1, nn);
+    ASSERT_LT(nn[0].distance_sq, 0.5 * 0.5);
+    const std::size_t k = nn[0].index;
+    sq_off += std::pow(surface.normals[k].dot(t.positions[i] - surface.positions[k]), 2);
+    ++at_elements;
+    if (std::isfinite(surface.strain[k])) {
+      sq_surface_strain += std::pow(surface.strain[k] - t.strain[i], 2);
+      ++with_strain;
+    }
+  }
+  ASSERT_GT(at_elements, 300u);
+  std::printf("fitted surface: %zu points; at %zu true elements %.4f mm off, strain RMS %.4f over %zu\n", surface.size(),
+              at_elements, std::sqrt(sq_off / static_cast<double>(at_elements)),
+              std::sqrt(sq_surface_strain / static_cast<double>(with_strain)), with_strain);
+  EXPECT_LE(std::sqrt(sq_off / static_cast<double>(at_elements)), 0.01);
+  EXPECT_GE(with_strain, at_elements * 95 / 100);
+  EXPECT_LE(std::sqrt(sq_surface_strain / static_cast<double>(with_strain)), 0.005);
+  const fitting::Mesh triangles = fitting::readPlyMesh(mesh);
+  EXPECT_GT(triangles.triangles.size(), surface.size());
+  EXPECT_EQ(triangles.vertices.strain.size(), triangles.vertices.size());
   EXPECT_TRUE(fs::exists(calibration / "digitizer.json"));
   EXPECT_TRUE(fs::exists(calibration / "cameras.json"));
   EXPECT_NE(readFile(calibration / "digitizer.json").find("\"latency_ns\""), std::string::npos);
