@@ -23,7 +23,10 @@
 //    reads the level whose cells are about h/2 wide, so its cost is bounded whatever h and the
 //    density, and no point's contribution is subsampled away. Probes and then anchors choose h by
 //    Lepski's balancing rule: the widest fit whose offset agrees with every narrower fit's to
-//    within agreement_sigmas standard deviations of their difference. The widened patches are cubic
+//    within agreement_sigmas standard deviations of their difference. The probes' choice only
+//    says where each anchor starts its own, so the widening probes are thinned to one per cube of
+//    wide_probe_spacing narrow bandwidths: on dense data their count then follows the part's
+//    area, not the number of points. The widened patches are cubic
 //    height fields: the cubic terms leave the offset at the centre as it is, but let a patch be read
 //    up to a bandwidth away, where a quadric's error grows with the shape's third derivatives; so
 //    the anchors stay about one h apart. Strain gets a bandwidth of its own by the same rule (it
