@@ -72,15 +72,10 @@ void QuadricPatch::Sums::addCell(const Vec3& mean, const Eigen::Matrix3d& covari
                           u * u * v + v * cuu + 2 * u * cuv,
                           u * v * v + u * cvv + 2 * v * cuv,
                           v * v * v + 3 * v * cvv};
-  const int n = terms();
-  int k = 0;
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j <= i; ++j, ++k) {
-      ata_[k] += w * phi[i] * phi[j];
-      var_ata_[k] += variance_weight * phi[i] * phi[j];
-    }
-    atb_[i] += w * phi[i] * h;
-  }
+  if (order_ == 3)
+    accumulate<10>(phi, w, variance_weight, h);
+  else
+    accumulate<6>(phi, w, variance_weight, h);
   ++count_;
 }
 

@@ -33,27 +33,42 @@ double shepardScalar(const Vec3& x, const std::vector<ScalarSample>& samples, do
 std::optional<LinearScalar> fitTangentLinear(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples) {
   const Eigen::Matrix3d frame = frameAround(n);
   const Vec3 t1 = frame.col(0), t2 = frame.col(1);
-  // The samples' spread sets the scale of the tangent coordinates, for conditioning.
-  double sum_w = 0, sum_wc = 0, spread_sq = 0;
-  for (const ScalarSample& s : samples) {
-    if (!(s.weight > 0)) continue;
-    sum_w += s.weight;
-    sum_wc += s.weight * s.value;
-    spread_sq += s.weight * (s.position - x).squaredNorm();
-  }
-  if (!(sum_w > 0)) return std::nullopt;
-  LinearScalar field{sum_wc / sum_w, Vec3::Zero()};
-  const double scale = std::sqrt(spread_sq / sum_w);
-  if (!(scale > 0)) return field;
+  // One pass: the weighted moments of (1, u, v) about x and of the values. The samples' spread sets
+  // the scale of the tangent coordinates afterwards, for conditioning.
+  double sum_w = 0, spread_sq = 0;
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   for (const ScalarSample& s : samples) {
     if (!(s.weight > 0)) continue;
-    const Vec3 d = (s.position - x) / scale;
-    const Eigen::Vector3d row(1.0, d.dot(t1), d.dot(t2));
-    A.noalias() += s.weight * row * row.transpose();
-    b += s.weight * s.value * row;
+    const Vec3 d = s.position - x;
+    const double u = d.dot(t1), v = d.dot(t2), w = s.weight;
+    sum_w += w;
+    spread_sq += w * d.squaredNorm();
+    A(0, 1) += w * u;
+    A(0, 2) += w * v;
+    A(1, 1) += w * u * u;
+    A(1, 2) += w * u * v;
+    A(2, 2) += w * v * v;
+    b(0) += w * s.value;
+    b(1) += w * s.value * u;
+    b(2) += w * s.value * v;
   }
+  if (!(sum_w > 0)) return std::nullopt;
+  LinearScalar field{b(0) / sum_w, Vec3::Zero()};
+  const double scale = std::sqrt(spread_sq / sum_w);
+  if (!(scale > 0)) return field;
+  // In scaled coordinates (u, v) / scale, normalised by the total weight.
+  A(0, 0) = sum_w;
+  A(0, 1) /= scale;
+  A(0, 2) /= scale;
+  A(1, 1) /= scale * scale;
+  A(1, 2) /= scale * scale;
+  A(2, 2) /= scale * scale;
+  A(1, 0) = A(0, 1);
+  A(2, 0) = A(0, 2);
+  A(2, 1) = A(1, 2);
+  b(1) /= scale;
+  b(2) /= scale;
   A /= sum_w;
   b /= sum_w;
   // The linear terms need spread in both tangent directions.

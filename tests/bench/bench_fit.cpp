@@ -172,7 +172,8 @@ int main(int argc, char** argv) {
     if (stages) {
       std::string line = "  stages:";
       for (const auto& [stage, seconds] : fit.stats.stage_seconds) line += " " + stage + " " + std::to_string(seconds).substr(0, 5) + " s,";
-      std::printf("%s\n", line.c_str());
+      std::printf("%s\n  anchors %zu, probes %zu, mean iterations %.2f, not converged %zu\n", line.c_str(), fit.stats.anchors,
+                  fit.stats.probes, fit.stats.mean_iterations, fit.stats.not_converged);
       std::fflush(stdout);
     }
     return r;

@@ -39,6 +39,20 @@ class QuadricPatch {
    private:
     friend class QuadricPatch;
     int terms() const { return order_ == 3 ? 10 : 6; }
+    // One design row into the sums, with the row's length fixed at compile time so that the
+    // compiler unrolls the 21 or 55 products.
+    template <int N>
+    void accumulate(const double* phi, double w, double variance_weight, double height) {
+      int k = 0;
+      for (int i = 0; i < N; ++i) {
+        const double wi = w * phi[i], vi = variance_weight * phi[i];
+        for (int j = 0; j <= i; ++j, ++k) {
+          ata_[k] += wi * phi[j];
+          var_ata_[k] += vi * phi[j];
+        }
+        atb_[i] += wi * height;
+      }
+    }
     Vec3 origin_;
     double inv_scale_;
     Eigen::Matrix3d frame_;  // columns t1, t2, n
