@@ -15,6 +15,7 @@
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -80,6 +81,19 @@ FitOutcome runFit(const Cloud& input, FitParams params, const MeshRequest* mesh_
   return outcome;
 }
 
+namespace {
+// "  time        1.234 s (stage 0.100, ...)", aligned under the summary's other lines.
+void printTimes(const char* label, double seconds, const std::map<std::string, double>& stages) {
+  std::printf("  %-11s %.3f s (", label, seconds);
+  bool first = true;
+  for (const auto& [stage, sec] : stages) {
+    std::printf("%s%s %.3f", first ? "" : ", ", stage.c_str(), sec);
+    first = false;
+  }
+  std::printf(")\n");
+}
+}  // namespace
+
 ShapeAndStrain runShapeAndStrainFit(const Cloud& shape, const Cloud& elements, bool show_progress) {
   std::unique_ptr<ProgressBar> bar;
   ShapeAndStrainParams params;
@@ -105,13 +119,7 @@ void printShapeAndStrainSummary(const ShapeAndStrain& fit) {
   if (!fit.mesh.triangles.empty())
     std::printf("  mesh        %zu vertices, %zu triangles, cell %.3g mm\n", fit.mesh_stats.vertices, fit.mesh_stats.triangles,
                 fit.mesh_stats.cell_size);
-  std::printf("  fit time    %.2f s (", fit.seconds);
-  bool first = true;
-  for (const auto& [stage, sec] : s.stage_seconds) {
-    std::printf("%s%s %.2f", first ? "" : ", ", stage.c_str(), sec);
-    first = false;
-  }
-  std::printf(")\n");
+  printTimes("fit time", fit.seconds, s.stage_seconds);
 }
 
 void printFitSummary(const ReadReport& read, const FitParams& params, const FitOutcome& o, bool with_mesh) {
@@ -125,13 +133,7 @@ void printFitSummary(const ReadReport& read, const FitParams& params, const FitO
   if (s.anchors) std::printf("  anchors     %zu local fits (bandwidth chosen at %zu probes)\n", s.anchors, s.probes);
   std::printf("  normals     oriented over %zu connected piece(s)\n", s.orientation_components);
   if (params.method == FitMethod::Sig) std::printf("  r-SIG       %zu edges, %zu pruned\n", s.sig_edges, s.sig_pruned);
-  std::printf("  time        %.3f s (", s.seconds);
-  bool first = true;
-  for (const auto& [stage, sec] : s.stage_seconds) {
-    std::printf("%s%s %.3f", first ? "" : ", ", stage.c_str(), sec);
-    first = false;
-  }
-  std::printf(")\n");
+  printTimes("time", s.seconds, s.stage_seconds);
   if (with_mesh)
     std::printf("  mesh        %zu vertices, %zu triangles, cell %.3g mm, %.3f s\n", o.mesh_stats.vertices,
                 o.mesh_stats.triangles, o.mesh_stats.cell_size, o.mesh_seconds);
