@@ -364,7 +364,7 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
   wide_probe_tree = std::make_unique<KdTree>(wide_probe_points);
   h_field = std::make_unique<BandwidthField>(wide_probe_points, *wide_probe_tree, std::move(wide), BandwidthField::Mean::Harmonic);
   curvature_limited = std::move(limited);
-  if (progress) progress("bandwidth", 1.0);
+  if (progress) progress("widening", 1.0);
 }
 
 void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
@@ -405,7 +405,7 @@ void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
       }
     }
   });
-  if (progress) progress("anchors", 1.0);
+  if (progress) progress("wide anchors", 1.0);
 }
 
 void AnchoredSurface::Impl::linkAnchors() {
