@@ -88,6 +88,8 @@ CommandRunner addHmiCommand(CLI::App& app) {
     options.listen = opt->listen;
     options.users_file = !opt->users.empty() ? opt->users : virtual_cell ? "" : usersFromCellConfig(opt->cell);
     options.web_dir = opt->web;
+    // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
+    hmi::HmiServer::checkOptions(options);
 
     // The scan the panel starts: the built-in plan of the sample pan's region, as `station scan`.
     sim::ScanParams world = sim::ScanParams::quick();

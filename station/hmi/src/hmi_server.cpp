@@ -88,6 +88,11 @@ HmiServer::Impl::Impl(CellSetup setup, HmiOptions o)
   if (options.actions_log.empty()) options.actions_log = runsDir() / "hmi-actions.jsonl";
 }
 
+void HmiServer::checkOptions(const HmiOptions& options) {
+  const std::string host = parseListen(options.listen).first;
+  usersFor(options, !isLoopbackHost(host));
+}
+
 std::optional<Session> HmiServer::Impl::sessionOf(const httplib::Request& req) {
   return auth.session(cookieValue(req, kSessionCookie));
 }

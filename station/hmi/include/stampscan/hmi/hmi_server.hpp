@@ -38,6 +38,9 @@ class HmiServer {
   // Throws std::runtime_error for a listen address that cannot be parsed, or that is not loopback
   // without a users file, or a users file that cannot be read.
   HmiServer(CellSetup setup, HmiOptions options);
+  // The same checks of the options alone (listen address, users file), so that a caller can refuse
+  // bad options before it starts anything (the embedded virtual cell takes its ports).
+  static void checkOptions(const HmiOptions& options);
   ~HmiServer();
   HmiServer(const HmiServer&) = delete;
   HmiServer& operator=(const HmiServer&) = delete;
