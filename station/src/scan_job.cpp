@@ -271,6 +271,8 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   // The stereo views are measured when the plan has views of the part and the cameras are
   // calibrated: on the plan's plate views, or by the stored calibration.
   registration::MeasureParams measure;
+  // The fitted surface takes its shape from every laser return (fitting/shape_and_strain.hpp).
+  measure.keep_surface_points = true;
   const CalibrationInUse in_use = calibrationFor(o, measure);
   result.digitizer_calibration = in_use.digitizer_text;
   result.camera_calibration = in_use.cameras_text;
@@ -339,19 +341,41 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
 
   // What the live measurement has not done yet, then the fit.
   const auto t0 = std::chrono::steady_clock::now();
-  const registration::ScanMeasurement m = measuring->finish();
+  registration::ScanMeasurement m = measuring->finish();
   measuring.reset();
   fitting::Cloud cloud = registration::toCloud(m.elements);
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;
   fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  MeshRequest mesh_request;
-  FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
-  colorByStrain(fit.surface);
-  colorByStrain(fit.mesh.vertices);
-  fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
-  fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+  // The surface: its shape from the laser's returns, the elements' strain on it.
+  fitting::Cloud shape;
+  shape.positions = std::move(m.surface_points);
+  nlohmann::json surface_record;
+  if (!shape.empty()) {
+    observer.stageDone("surface", "fitting the surface to " + std::to_string(shape.size()) + " laser returns");
+    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, false);
+    fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
+    fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+    surface_record = {{"laser_returns", fit.shape_points},
+                      {"points", fit.surface.size()},
+                      {"points_without_strain", fit.without_strain},
+                      {"mesh_triangles", fit.mesh.triangles.size()},
+                      {"shape_bandwidth_median_mm", fit.shape_stats.bandwidth.median},
+                      {"strain_bandwidth_median_mm", fit.strain_bandwidth.median},
+                      {"seconds", fit.seconds}};
+    observer.stageDone("surface", std::to_string(fit.surface.size()) + " points, " +
+                                      std::to_string(fit.mesh.triangles.size()) + " triangles");
+  } else {
+    // No returns kept (a plan without part sweeps): the surface of the elements alone.
+    MeshRequest mesh_request;
+    FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
+    colorByStrain(fit.surface);
+    colorByStrain(fit.mesh.vertices);
+    fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
+    fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+  }
+  std::vector<fitting::Vec3>().swap(shape.positions);
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.elements = cloud.size();
   result.digitizer = m.digitizer;
@@ -361,6 +385,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                            {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
   if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
+  if (!surface_record.is_null()) record["measurement"]["surface"] = surface_record;
   if (o.truth) {
     result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
     record["accuracy"] = {{"matched", result.accuracy->matched},

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <cmath>
 #include <random>
 #include <sys/wait.h>
 
@@ -64,6 +65,25 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.05);
   EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.005);
   EXPECT_TRUE(j.at("data_loss").is_null()) << j.dump(2);
+  // The fitted surface takes its shape from the laser's returns: many more points than elements,
+  // and each element's position lies on it.
+  const nlohmann::json& surface = j.at("measurement").at("surface");
+  EXPECT_GT(surface.at("laser_returns").get<double>(), 1e5);
+  const Cloud fitted = fitting::readPly(dir / "fitted.ply");
+  const Cloud elements = fitting::readPly(dir / "cloud4d.ply");
+  EXPECT_EQ(fitted.size(), surface.at("points").get<std::size_t>());
+  EXPECT_GT(fitted.size(), 10 * elements.size());
+  {
+    const fitting::KdTree on_surface(fitted.positions);
+    std::vector<fitting::Neighbor> nn;
+    double sq = 0;
+    for (const Vec3& q : elements.positions) {
+      on_surface.knn(q, 1, nn);
+      const std::size_t k = nn[0].index;
+      sq += std::pow(fitted.normals[k].dot(q - fitted.positions[k]), 2);
+    }
+    EXPECT_LE(std::sqrt(sq / static_cast<double>(elements.size())), 0.05);
+  }
   // The latency found on the sphere is the virtual digitizer's own, to within 0.3 ms.
   EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
               j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);

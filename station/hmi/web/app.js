@@ -249,11 +249,10 @@ async function showMesh(runId, files) {
   const r = await api(`/api/runs/${encodeURIComponent(runId)}/mesh`);
   if (!r.ok) { $('pick').textContent = r.body.error; return; }
   const m = r.body;
-  const thinning = (m.strain || []).map((s) => (1 - Math.exp(s)) * 100);
-  const lo = Math.min(0, ...thinning), hi = Math.max(1, ...thinning);
-  const colours = [];
-  for (let i = 0; i < m.positions.length / 3; ++i) colours.push(...ramp(thinning.length ? (thinning[i] - lo) / (hi - lo) : 0.5));
-  v.put('mesh', colouredMesh(m.positions, m.indices, colours));
+  const vertices = m.positions.length / 3;
+  const thinning = m.strain ? m.strain.map(thinningOf) : new Array(vertices).fill(null);
+  const [lo, hi] = thinningRange(thinning);
+  v.put('mesh', colouredMesh(m.positions, m.indices, thinningColours(thinning, lo, hi)));
   const s = v.mesh.geometry.boundingSphere;
   v.frame(s);
   v.marker.scale.setScalar(s.radius * 0.02);

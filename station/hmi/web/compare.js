@@ -55,11 +55,6 @@ function fillCompareB(preferred) {
 }
 $('cmp-a').addEventListener('change', () => fillCompareB(null));
 
-function thinningColours(strain, lo, hi) {
-  const colours = [];
-  for (const s of strain) colours.push(...ramp(((1 - Math.exp(s)) * 100 - lo) / (hi - lo)));
-  return colours;
-}
 
 async function showSideBySide() {
   if (!compareViews()) return;
@@ -68,12 +63,13 @@ async function showSideBySide() {
   const bad = meshes.find((m) => !m.ok);
   if (bad) { $('cmp-info').textContent = bad.body.error; return; }
   // One colour scale for both, so that the same colour is the same thinning.
-  let lo = 0, hi = 1;
-  for (const m of meshes) for (const s of m.body.strain || []) { const t = (1 - Math.exp(s)) * 100; lo = Math.min(lo, t); hi = Math.max(hi, t); }
+  const thinning = meshes.map((m) => (m.body.strain || []).map(thinningOf));
+  let [lo, hi] = thinningRange(thinning[0]);
+  [lo, hi] = thinningRange(thinning[1], lo, hi);
   $('cmp-card-b').classList.remove('hidden');
   [compare.a, compare.b].forEach((v, k) => {
     const m = meshes[k].body;
-    v.put('mesh', colouredMesh(m.positions, m.indices, thinningColours(m.strain || [], lo, hi)));
+    v.put('mesh', colouredMesh(m.positions, m.indices, thinningColours(thinning[k], lo, hi)));
     v.resize();
   });
   compare.a.frame(compare.a.mesh.geometry.boundingSphere);

@@ -10,6 +10,21 @@ function ramp(t) {
   const f = x - i;
   return stops[i].map((a, k) => a + (stops[i + 1][k] - a) * f);
 }
+// Where a surface carries no strain (beyond the printed grid: the JSON has null there): grey.
+const kNoStrainColour = [0.35, 0.35, 0.35];
+// Thinning in % from thickness true strain; null where there is none.
+function thinningOf(s) { return s === null || s === undefined || !Number.isFinite(s) ? null : (1 - Math.exp(s)) * 100; }
+// The range of the values that are there, widened to include 0 and 1 %; by a loop, not Math.min(...v):
+// a surface has more vertices than a call may take arguments.
+function thinningRange(values, lo = 0, hi = 1) {
+  for (const t of values) if (t !== null) { lo = Math.min(lo, t); hi = Math.max(hi, t); }
+  return [lo, hi];
+}
+function thinningColours(thinning, lo, hi) {
+  const colours = [];
+  for (const t of thinning) colours.push(...(t === null ? kNoStrainColour : ramp((t - lo) / (hi - lo))));
+  return colours;
+}
 // Differences: blue below zero, white at zero, red above (t in -1..1).
 function divergingRamp(t) {
   const c = Math.min(Math.max(t, -1), 1);
