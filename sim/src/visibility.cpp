@@ -133,6 +133,8 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
         const Vec3 eye = poses[static_cast<std::size_t>(c)].translation();
         all = normal.dot((eye - centre).normalized()) >= cos_camera;
         const Eigen::Isometry3d camera_from_machine = poses[static_cast<std::size_t>(c)].inverse();
+        const double depth = (camera_from_machine * centre).z();
+        all = all && depth > 0 && world.grid.line_width * cameras[c]->fx / depth >= params.min_line_px;
         for (std::size_t k = 0; k < ring.size() && all; ++k) {
           const Vec3 in_camera = camera_from_machine * ring[k];
           if (in_camera.z() <= 0) {

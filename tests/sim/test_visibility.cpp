@@ -74,6 +74,7 @@ TEST(Visibility, NothingIsVisibleToAPlanWithoutPartStepsOrOutOfTheDigitizersRang
 TEST(Visibility, TheStereoPairSeesTheElementsInBothImages) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.laser = false;
+  p.image_scale = 1.0;  // the quick session's quarter-resolution images resolve no printed line (below)
   const acquisition::ScanPlan plan = sim::planScan(p);
   const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
   const sim::ElementVisibility v = sim::visibleElements(p, plan, truth);
@@ -85,6 +86,10 @@ TEST(Visibility, TheStereoPairSeesTheElementsInBothImages) {
   // Two views 300 mm above the middle of the dome see much of it, but not its far corners.
   EXPECT_GT(stereo, 500u);
   EXPECT_LT(stereo, truth.size());
+
+  // At a quarter of the resolution the 0.15 mm lines are under half a pixel wide: nothing is seen.
+  p.image_scale = 0.25;
+  EXPECT_EQ(sim::visibleElements(p, plan, truth).visibleCount(), 0u);
 }
 
 }  // namespace

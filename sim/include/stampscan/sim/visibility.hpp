@@ -8,8 +8,9 @@
 //   within the sensor's incidence limit (DigitizerSpec::max_incidence, where its triangulation
 //   camera sees nothing any more);
 // - the stereo pair, in one part view of the plan: every point of the outline is inside both
-//   images (clear of a border), neither camera's line of sight to it meets the part first, and both
-//   cameras see the element within `camera_max_incidence` of its normal.
+//   images (clear of a border), neither camera's line of sight to it meets the part first, both
+//   cameras see the element within `camera_max_incidence` of its normal, and its printed line is at
+//   least `min_line_px` wide in both images.
 //
 // The sensors are placed through the cell's true mounts and intrinsics (drawCellTruth), the plan's
 // head poses as commanded. Nothing here looks at what was measured.
@@ -33,6 +34,10 @@ struct VisibilityParams {
   // pixel wide in the images: the cameras cannot resolve it (the laser still may).
   double camera_max_incidence = std::numbers::pi / 3;
   double occlusion_tolerance_mm = 0.1;  // a line of sight may end this far before the point
+  // A printed line narrower than a pixel in an image cannot be located in it (the stereo path wants
+  // about 1.5 px): at full resolution the lines are some 1.7 px wide at the working distance, in the
+  // quarter-resolution images of a quick session under half a pixel.
+  double min_line_px = 1.0;
 };
 
 struct ElementVisibility {
