@@ -1,5 +1,6 @@
-// Shared by `station fit` and `station demo`: parameters from command-line words, the fit with a
-// progress bar, and the printed summary.
+// The fit as the station runs it, shared by `station fit`, `station process`, `station sample` and the
+// scan job: parameters from command-line words, the fit with a progress bar, the shape-and-strain fit
+// of a scan (fitting/shape_and_strain.hpp), and the printed summaries.
 #pragma once
 
 #include "stampscan/fitting/mesh.hpp"
