@@ -205,8 +205,8 @@ std::size_t CellPyramid::bytes() const {
   return total;
 }
 
-std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre, double h, bool with_strain,
-                                  const Vec3* frame_normal, CellFitScratch& s) {
+std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre, double h, const Vec3* frame_normal,
+                                  CellFitScratch& s) {
   const int level = pyramid.levelFor(h);
   pyramid.near(level, centre, kSupport * h, s.near);
   if (s.near.size() < kMinCells) return std::nullopt;
@@ -232,7 +232,7 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
   // bandwidth to one side, the quadric is fitted instead.
   const Vec3 shift = plane_w > 0 ? Vec3(plane_wp / plane_w) : Vec3::Zero();
   const bool one_sided = (shift - normal * normal.dot(shift)).norm() > kOneSidedShift * h;
-  QuadricPatch::Sums sums(frameAround(normal), centre, h, one_sided ? 2 : 3);
+  QuadricPatch::Sums sums(frameAround(normal), centre, h, one_sided ? 2 : 3, &s.variance_rows);
   double sum_w = 0, sum_w2 = 0;
   for (std::size_t k = 0; k < s.near.size(); ++k) {
     const CellElement e = pyramid.element(level, s.near[k].index);
@@ -242,28 +242,15 @@ std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre
     sum_w += g * e.weight;
     sum_w2 += variance_weight;
   }
-  std::optional<QuadricPatch> surface = QuadricPatch::fit(sums);
-  if (!surface || !(sum_w2 > 0)) return std::nullopt;
-  CellFit fit{*surface};
+  const std::optional<QuadricPatch::FitWithVariance> fitted = QuadricPatch::fitWithOffsetVariance(sums);
+  if (!fitted || !(sum_w2 > 0)) return std::nullopt;
+  CellFit fit{fitted->patch};
+  const QuadricPatch* surface = &fit.surface;
   fit.frame_normal = normal;
   fit.offset = surface->signedDistance(centre);
-  fit.offset_factor = std::sqrt(QuadricPatch::offsetVarianceFactor(sums));
+  fit.offset_factor = std::sqrt(fitted->offset_variance_factor);
   fit.effective_count = sum_w * sum_w / sum_w2;
   if (!std::isfinite(fit.offset_factor)) return std::nullopt;
-  if (with_strain) {
-    // The smooth scalar field (scalar_field.hpp) over the cells' mean strains, with the fit's weights.
-    const Vec3 foot = surface->project(centre);
-    s.samples.clear();
-    for (std::size_t k = 0; k < s.near.size(); ++k) {
-      const CellElement e = pyramid.element(level, s.near[k].index);
-      if (std::isfinite(e.strain)) s.samples.push_back({e.centroid, e.strain, s.weight[k] * e.weight});
-    }
-    const auto field = fitTangentLinear(foot, surface->normal(foot), s.samples);
-    if (field) {
-      fit.strain_gradient = field->gradient;
-      fit.strain = field->value - fit.strain_gradient.dot(foot - centre);
-    }
-  }
   return fit;
 }
 
@@ -331,7 +318,7 @@ StrainChoice chooseStrainBandwidth(const CellPyramid& pyramid, const Vec3& x, co
 }
 
 BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, double h_start, double step,
-                                int scales, double noise_sigma, double gamma, bool with_strain, CellFitScratch& scratch) {
+                                int scales, double noise_sigma, double gamma, CellFitScratch& scratch) {
   BandwidthChoice choice;
   struct Accepted {
     double offset, sd;
@@ -342,8 +329,7 @@ BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, 
   double h = h_start;
   for (int j = 0; j < scales; ++j, h *= step) {
     // One height axis for every scale, the first fit's: the offsets are then comparable.
-    // The strain field comes with every fit: which one is kept is known only once a wider one fails.
-    auto fit = fitOnCells(pyramid, centre, h, with_strain, choice.fit ? &normal : nullptr, scratch);
+    auto fit = fitOnCells(pyramid, centre, h, choice.fit ? &normal : nullptr, scratch);
     if (!fit) {
       if (choice.fit) break;  // the data end: a wider support would not hold more of this surface
       continue;               // too few cells yet: try wider

@@ -97,28 +97,28 @@ class CellPyramid {
 
 // A cubic height patch (quadric_patch.hpp, order 3: the wide patches are read up to a bandwidth
 // from their centres) fitted to the cells of the pyramid around `centre` with Gaussian weights of
-// bandwidth h (Eq. (3)) times the cells' weights, with what the bandwidth choice needs.
+// bandwidth h (Eq. (3)) times the cells' weights, with what the bandwidth choice needs (the strain
+// has a bandwidth of its own: chooseStrainBandwidth).
 struct CellFit {
   QuadricPatch surface;
   double offset = 0;           // signed distance from the centre to the patch, mm
   double offset_factor = 0;    // the offset's standard deviation per unit of the points' noise sigma
   Vec3 frame_normal = Vec3::UnitZ();  // the patch's height axis
   double effective_count = 0;  // (sum w)^2 / sum w^2 over the points
-  double strain = std::numeric_limits<double>::quiet_NaN();
-  Vec3 strain_gradient = Vec3::Zero();  // strain = strain + gradient . (x - centre)
 };
 
 struct CellFitScratch {
   std::vector<Neighbor> near;
   std::vector<double> weight;
   std::vector<ScalarSample> samples;
+  std::vector<double> variance_rows;  // QuadricPatch::Sums' rows for the offset's variance
 };
 
 // Nothing when the cells are too few or do not spread in two directions. `frame_normal`, when
 // given, fixes the patch's height axis (so the offsets of fits at several bandwidths are measured
 // along one direction); otherwise it is the weighted plane's normal (Eqs. (2), (6), (7)).
-std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre, double h, bool with_strain,
-                                  const Vec3* frame_normal, CellFitScratch& scratch);
+std::optional<CellFit> fitOnCells(const CellPyramid& pyramid, const Vec3& centre, double h, const Vec3* frame_normal,
+                                  CellFitScratch& scratch);
 
 // The smooth strain field (scalar_field.hpp: linear in the tangent plane at x, normal n) over the
 // elements within the support of bandwidth h around x, with Gaussian weights times the elements'
@@ -150,7 +150,6 @@ struct BandwidthChoice {
   bool limited = false;
 };
 BandwidthChoice chooseBandwidth(const CellPyramid& pyramid, const Vec3& centre, double h_start, double step,
-                                int scales, double noise_sigma, double gamma, bool with_strain,
-                                CellFitScratch& scratch);
+                                int scales, double noise_sigma, double gamma, CellFitScratch& scratch);
 
 }  // namespace stampscan::fitting::detail

@@ -24,7 +24,8 @@ using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<do
 // Result set that appends every point within the radius straight into our Neighbor vector.
 class RadiusCollector {
  public:
-  RadiusCollector(double radius_sq, std::vector<Neighbor>& out) : radius_sq_(radius_sq), out_(out) {}
+  RadiusCollector(double radius_sq, std::vector<Neighbor>& out)
+      : radius_sq_(radius_sq), worst_(std::nextafter(radius_sq, std::numeric_limits<double>::infinity())), out_(out) {}
   void init() { out_.clear(); }
   void clear() { out_.clear(); }
   std::size_t size() const { return out_.size(); }
@@ -35,10 +36,11 @@ class RadiusCollector {
   }
   // nanoflann keeps a point only if it is strictly closer than worstDist(); report a hair more so
   // that points exactly on the radius (coincident points at radius 0) are kept.
-  double worstDist() const { return std::nextafter(radius_sq_, std::numeric_limits<double>::infinity()); }
+  double worstDist() const { return worst_; }
 
  private:
   double radius_sq_;
+  double worst_;  // asked for at every node of the search
   std::vector<Neighbor>& out_;
 };
 }  // namespace

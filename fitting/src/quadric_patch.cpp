@@ -10,8 +10,11 @@ namespace stampscan::fitting {
 QuadricPatch::Sums::Sums(const LocalSurface& plane, const Vec3& origin, double scale)
     : origin_(origin), inv_scale_(1.0 / scale), frame_(frameAround(plane.normal(origin))) {}
 
-QuadricPatch::Sums::Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order)
-    : origin_(origin), inv_scale_(1.0 / scale), frame_(frame), order_(order == 3 ? 3 : 2) {}
+QuadricPatch::Sums::Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order,
+                         std::vector<double>* variance_rows)
+    : origin_(origin), inv_scale_(1.0 / scale), frame_(frame), order_(order == 3 ? 3 : 2), variance_rows_(variance_rows) {
+  if (variance_rows_) variance_rows_->clear();
+}
 
 void QuadricPatch::Sums::add(const Vec3& p, double w) {
   if (order_ == 3) {  // a point is a cell without spread
@@ -73,9 +76,13 @@ void QuadricPatch::Sums::addCell(const Vec3& mean, const Eigen::Matrix3d& covari
                           u * v * v + u * cvv + 2 * v * cuv,
                           v * v * v + 3 * v * cvv};
   if (order_ == 3)
-    accumulate<10>(phi, w, variance_weight, h);
+    accumulate<10>(phi, w, h);
   else
-    accumulate<6>(phi, w, variance_weight, h);
+    accumulate<6>(phi, w, h);
+  if (variance_rows_) {
+    variance_rows_->insert(variance_rows_->end(), phi, phi + terms());
+    variance_rows_->push_back(variance_weight);
+  }
   ++count_;
 }
 
@@ -102,20 +109,7 @@ void addRidge(Matrix& a) {
 }
 }  // namespace
 
-double QuadricPatch::offsetVarianceFactor(const Sums& s) {
-  const int n = s.terms();
-  Matrix a = unpack(s.ata_, n);
-  const double total = a(0, 0);
-  if (!(total > 0)) return std::numeric_limits<double>::infinity();
-  a /= total;
-  addRidge(a);
-  const Matrix b = unpack(s.var_ata_, n) / (total * total);
-  const Vector row = a.ldlt().solve(Vector::Unit(n, 0));
-  const double factor = row.dot(b * row);
-  return std::isfinite(factor) && factor >= 0 ? factor : std::numeric_limits<double>::infinity();
-}
-
-std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
+std::optional<QuadricPatch::FitWithVariance> QuadricPatch::fitWithOffsetVariance(const Sums& s) {
   const int n = s.terms();
   Matrix a = unpack(s.ata_, n);
   Vector b(n);
@@ -125,14 +119,37 @@ std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
   a /= total;
   b /= total;
   addRidge(a);
-  QuadricPatch patch;
+  FitWithVariance result;
+  QuadricPatch& patch = result.patch;
   patch.origin_ = s.origin_;
   patch.scale_ = 1.0 / s.inv_scale_;
   patch.frame_ = s.frame_;
-  const Vector c = a.ldlt().solve(b);
+  const Eigen::LDLT<Matrix> ldlt(a);
+  const Vector c = ldlt.solve(b);
   if (!c.allFinite()) return std::nullopt;
   patch.c_.head(n) = c;
-  return patch;
+  result.offset_variance_factor = std::numeric_limits<double>::infinity();
+  if (s.variance_rows_) {
+    // The height at the origin is e_0^T M^-1 A^T W y: its variance per unit residual variance is
+    // sum_k v_k (phi_k . r)^2 with r = M^-1 e_0 (M normalised by the total weight, hence total^2).
+    const Vector r = ldlt.solve(Vector::Unit(n, 0));
+    const std::vector<double>& rows = *s.variance_rows_;
+    double factor = 0;
+    for (std::size_t k = 0; k + static_cast<std::size_t>(n) < rows.size(); k += static_cast<std::size_t>(n) + 1) {
+      double dot = 0;
+      for (int i = 0; i < n; ++i) dot += rows[k + static_cast<std::size_t>(i)] * r(i);
+      factor += rows[k + static_cast<std::size_t>(n)] * dot * dot;
+    }
+    factor /= total * total;
+    if (std::isfinite(factor) && factor >= 0) result.offset_variance_factor = factor;
+  }
+  return result;
+}
+
+std::optional<QuadricPatch> QuadricPatch::fit(const Sums& s) {
+  auto result = fitWithOffsetVariance(s);
+  if (!result) return std::nullopt;
+  return result->patch;
 }
 
 Vec3 QuadricPatch::project(const Vec3& x) const {
@@ -149,7 +166,9 @@ Vec3 QuadricPatch::project(const Vec3& x) const {
     const Eigen::Vector2d step = jtr - g * (g.dot(jtr) / (1.0 + g.squaredNorm()));
     u -= step.x();
     v -= step.y();
-    if (step.squaredNorm() < 1e-14) break;  // below 1e-7 of the patch scale
+    // The error left after a step is about the step squared times the curvature in patch units
+    // (well under one where a patch is read): after a step below 1e-3 of the scale, under 1e-6.
+    if (step.squaredNorm() < 1e-6) break;
   }
   return origin_ + scale_ * (frame_ * Vec3(u, v, height(u, v)));
 }

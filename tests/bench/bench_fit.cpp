@@ -41,6 +41,7 @@ struct Result {
   double peak_mb = 0;    // peak RSS during the fit above the RSS before it
   double total_mb = 0;   // peak RSS of the process during the fit
   std::size_t points = 0;
+  double strain_rms = 0;  // the fitted thickness strain against the true one (StampScan only)
 };
 
 long statusKb(const char* field) {
@@ -101,6 +102,8 @@ int main(int argc, char** argv) {
     else if (a == "--widen") anchored.widen = true;
     else if (a == "--stages") stages = true;
     else if (a == "--gamma") anchored.agreement_sigmas = std::stod(next());
+    else if (a == "--blend-radius") anchored.blend_radius = std::stod(next());
+    else if (a == "--tolerance") anchored.tolerance = std::stod(next());
     else if (a == "--per-point") per_point = true;
     else if (a == "--radii") {
       radii.clear();
@@ -108,7 +111,7 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
     } else {
-      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl] [--stages]\n");
+      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--blend-radius R] [--tolerance T] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl] [--stages]\n");
       return 2;
     }
   }
@@ -131,7 +134,7 @@ int main(int argc, char** argv) {
               "total B/pt");
 
   const auto print = [&](const std::string& name, const Result& r) {
-    std::printf("%-26s %9.3f %10.0f %10.4f %9.3f %12.1f %12.1f\n", name.c_str(), r.seconds,
+    std::printf("%-26s %9.3f %10.0f %10.5f %9.3f %12.1f %12.1f\n", name.c_str(), r.seconds,
                 static_cast<double>(r.points) / r.seconds, r.rms, r.max, r.peak_mb * 1048576.0 / static_cast<double>(n),
                 r.total_mb * 1048576.0 / static_cast<double>(n));
     std::fflush(stdout);
@@ -169,6 +172,12 @@ int main(int argc, char** argv) {
     r.rms = e.rms;
     r.max = e.max;
     r.points = fit.surface.size();
+    double strain_sq = 0;
+    for (std::size_t i = 0; i < fit.surface.strain.size(); ++i) {
+      const double d = fit.surface.strain[i] - sample.true_strain[i];
+      strain_sq += d * d;
+    }
+    r.strain_rms = fit.surface.strain.empty() ? 0.0 : std::sqrt(strain_sq / static_cast<double>(fit.surface.strain.size()));
     if (stages) {
       std::string line = "  stages:";
       for (const auto& [stage, seconds] : fit.stats.stage_seconds) line += " " + stage + " " + std::to_string(seconds).substr(0, 5) + " s,";
@@ -181,6 +190,12 @@ int main(int argc, char** argv) {
   };
   const Result ours = runOurs(fitting::FitMethod::Auto);
   print("stampscan auto (default)", ours);
+  {
+    double raw_sq = 0;
+    for (std::size_t i = 0; i < sample.cloud.strain.size(); ++i)
+      raw_sq += (sample.cloud.strain[i] - sample.true_strain[i]) * (sample.cloud.strain[i] - sample.true_strain[i]);
+    std::printf("  thickness strain RMS: raw %.5f, fitted %.5f\n", std::sqrt(raw_sq / static_cast<double>(n)), ours.strain_rms);
+  }
   if (per_point) print("stampscan apss (per point)", runOurs(fitting::FitMethod::Apss));
 
 #ifdef STAMPSCAN_HAVE_PCL

@@ -72,7 +72,7 @@ TEST(CellPyramid, FitsOnCellsCarryNoCurvatureBiasAtAnyBandwidth) {
     CellFitScratch scratch;
     for (const double h : {1.0, 2.0, 4.0}) {
       const Vec3 centre = Vec3(0.3, -0.2, 1.0).normalized() * R;
-      const auto fit = detail::fitOnCells(pyramid, centre, h, false, nullptr, scratch);
+      const auto fit = detail::fitOnCells(pyramid, centre, h, nullptr, scratch);
       ASSERT_TRUE(fit) << "h " << h;
       // A quadric osculates the sphere: what is left is the quartic term, ~h^4 / (8 R^3).
       EXPECT_LT(std::abs(fit->offset), 2e-4 + std::pow(h, 4) / (4 * R * R * R)) << "base " << base << " h " << h;
@@ -93,7 +93,7 @@ TEST(CellPyramid, OffsetSpreadMatchesItsPredictedStandardDeviation) {
     const KdTree tree(c.positions);
     const CellPyramid pyramid(c.positions, tree, weights, nullptr, 0.25, 4.0);
     CellFitScratch scratch;
-    const auto fit = detail::fitOnCells(pyramid, Vec3::Zero(), 1.5, false, nullptr, scratch);
+    const auto fit = detail::fitOnCells(pyramid, Vec3::Zero(), 1.5, nullptr, scratch);
     ASSERT_TRUE(fit);
     offsets.push_back(fit->offset);
     predicted += fit->offset_factor * sigma / 40.0;
@@ -111,7 +111,7 @@ TEST(CellPyramid, IntervalsWidenOnAFlatPlaneAndStopAtATightBend) {
     const std::vector<float> weights(c.size(), 1.0f);
     const KdTree tree(c.positions);
     const CellPyramid pyramid(c.positions, tree, weights, nullptr, 0.2, 12.0);
-    const auto choice = detail::chooseBandwidth(pyramid, Vec3::Zero(), 0.8, 1.5, 6, sigma, 2.0, false, scratch);
+    const auto choice = detail::chooseBandwidth(pyramid, Vec3::Zero(), 0.8, 1.5, 6, sigma, 2.0, scratch);
     ASSERT_TRUE(choice.fit);
     EXPECT_FALSE(choice.limited);
     EXPECT_NEAR(choice.h, 0.8 * std::pow(1.5, 5), 1e-9);  // every scale kept
@@ -124,7 +124,7 @@ TEST(CellPyramid, IntervalsWidenOnAFlatPlaneAndStopAtATightBend) {
     const KdTree tree(c.positions);
     const CellPyramid pyramid(c.positions, tree, weights, nullptr, 0.1, 12.0);
     const Vec3 centre(0.0, 0.0, 3.0);
-    const auto choice = detail::chooseBandwidth(pyramid, centre, 0.4, 1.5, 8, sigma, 2.0, false, scratch);
+    const auto choice = detail::chooseBandwidth(pyramid, centre, 0.4, 1.5, 8, sigma, 2.0, scratch);
     ASSERT_TRUE(choice.fit);
     EXPECT_TRUE(choice.limited);
     EXPECT_LT(choice.h, 3.0);

@@ -16,6 +16,7 @@
 #include "stampscan/fitting/local_fit.hpp"
 
 #include <optional>
+#include <vector>
 
 namespace stampscan::fitting {
 
@@ -26,12 +27,15 @@ class QuadricPatch {
    public:
     Sums(const LocalSurface& plane, const Vec3& origin, double scale);
     // The same in a frame of one's own (columns t1, t2, n); order 2 (quadric) or 3 (cubic).
-    Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order = 2);
+    // `variance_rows`, when given, is cleared and receives each addCell's design row and variance
+    // weight, from which fitWithOffsetVariance gets the offset's variance; it must outlive the sums.
+    Sums(const Eigen::Matrix3d& frame, const Vec3& origin, double scale, int order = 2,
+         std::vector<double>* variance_rows = nullptr);
     void add(const Vec3& p, double w);
     // A cell of points given by their weighted centroid and covariance (the pyramid of
     // cell_pyramid.hpp): its design row is the mean of its points' rows, which the covariance makes
     // exact for the quadratic terms, so the cell adds no curvature bias. `variance_weight` is the
-    // sum of the squared weights its points carry in this fit; it feeds offsetVariance.
+    // sum of the squared weights its points carry in this fit; it feeds the offset's variance.
     // (For order 3 the cell's third central moments are taken as zero: cells are small against h.)
     void addCell(const Vec3& mean, const Eigen::Matrix3d& covariance, double w, double variance_weight);
     std::size_t count() const { return count_; }
@@ -42,14 +46,13 @@ class QuadricPatch {
     // One design row into the sums, with the row's length fixed at compile time so that the
     // compiler unrolls the 21 or 55 products.
     template <int N>
-    void accumulate(const double* phi, double w, double variance_weight, double height) {
+    void accumulate(const double* phi, double w, double height) {
       int k = 0;
+#pragma GCC unroll 10
       for (int i = 0; i < N; ++i) {
-        const double wi = w * phi[i], vi = variance_weight * phi[i];
-        for (int j = 0; j <= i; ++j, ++k) {
-          ata_[k] += wi * phi[j];
-          var_ata_[k] += vi * phi[j];
-        }
+        const double wi = w * phi[i];
+#pragma GCC unroll 10
+        for (int j = 0; j <= i; ++j, ++k) ata_[k] += wi * phi[j];
         atb_[i] += wi * height;
       }
     }
@@ -62,16 +65,19 @@ class QuadricPatch {
     // the accumulation loop vectorises.
     double ata_[55] = {};
     double atb_[10] = {};
-    double var_ata_[55] = {};  // the same with the variance weights (addCell only)
+    // Each addCell's row and variance weight (terms() + 1 numbers), when kept: the variance of the
+    // offset needs only each row's product with M^-1 e_0, cheaper than a second set of sums.
+    std::vector<double>* variance_rows_ = nullptr;
     std::size_t count_ = 0;
   };
 
   // Nothing when the weights sum to zero. With too little spread for curvature the quadratic
   // terms are damped towards the plane (a small ridge), never left undetermined.
   static std::optional<QuadricPatch> fit(const Sums& sums);
-  // The variance of the fitted height at the origin per unit variance of a point's residual
-  // (the sandwich M^-1 B M^-1 of weighted least squares), for sums built with addCell.
-  static double offsetVarianceFactor(const Sums& sums);
+  // The fit and the variance of its height at the origin per unit variance of a point's residual
+  // (the sandwich M^-1 B M^-1 of weighted least squares), for sums that kept their variance rows.
+  struct FitWithVariance;
+  static std::optional<FitWithVariance> fitWithOffsetVariance(const Sums& sums);
 
   // Closest point of the patch to x (Gauss-Newton on the height field, two steps).
   Vec3 project(const Vec3& x) const;
@@ -105,6 +111,11 @@ class QuadricPatch {
   double scale_ = 1;
   Eigen::Matrix3d frame_ = Eigen::Matrix3d::Identity();
   Eigen::Matrix<double, 10, 1> c_ = Eigen::Matrix<double, 10, 1>::Zero();  // cubic terms 0 for a quadric
+};
+
+struct QuadricPatch::FitWithVariance {
+  QuadricPatch patch;
+  double offset_variance_factor = 0;  // infinite when it cannot be told
 };
 
 }  // namespace stampscan::fitting
