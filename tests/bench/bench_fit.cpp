@@ -201,6 +201,7 @@ int main(int argc, char** argv) {
 #ifdef STAMPSCAN_HAVE_PCL
   if (!skip_pcl) {
     double best_rms = 1e9, best_time = 0, best_radius = 0;
+    double at_three = 0;  // PCL's time at r = 3 mm, the yardstick of the throughput goal
     for (double radius : radii) {
       const Result r = inChild([&]() {
         Result res;
@@ -237,6 +238,7 @@ int main(int argc, char** argv) {
       char name[64];
       std::snprintf(name, sizeof name, "pcl mls order 2, r=%.2f", radius);
       print(name, r);
+      if (r.points > 0 && radius == 3.0) at_three = r.seconds;
       if (r.points > 0 && r.rms < best_rms) {
         best_rms = r.rms;
         best_time = r.seconds;
@@ -245,6 +247,7 @@ int main(int argc, char** argv) {
     }
     std::printf("\nPCL best radius %.2f mm: RMS %.4f mm in %.3f s. StampScan: RMS %.4f mm (%.2fx lower), %.1fx the throughput\n",
                 best_radius, best_rms, best_time, ours.rms, best_rms / ours.rms, best_time / ours.seconds);
+    if (at_three > 0) std::printf("Against PCL at r = 3 mm: %.1fx the throughput\n", at_three / ours.seconds);
   }
 #endif
   return 0;

@@ -17,11 +17,12 @@
 //    work per point no longer grows with the neighbourhood size.
 //  - Widening (AnchoredParams::widen). The cap on the effective count keeps the cost bounded but
 //    stops accuracy from growing with density. Where the data are dense against the shape (most
-//    probes stopped at the cap, not at misfit), every point gets a weight from its narrow patch
-//    (Tukey's biweight: outliers get none) and the weighted moments (count, centroid, covariance,
-//    strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp). A fit at bandwidth h
-//    reads the level whose cells are about h/2 wide, so its cost is bounded whatever h and the
-//    density, and no point's contribution is subsampled away. Probes and then anchors choose h by
+//    probes stopped at the cap, not at misfit), every point gets a weight from the nearest probe's
+//    narrow patch (Tukey's biweight: outliers get none) and the weighted moments (count, centroid,
+//    covariance, strain) are accumulated once over a pyramid of cells (cell_pyramid.hpp). A fit at
+//    bandwidth h reads the level whose cells are about h/2 wide, so its cost is bounded whatever h
+//    and the density, and no point's contribution is subsampled away; only fits narrower than
+//    about 1.4 typical narrow bandwidths read the points themselves. Probes and then anchors choose h by
 //    Lepski's balancing rule: the widest fit whose offset agrees with every narrower fit's to
 //    within agreement_sigmas standard deviations of their difference. The probes' choice only
 //    says where each anchor starts its own, so the widening probes are thinned to one per cube of
@@ -77,7 +78,7 @@ struct AnchoredParams {
   double wide_probe_spacing = 3.0;
   bool robust = true;
   int max_iterations = 10;
-  double tolerance = 1e-3;      // the projection stops when a step is below tolerance * h
+  double tolerance = 1e-3;      // the projection stops when a step (or the next, predicted) is below tolerance * h
   std::size_t min_points = 10;  // a fit needs at least this many points
   OrientationParams orientation;
   // Smooth: the patches' linear strain fields, blended. Shepard: the paper's Eqs. (15)-(16) over the
