@@ -193,6 +193,10 @@ double moveSeconds(const HeadPose& from, const HeadPose& to, double speed, const
   return moveSeconds(1.0, rate, accel);
 }
 
+double sweepRunUp(double speed, double acceleration, double report_interval_s) {
+  return 2 * report_interval_s * speed + speed * speed / (2 * acceleration);
+}
+
 double motionSeconds(const ScanPlan& plan, const MachineLimits& limits) {
   double t = 0;
   HeadPose at = plan.park;

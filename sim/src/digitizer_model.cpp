@@ -39,7 +39,7 @@ ProfileMeasurement measureProfile(const Scene& scene, const DigitizerSpec& spec,
       const double share = (incidence - spec.steep_from) / (spec.max_incidence - spec.steep_from);
       if (u_drop < share * share) continue;
     }
-    if (hit->shiny && incidence < 0.35) {
+    if (hit->shiny && incidence < spec.glare_incidence) {
       // Specular glare saturates the triangulation camera: the point is lost or badly placed.
       out.glare = true;
       out.intensity[i] = 65535;

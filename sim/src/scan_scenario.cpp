@@ -203,7 +203,9 @@ class Planner {
     const double step = width * (1 - p_.strip_overlap);
     const int strips = std::max(1, static_cast<int>(std::ceil((r.max.x() - r.min.x()) / step)));
     const double x0 = 0.5 * (r.min.x() + r.max.x()) - 0.5 * (strips - 1) * step;
-    const double lead = 6;
+    // Beyond the region each strip runs on by an element's outline and the sweep's run-up, so that
+    // the elements at the region's edge are crossed where the head's track can be trusted.
+    const double lead = p_.grid.pitch + acquisition::sweepRunUp(p_.sweep_speed, acquisition::MachineLimits{}.acceleration);
     for (int k = 0; k < strips; ++k) {
       // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1.
       const double b = (k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180;

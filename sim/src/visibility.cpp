@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 namespace stampscan::sim {
@@ -50,17 +51,22 @@ std::vector<Vec3> outline(const FormedPart& part, const GridSpec& grid, const Ve
   return out;
 }
 
-// Nothing of the part between `eye` and `q`.
-bool inSight(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
+// What the line of sight from `eye` meets first, when that is `q` (nothing of the part in between).
+std::optional<Hit> sightOf(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
   const Vec3 d = q - eye;
   const double distance = d.norm();
-  const auto hit = scene.cast({eye, d / distance}, 0.0);
-  return hit && hit->t > distance - tolerance;
+  auto hit = scene.cast({eye, d / distance}, 0.0);
+  if (!hit || hit->t <= distance - tolerance) return std::nullopt;
+  return hit;
+}
+bool inSight(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
+  return sightOf(scene, eye, q, tolerance).has_value();
 }
 
 struct Sweep {
   Eigen::Isometry3d start;  // machine_from_digitizer at the sweep's start (the orientation holds)
   Vec3 travel;              // the mirror's displacement over the sweep
+  double from = 0, to = 1;  // the share of the travel that measures (without the run-ups)
 };
 
 // The digitizer sees `q` during the sweep: the fan plane passes through it at some instant, where
@@ -72,7 +78,7 @@ bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, c
   const double rate = fan_normal.dot(s.travel);
   if (std::abs(rate) < 1e-9) return false;
   const double f = fan_normal.dot(q - s.start.translation()) / rate;
-  if (f < 0 || f > 1) return false;
+  if (f < s.from || f > s.to) return false;
   const Vec3 mirror = s.start.translation() + f * s.travel;
   const Vec3 local = R.transpose() * (q - mirror);
   const double range = local.norm();
@@ -80,7 +86,10 @@ bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, c
   if (std::abs(std::atan2(local.x(), -local.z())) > d.half_angle) return false;
   const double cos_incidence = normal.dot((mirror - q) / range);
   if (cos_incidence <= std::cos(d.max_incidence)) return false;
-  return inSight(scene, mirror, q, tolerance);
+  const std::optional<Hit> hit = sightOf(scene, mirror, q, tolerance);
+  // Glare: on a polished spot lit near normal incidence the triangulation camera is saturated and
+  // sees neither the sheet nor the printed line (digitizer_model.cpp).
+  return hit && !(hit->shiny && cos_incidence > std::cos(d.glare_incidence));
 }
 
 }  // namespace
@@ -100,7 +109,10 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
     if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart) {
       const Eigen::Isometry3d a = headPose(s->start) * cell.head_from_digitizer;
       const Eigen::Isometry3d b = headPose(s->end) * cell.head_from_digitizer;
-      sweeps.push_back({a, b.translation() - a.translation()});
+      const Vec3 travel = b.translation() - a.translation();
+      const double run_up = acquisition::sweepRunUp(s->speed, params.acceleration, params.report_interval_s);
+      const double share = travel.norm() > 0 ? run_up / travel.norm() : 1.0;
+      sweeps.push_back({a, travel, share, 1.0 - share});
     } else if (const auto* v = std::get_if<acquisition::StereoStep>(&step); v && v->scene == acquisition::kScenePart) {
       const Eigen::Isometry3d head = headPose(v->pose);
       views.push_back({head * cell.head_from_left, head * cell.head_from_right});

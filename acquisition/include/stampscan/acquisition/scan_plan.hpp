@@ -118,6 +118,16 @@ double motionSeconds(const ScanPlan& plan, const MachineLimits& limits);
 // move that turns the head is as slow as the turn needs at the head's rate and acceleration.
 double moveSeconds(const HeadPose& from, const HeadPose& to, double speed, const MachineLimits& limits);
 
+// The CMM's position reports during a move: I++ DME sends at most ten a second (§6.3.2.7).
+inline constexpr double kCmmReportInterval = 0.1;  // s
+// How far a sweep travels at each end before the head's track can be trusted. The track is
+// interpolated between the CMM's position reports; across the report interval in which the head
+// starts (or stops), and the one next to it, the velocity changes and a straight line between two
+// reports is off by up to a tenth of a millimetre, so the measurement leaves those intervals out
+// (registration's HeadTrack::chordError); before that the head accelerates to the sweep's speed. A
+// plan starts and ends its sweeps at least this far beyond what they are to measure.
+double sweepRunUp(double speed, double acceleration, double report_interval_s = kCmmReportInterval);
+
 class PlanError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

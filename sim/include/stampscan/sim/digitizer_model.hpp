@@ -22,6 +22,7 @@ struct DigitizerSpec {
   double range_noise = 0.006;    // mm, one sigma at normal incidence
   double max_incidence = 1.31;   // rad (75 degrees): beyond it the triangulation camera sees nothing
   double steep_from = 0.96;      // rad (55 degrees): dropouts start here, rising to certain at max
+  double glare_incidence = 0.35; // rad (20 degrees): on a polished spot, nearer normal saturates the camera
   double glare_dropout = 0.7;    // chance of losing a point on a polished spot near normal incidence
   double angle(int i) const { return -half_angle + 2 * half_angle * i / (points_per_profile - 1); }
   double angleIncrement() const { return 2 * half_angle / (points_per_profile - 1); }

@@ -6,7 +6,10 @@
 // - the laser digitizer, in one part sweep of the plan: every point of the outline is crossed by
 //   the fan within its angle and its measuring range, with nothing of the part in between, and lit
 //   within the sensor's incidence limit (DigitizerSpec::max_incidence, where its triangulation
-//   camera sees nothing any more);
+//   camera sees nothing any more) but not so near normal incidence on a polished spot that glare
+//   saturates that camera (DigitizerSpec::glare_incidence), away from the sweep's run-ups at either
+//   end, where the head's track from the CMM's position reports is not to be trusted
+//   (acquisition::sweepRunUp);
 // - the stereo pair, in one part view of the plan: every point of the outline is inside both
 //   images (clear of a border), neither camera's line of sight to it meets the part first, both
 //   cameras see the element within `camera_max_incidence` of its normal, and its printed line is at
@@ -38,6 +41,9 @@ struct VisibilityParams {
   // about 1.5 px): at full resolution the lines are some 1.7 px wide at the working distance, in the
   // quarter-resolution images of a quick session under half a pixel.
   double min_line_px = 1.0;
+  // The sweeps' run-ups (acquisition::sweepRunUp): the cell's position reports and acceleration.
+  double report_interval_s = acquisition::kCmmReportInterval;
+  double acceleration = acquisition::MachineLimits{}.acceleration;
 };
 
 struct ElementVisibility {
