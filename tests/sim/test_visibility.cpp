@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <variant>
 
 namespace {
@@ -46,10 +47,49 @@ TEST(Visibility, TheLaserSeesTheElementsUnderItsSweepsAndNoneFarAway) {
   ASSERT_EQ(v.laser.size(), truth.size());
   const Counts c = countAround(p, truth, v, v.visibleOr());
   EXPECT_GT(c.inside, 50u);
-  EXPECT_EQ(c.inside_laser, c.inside);  // the dome's top: flat enough, within range, nothing in between
   EXPECT_GT(c.outside, 500u);
   EXPECT_EQ(c.outside_seen, 0u);
   for (std::size_t i = 0; i < truth.size(); ++i) EXPECT_EQ(v.stereo[i], 0) << "no views in the plan";
+  // The dome's top is flat enough, within range, with nothing in between: the laser sees all of it
+  // but a polished spot, where the sweeps from straight above meet it near normal incidence and the
+  // glare saturates the digitizer's camera. Without glare it sees everything there.
+  sim::ScanParams matt = p;
+  matt.digitizer.glare_incidence = 0;
+  const sim::ElementVisibility without_glare = sim::visibleElements(matt, plan, truth);
+  const Counts all = countAround(matt, truth, without_glare, without_glare.visibleOr());
+  EXPECT_EQ(all.inside_laser, all.inside);
+  EXPECT_LT(c.inside_laser, c.inside);  // this seed's region holds a polished spot
+  for (std::size_t i = 0; i < truth.size(); ++i) EXPECT_LE(v.laser[i], without_glare.laser[i]);
+}
+
+TEST(Visibility, ASweepMeasuresNothingInItsRunUps) {
+  // The same sweeps, each shortened at both ends by its run-up: what the shorter sweeps' middles
+  // cannot reach, the longer ones' run-ups do not count either.
+  sim::ScanParams p = sim::ScanParams::quick();
+  p.stereo = false;
+  p.digitizer.glare_incidence = 0;
+  const acquisition::ScanPlan plan = sim::planScan(p);
+  const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
+  sim::VisibilityParams trusted_everywhere;
+  trusted_everywhere.report_interval_s = 0;
+  trusted_everywhere.acceleration = std::numeric_limits<double>::infinity();  // no run-up at all
+  const sim::ElementVisibility whole = sim::visibleElements(p, plan, truth, trusted_everywhere);
+  const sim::ElementVisibility measured = sim::visibleElements(p, plan, truth);
+  EXPECT_LT(measured.visibleCount(), whole.visibleCount());
+  acquisition::ScanPlan shortened = plan;
+  for (auto& step : shortened.steps)
+    if (auto* sweep = std::get_if<acquisition::SweepStep>(&step); sweep && sweep->scene == acquisition::kScenePart) {
+      Eigen::Vector3d a(sweep->start.position[0], sweep->start.position[1], sweep->start.position[2]);
+      Eigen::Vector3d b(sweep->end.position[0], sweep->end.position[1], sweep->end.position[2]);
+      const double run_up = acquisition::sweepRunUp(sweep->speed, acquisition::MachineLimits{}.acceleration);
+      const Eigen::Vector3d along = (b - a).normalized() * run_up;
+      for (int k = 0; k < 3; ++k) {
+        sweep->start.position[static_cast<std::size_t>(k)] = (a + along)(k);
+        sweep->end.position[static_cast<std::size_t>(k)] = (b - along)(k);
+      }
+    }
+  const sim::ElementVisibility middles = sim::visibleElements(p, shortened, truth, trusted_everywhere);
+  EXPECT_EQ(measured.visibleCount(), middles.visibleCount());
 }
 
 TEST(Visibility, NothingIsVisibleToAPlanWithoutPartStepsOrOutOfTheDigitizersRange) {
