@@ -46,7 +46,7 @@ constexpr double kFinestCellFit = 1.4;
 constexpr double kPredictableStep = 0.25;
 
 // The blend's gate exp(-e^2) (see blend). Patches mostly agree to a small fraction of the gate's
-// width, where the series is exact to double precision and much cheaper than exp.
+// width, where the series is within 2e-13 of it and much cheaper than exp.
 double gate(double excess) {
   const double e2 = excess * excess;
   return e2 < 1e-4 ? 1.0 - e2 + 0.5 * e2 * e2 : std::exp(-e2);
@@ -316,9 +316,9 @@ void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
 std::vector<float> AnchoredSurface::Impl::pointWeights() const {
   // Tukey's biweight of each point's residual from the nearest probe's robust fit at its chosen h,
   // against the noise there: outliers get no weight in the wide fits, whose cells could not single
-  // them out. The probes lie one per probe_stride points, well inside a narrow bandwidth of every
-  // point where the data are dense (the only place the widening runs), so no narrow anchors need
-  // be fitted for this.
+  // them out. The probes lie one per probe_stride points, within about a narrow bandwidth of every
+  // point where the data are dense (the only place the widening runs), where a probe's quadric
+  // still holds to well under the noise: no narrow anchors need be fitted for this.
   std::vector<float> weights(points.size(), 0.0f);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096), [&](const auto& range) {
     std::vector<Neighbor> near;
@@ -364,9 +364,8 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
       points, tree, pointWeights(), strain, kFinestCellFit * stats.narrow_bandwidth.median / detail::kCellsPerBandwidth, largest);
   for (int l = 0; l < pyramid->levels(); ++l) stats.pyramid_cells += pyramid->cells(l);
   stats.pyramid_bytes = pyramid->bytes();
-  // The narrow anchors have given the point weights; the wide ones replace them.
-  std::vector<Anchor>().swap(anchors);
-  std::vector<std::uint32_t>().swap(anchor_of_point);
+  // The probes' patches have given the point weights.
+  std::vector<std::optional<QuadricPatch>>().swap(probe_patches);
 
   // The wide field is only where each anchor's own choice starts (fitAnchorsOnCells re-chooses from
   // two steps below it), so it needs probes about as far apart as the narrowest wide supports, not
@@ -684,6 +683,7 @@ AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& 
   impl_->step_tolerance = params.tolerance * stats_.bandwidth.median;
   const bool widen = params.widen && stats_.count_capped_share >= params.widen_min_capped_share;
   if (!widen) {
+    std::vector<std::optional<QuadricPatch>>().swap(impl_->probe_patches);  // only the widening reads them
     impl_->buildAnchors();
     lap("anchor cells");
     impl_->fitAnchors(progress);

@@ -69,8 +69,10 @@ std::vector<Vec3> depthPriorOf(const std::vector<Profile>& profiles, const HeadT
     const std::int64_t t = calibration.exposureTime(p);
     if (!track.covers(t)) continue;
     const Eigen::Isometry3d machine_from_sensor = track.poseAt(t) * calibration.head_from_digitizer;
+    // Saturated returns (glare) may be misplaced: left out, as the elements' raster leaves them out.
     for (std::size_t i = 0; i < p.range.size(); i += kPriorPointStride)
-      if (p.range[i] > 0) points.push_back(machine_from_sensor * sensorPoint(p, i));
+      if (p.range[i] > 0 && !(i < p.intensity.size() && p.intensity[i] == 65535))
+        points.push_back(machine_from_sensor * sensorPoint(p, i));
   }
   return points;
 }

@@ -124,8 +124,9 @@ inline constexpr double kCmmReportInterval = 0.1;  // s
 // interpolated between the CMM's position reports; across the report interval in which the head
 // starts (or stops), and the one next to it, the velocity changes and a straight line between two
 // reports is off by up to a tenth of a millimetre, so the measurement leaves those intervals out
-// (registration's HeadTrack::chordError); before that the head accelerates to the sweep's speed. A
-// plan starts and ends its sweeps at least this far beyond what they are to measure.
+// (registration's HeadTrack::chordError): at most two report intervals of travel at the sweep's
+// speed, to which the distance to reach that speed is added as a margin. A plan starts and ends its
+// sweeps at least this far beyond what they are to measure.
 double sweepRunUp(double speed, double acceleration, double report_interval_s = kCmmReportInterval);
 
 class PlanError : public std::runtime_error {

@@ -146,9 +146,9 @@ class ScanMeasurer {
   std::vector<GridElement> laser_, stereo_;
   std::vector<Vec3> surface_points_;
   // A sparse sample of the laser's returns (about one per square millimetre per sweep): the depth
-  // prior of the stereo matching, with the elements. Where glare on a polished spot hides the
-  // printed line from the laser, some returns remain, and the depth there is the sheet's, not a
-  // plane across the gap in the elements.
+  // prior of the stereo matching, with the elements. On a steep wall, where the laser finds few
+  // elements, the depth then comes from the sheet there, not from a plane through the elements
+  // around.
   std::vector<Vec3> depth_prior_;
   // The views are registered on the laser's elements, one point per grid element (the ICP keeps a
   // reference to its target: it lives here, as long as the ICP).
