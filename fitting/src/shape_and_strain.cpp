@@ -4,7 +4,6 @@
 #include "stampscan/fitting/local_fit.hpp"
 #include "stampscan/fitting/scalar_field.hpp"
 
-#include "cell_pyramid.hpp"
 #include "robust_patch_fit.hpp"
 
 #include <tbb/blocked_range.h>
@@ -74,14 +73,14 @@ std::vector<Vec3> cubeMeans(const std::vector<Vec3>& points, double size) {
 // point between carriers takes the harmonic mean of its neighbours' bandwidths.
 class CarrierStrain {
  public:
+  struct Scratch {
+    std::vector<Neighbor> near;
+    std::vector<ScalarSample> samples;
+  };
   CarrierStrain(const Cloud& carriers, const ShapeAndStrainParams& params)
-      : positions_(carriers.positions),
-        tree_(positions_),
-        // Cells wider than the part: every strain fit reads the carriers themselves (level -1).
-        pyramid_(positions_, tree_, std::vector<float>(positions_.size(), 1.0f), &carriers.strain,
-                 2.0 * boundsOf(positions_).diagonal() + 1.0, 0.0) {
+      : positions_(carriers.positions), strain_(carriers.strain), tree_(positions_) {
     const std::size_t n = positions_.size();
-    const std::vector<double>& strain = carriers.strain;
+    const std::vector<double>& strain = strain_;
     // The grid's pitch: the fourth neighbour's distance, which twins do not shorten (a square
     // grid's four nearest are a pitch away).
     std::vector<double> fourth(n, 0.0);
@@ -156,7 +155,7 @@ class CarrierStrain {
   }
 
   // NaN beyond reach of every carrier.
-  double at(const Vec3& x, const Vec3& normal, detail::CellFitScratch& scratch) const {
+  double at(const Vec3& x, const Vec3& normal, Scratch& scratch) const {
     std::uint32_t nearest = 0;
     double h = field_->at(x, 4, &nearest);
     if ((positions_[nearest] - x).squaredNorm() > reach_ * reach_) return std::numeric_limits<double>::quiet_NaN();
@@ -174,7 +173,12 @@ class CarrierStrain {
       }
       if (sum_sq > 0 && sum * sum >= kLeastEffectiveCarriers * sum_sq) break;
     }
-    return detail::strainNear(pyramid_, x, normal, h, scratch);
+    // The smooth field over the carriers of that support (scalar_field.hpp), Gaussian weights (Eq. (3)).
+    scratch.samples.clear();
+    for (const Neighbor& nb : scratch.near)
+      if (std::isfinite(strain_[nb.index]))
+        scratch.samples.push_back({positions_[nb.index], strain_[nb.index], gaussianWeightSq(nb.distance_sq, h * h)});
+    return smoothScalar(x, normal, scratch.samples);
   }
   const BandwidthSummary& bandwidth() const { return bandwidth_; }
   double spacing() const { return spacing_; }
@@ -189,8 +193,8 @@ class CarrierStrain {
   // A carrier's neighbourhood for the choice (and for its tangent plane): a few pitches across.
   static constexpr std::size_t kPoolSize = 16;
   const std::vector<Vec3>& positions_;
+  const std::vector<double>& strain_;
   KdTree tree_;
-  detail::CellPyramid pyramid_;
   std::unique_ptr<BandwidthField> field_;
   double spacing_ = 0, reach_ = 0;
   BandwidthSummary bandwidth_;
@@ -224,7 +228,7 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
   std::vector<Projection> feet(starts.size());
   std::vector<double> strain(starts.size(), std::numeric_limits<double>::quiet_NaN());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size(), 256), [&](const auto& range) {
-    detail::CellFitScratch scratch;
+    CarrierStrain::Scratch scratch;
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
       feet[k] = shape_fit.surface().project(starts[k]);
       if (feet[k].valid) strain[k] = strain_field.at(feet[k].point, feet[k].normal, scratch);
@@ -250,7 +254,7 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
     Cloud& v = out.mesh.vertices;
     v.strain.assign(v.size(), std::numeric_limits<double>::quiet_NaN());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.size(), 256), [&](const auto& range) {
-      detail::CellFitScratch scratch;
+      CarrierStrain::Scratch scratch;
       for (std::size_t k = range.begin(); k != range.end(); ++k)
         v.strain[k] = strain_field.at(v.positions[k], v.normals[k], scratch);
     });

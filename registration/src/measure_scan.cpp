@@ -219,8 +219,10 @@ void ScanMeasurer::measureSweep(const ScanTrace& trace, const SweepWindow& sweep
       grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, sweep_id, &stats)
                         : detectLaserSquares(profiles, track, out_.digitizer, squares_, sweep_id, &stats);
   laser_.insert(laser_.end(), found.begin(), found.end());
-  const std::vector<Vec3> prior = depthPriorOf(profiles, track, out_.digitizer);
-  depth_prior_.insert(depth_prior_.end(), prior.begin(), prior.end());
+  if (params_.with_stereo) {
+    const std::vector<Vec3> prior = depthPriorOf(profiles, track, out_.digitizer);
+    depth_prior_.insert(depth_prior_.end(), prior.begin(), prior.end());
+  }
   if (params_.keep_surface_points) {
     const std::vector<Vec3> returns = surfacePointsOf(profiles, track, out_.digitizer);
     surface_points_.insert(surface_points_.end(), returns.begin(), returns.end());
@@ -252,7 +254,7 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
     per_sweep[k] = grid_ == "circle" ? detectLaserRings(profiles, track, out_.digitizer, rings_, id, &stats[k])
                                      : detectLaserSquares(profiles, track, out_.digitizer, squares_, id, &stats[k]);
     if (params_.keep_surface_points) returns[k] = surfacePointsOf(profiles, track, out_.digitizer);
-    priors[k] = depthPriorOf(profiles, track, out_.digitizer);
+    if (params_.with_stereo) priors[k] = depthPriorOf(profiles, track, out_.digitizer);
   });
   for (std::size_t k = 0; k < part.size(); ++k) {
     depth_prior_.insert(depth_prior_.end(), priors[k].begin(), priors[k].end());

@@ -30,9 +30,10 @@ struct ShapeAndStrainParams {
   FitParams shape;   // the dense points' fit (its progress callback also reports the other stages)
   double output_spacing_mm = 0.5;  // one output point per cube of this size that holds shape points
   bool with_mesh = true;           // mesh cells are output_spacing_mm wide
-  // Strain is read only within this many carrier spacings (the median distance from a carrier to its
-  // fourth nearest: a square grid's pitch, whether or not elements were found twice) of a carrier: a missing element or two is bridged; beyond, the surface has no strain
-  // (NaN) rather than an extrapolation.
+  // Strain is read only within this many carrier spacings of a carrier (the spacing: the median
+  // distance from a carrier to its fourth nearest, a square grid's pitch whether or not elements were
+  // found twice): a missing element or two is bridged; beyond, the surface has no strain (NaN)
+  // rather than an extrapolation.
   double strain_reach = 2.0;
 };
 
