@@ -256,7 +256,7 @@ ScanPlan parseScanPlan(const std::string& text, const std::string& source) {
       in.fail(s->get("scene"), prefix + "scene", "must be part, reference_sphere, second_sphere or calibration_plate");
     const double index = in.number(*s, "index", prefix + "index", -1);
     if (kind == "sweep") {
-      in.onlyKeys(*s, prefix, {"kind", "scene", "index", "start", "end", "head", "speed"});
+      in.onlyKeys(*s, prefix, {"kind", "scene", "index", "start", "end", "head", "speed", "expected_elements"});
       SweepStep w;
       w.scene = scene;
       w.index = index >= 0 ? static_cast<std::uint32_t>(index) : static_cast<std::uint32_t>(plan.sweepCount(scene));
@@ -266,6 +266,10 @@ ScanPlan parseScanPlan(const std::string& text, const std::string& source) {
       w.end.b = w.start.b;
       w.speed = in.number(*s, "speed", prefix + "speed", w.speed);
       if (!(w.speed > 0)) in.fail(s->get("speed"), prefix + "speed", "must be positive");
+      const double expected = in.number(*s, "expected_elements", prefix + "expected_elements", 0);
+      if (!(expected >= 0 && expected < 1e9 && expected == std::floor(expected)))
+        in.fail(s->get("expected_elements"), prefix + "expected_elements", "must be a whole number of elements, 0 or more");
+      w.expected_elements = static_cast<std::uint32_t>(expected);
       plan.steps.emplace_back(w);
     } else if (kind == "stereo") {
       in.onlyKeys(*s, prefix, {"kind", "scene", "index", "pose", "head", "settle"});
@@ -319,6 +323,7 @@ std::string toToml(const ScanPlan& plan) {
       o << "\n[[step]]\nkind = \"sweep\"\nscene = \"" << s->scene << "\"\nindex = " << s->index << "\nstart = "
         << triple(s->start.position) << "\nend = " << triple(s->end.position) << "\nhead = " << head(s->start)
         << "\nspeed = " << fmt(s->speed) << "\n";
+      if (s->expected_elements > 0) o << "expected_elements = " << s->expected_elements << "\n";
     } else {
       const auto& v = std::get<StereoStep>(step);
       o << "\n[[step]]\nkind = \"stereo\"\nscene = \"" << v.scene << "\"\nindex = " << v.index << "\npose = "

@@ -81,6 +81,23 @@ class CarrierStrain {
       : positions_(carriers.positions), strain_(carriers.strain), tree_(positions_) {
     const std::size_t n = positions_.size();
     const std::vector<double>& strain = strain_;
+    // Each carrier's weight relative to a typical one: the inverse variance of its strain when the
+    // carriers state it (a merged element measured by several sweeps and views counts for more than
+    // one seen once, a laser element more than a noisier stereo one), scaled so that the median
+    // carrier weighs one (the Gaussian's scale stays that of the bandwidth).
+    certainty_.assign(n, 1.0);
+    if (const auto u = carriers.scalars.find(kStrainUncertainty); u != carriers.scalars.end() && u->second.size() == n) {
+      std::vector<double> finite;
+      for (double s : u->second)
+        if (std::isfinite(s) && s > 0) finite.push_back(s);
+      if (!finite.empty()) {
+        const double typical = summarize(finite).median;
+        for (std::size_t i = 0; i < n; ++i) {
+          const double s = u->second[i];
+          certainty_[i] = std::isfinite(s) && s > 0 ? std::pow(typical / s, 2) : 1.0;
+        }
+      }
+    }
     // The grid's pitch: the fourth neighbour's distance, which twins do not shorten (a square
     // grid's four nearest are a pitch away).
     std::vector<double> fourth(n, 0.0);
@@ -118,7 +135,7 @@ class CarrierStrain {
           samples.clear();
           for (const Neighbor& nb : near)
             if (nb.distance_sq > twin_sq && std::isfinite(strain[nb.index]))
-              samples.push_back({positions_[nb.index], strain[nb.index], gaussianWeightSq(nb.distance_sq, h * h)});
+              samples.push_back({positions_[nb.index], strain[nb.index], weight(nb, h)});
           if (samples.size() < 3) continue;
           if (const auto field = fitTangentLinear(positions_[i], normals[i], samples)) {
             const double r = field->value - strain[i];
@@ -167,7 +184,7 @@ class CarrierStrain {
       tree_.radius(x, detail::kSupport * h, scratch.near);
       double sum = 0, sum_sq = 0;
       for (const Neighbor& nb : scratch.near) {
-        const double w = gaussianWeightSq(nb.distance_sq, h * h);
+        const double w = weight(nb, h);
         sum += w;
         sum_sq += w * w;
       }
@@ -177,13 +194,17 @@ class CarrierStrain {
     scratch.samples.clear();
     for (const Neighbor& nb : scratch.near)
       if (std::isfinite(strain_[nb.index]))
-        scratch.samples.push_back({positions_[nb.index], strain_[nb.index], gaussianWeightSq(nb.distance_sq, h * h)});
+        scratch.samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
     return smoothScalar(x, normal, scratch.samples);
   }
   const BandwidthSummary& bandwidth() const { return bandwidth_; }
   double spacing() const { return spacing_; }
 
  private:
+  // A carrier's weight at bandwidth h: the Gaussian of Eq. (3) times its certainty.
+  double weight(const Neighbor& nb, double h) const {
+    return gaussianWeightSq(nb.distance_sq, h * h) * certainty_[nb.index];
+  }
   // Candidate bandwidths: half a pitch times 1.4^k, up to seven pitches.
   static constexpr int kCandidates = 9;
   static constexpr double kCandidateStep = 1.4;
@@ -195,6 +216,7 @@ class CarrierStrain {
   const std::vector<Vec3>& positions_;
   const std::vector<double>& strain_;
   KdTree tree_;
+  std::vector<double> certainty_;
   std::unique_ptr<BandwidthField> field_;
   double spacing_ = 0, reach_ = 0;
   BandwidthSummary bandwidth_;

@@ -1,5 +1,8 @@
 #include "stampscan/registration/grid_element.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 namespace stampscan::registration {
 
 fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
@@ -28,6 +31,19 @@ fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
     source.push_back(static_cast<double>(g.source));
     view.push_back(g.view);
     quality.push_back(g.fit_rms);
+  }
+  // The uncertainties only when every element has them: a column of NaN would make readers skip rows.
+  const auto known = [&](auto member) {
+    return !elements.empty() &&
+           std::all_of(elements.begin(), elements.end(), [&](const GridElement& g) { return std::isfinite(g.*member); });
+  };
+  if (known(&GridElement::strain_sigma) && known(&GridElement::position_sigma_mm)) {
+    auto& strain_u = c.scalars[fitting::kStrainUncertainty];
+    auto& position_u = c.scalars[fitting::kPositionUncertainty];
+    for (const GridElement& g : elements) {
+      strain_u.push_back(g.strain_sigma);
+      position_u.push_back(g.position_sigma_mm);
+    }
   }
   return c;
 }

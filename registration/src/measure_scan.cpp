@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace stampscan::registration {
@@ -365,6 +366,26 @@ ScanMeasurement ScanMeasurer::finish() {
                           out_.stereo_elements, out_.worst_icp_correction_mm, stereo_seconds_));
     if (!out_.stereo_note.empty()) tell("stereo", out_.stereo_note);
   }
+  // Measurements of one printed element stand a few hundredths of a millimetre apart; neighbouring
+  // elements a pitch, stretched or compressed by a few tens of percent at most.
+  out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
+  const auto path_sigma = [&](Source s, auto member) {
+    const PathNoise& own = s == Source::Laser ? out_.merged.laser : out_.merged.stereo;
+    const PathNoise& other = s == Source::Laser ? out_.merged.stereo : out_.merged.laser;
+    return (own.*member).value_or((other.*member).value_or(std::numeric_limits<double>::quiet_NaN()));
+  };
+  for (GridElement& g : out_.elements) {
+    g.strain_sigma = path_sigma(g.source, &PathNoise::strain);
+    g.position_sigma_mm = path_sigma(g.source, &PathNoise::position_mm);
+  }
+  const auto noise = [](const PathNoise& p) {
+    return p.strain ? format("strain %.5f (%.5f shared by its twins), position %.4f mm (%.4f shared), %zu twins", *p.strain,
+                             *p.strain_shared, *p.position_mm, *p.position_shared_mm, p.twin_pairs)
+                    : std::string("not known (too few twins)");
+  };
+  tell("elements", format("%zu measurements of %zu printed elements; one measurement's uncertainty: laser %s%s",
+                          out_.merged.measurements, out_.merged.elements.size(), noise(out_.merged.laser).c_str(),
+                          out_.stereo_elements ? (", stereo " + noise(out_.merged.stereo)).c_str() : ""));
   return std::move(out_);
 }
 

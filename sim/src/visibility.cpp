@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <optional>
 #include <stdexcept>
@@ -125,16 +126,18 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   ElementVisibility out;
   out.laser.assign(truth.size(), 0);
   out.stereo.assign(truth.size(), 0);
+  std::vector<std::atomic<std::uint32_t>> per_sweep(sweeps.size());
   tbb::parallel_for(std::size_t{0}, truth.size(), [&](std::size_t i) {
     const std::vector<Vec3> ring = outline(*part, world.grid, Vec2(mu->second[i], mv->second[i]), params.outline_samples);
     std::vector<Vec3> normals;
     for (const Vec3& q : ring) normals.push_back(part->normal(q.x(), q.y()));
-    for (const Sweep& s : sweeps) {
+    for (std::size_t w = 0; w < sweeps.size(); ++w) {
       bool all = true;
-      for (std::size_t k = 0; k < ring.size() && all; ++k) all = laserSees(scene, world.digitizer, s, ring[k], normals[k], tol);
+      for (std::size_t k = 0; k < ring.size() && all; ++k)
+        all = laserSees(scene, world.digitizer, sweeps[w], ring[k], normals[k], tol);
       if (all) {
         out.laser[i] = 1;
-        break;
+        per_sweep[w].fetch_add(1, std::memory_order_relaxed);
       }
     }
     const Vec3& centre = truth.positions[i];
@@ -165,7 +168,15 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
       }
     }
   });
+  for (const auto& n : per_sweep) out.laser_per_sweep.push_back(n.load());
   return out;
+}
+
+void predictElements(acquisition::ScanPlan& plan, const ElementVisibility& visibility) {
+  std::size_t k = 0;
+  for (acquisition::PlanStep& step : plan.steps)
+    if (auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart)
+      s->expected_elements = k < visibility.laser_per_sweep.size() ? visibility.laser_per_sweep[k++] : 0;
 }
 
 }  // namespace stampscan::sim

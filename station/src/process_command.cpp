@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct ProcessOptions {
-  std::string input, output, fit, mesh, calibration_dir, save_calibration;
+  std::string input, output, elements, fit, mesh, calibration_dir, save_calibration;
   bool ascii = false, quiet = false, with_stereo = false, accept_damaged = false;
 };
 
@@ -60,6 +60,9 @@ CommandRunner addProcessCommand(CLI::App& app) {
                                                 "frame, printed circles, strains; writes a Cloud4D PLY");
   cmd->add_option("trace", opt->input, "Recorded or simulated trace (.mcap)")->required();
   cmd->add_option("-o,--output", opt->output, "Cloud4D PLY of the grid elements")->required();
+  cmd->add_option("--elements", opt->elements,
+                  "Also write one point per printed grid element: its measurements by every sweep and view merged, "
+                  "with the standard uncertainties of its strain and position");
   cmd->add_option("--fit", opt->fit,
                   "Also fit the surface: its shape from every laser return, the grid elements' strain on it; "
                   "written as points 0.5 mm apart with normals and strain");
@@ -75,6 +78,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     checkFolder(opt->output, "output");
+    checkFolder(opt->elements, "elements output");
     checkFolder(opt->fit, "fit output");
     checkFolder(opt->mesh, "mesh output");
     if (!opt->mesh.empty() && opt->fit.empty()) throw std::runtime_error("--mesh needs --fit");
@@ -145,12 +149,16 @@ CommandRunner addProcessCommand(CLI::App& app) {
     w.comment = "StampScan Cloud4D from " + fs::path(opt->input).filename().string();
     fitting::writePly(opt->output, cloud, w);
     std::printf("  wrote       %s: %zu points\n", opt->output.c_str(), cloud.size());
+    if (!opt->elements.empty()) {
+      fitting::writePly(opt->elements, registration::toCloud(m.merged.elements), w);
+      std::printf("  wrote       %s: %zu elements\n", opt->elements.c_str(), m.merged.elements.size());
+    }
     if (!opt->fit.empty()) {
       const double before = since();
       fitting::Cloud shape;
       shape.positions = std::move(m.surface_points);
       if (shape.empty()) throw std::runtime_error(opt->input + ": the part sweeps have no laser returns to fit a surface to");
-      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, !opt->quiet);
+      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, registration::toCloud(m.merged.elements), !opt->quiet);
       printShapeAndStrainSummary(fit);
       fitting::writePly(opt->fit, fit.surface, w);
       std::printf("  fit         %s (%.2f s)\n", opt->fit.c_str(), since() - before);

@@ -113,7 +113,10 @@ CommandRunner addScanCommand(CLI::App& app) {
       if (!replay) {
         job.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
                                     hosted->cell().truth().digitizer_latency_ns};
-        job.truth->visible = sim::visibleElements(world, job.plan, job.truth->elements).visibleOr();
+        const sim::ElementVisibility visibility = sim::visibleElements(world, job.plan, job.truth->elements);
+        job.truth->visible = visibility.visibleOr();
+        // The planner's prediction of what each sweep sees, against which the scan is checked.
+        sim::predictElements(job.plan, visibility);
       }
     }
     acquisition::Cell cell(config);

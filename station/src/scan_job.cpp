@@ -347,6 +347,8 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;
   fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+  const fitting::Cloud elements = registration::toCloud(m.merged.elements);
+  fitting::writePly(result.run_dir / "elements.ply", elements, w);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // The surface: its shape from the laser's returns, the elements' strain on it.
   fitting::Cloud shape;
@@ -354,7 +356,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   nlohmann::json surface_record;
   if (!shape.empty()) {
     observer.stageDone("surface", "fitting the surface to " + std::to_string(shape.size()) + " laser returns");
-    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, false);
+    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, elements, false);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
     fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
     surface_record = {{"laser_returns", fit.shape_points},
@@ -369,7 +371,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   } else {
     // No returns kept (a plan without part sweeps): the surface of the elements alone.
     MeshRequest mesh_request;
-    FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
+    FitOutcome fit = runFit(elements, fitting::FitParams{}, &mesh_request, false);
     colorByStrain(fit.surface);
     colorByStrain(fit.mesh.vertices);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
@@ -384,6 +386,18 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                            {"seconds_after_scan", result.measure_seconds},
                            {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
+  record["measurement"]["printed_elements"] = m.merged.elements.size();
+  // One measurement's standard uncertainty per sensor path, and its part shared by the path's
+  // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
+  const auto noise = [](const registration::PathNoise& p) {
+    return p.strain ? nlohmann::json{{"strain", *p.strain},
+                                     {"strain_shared", *p.strain_shared},
+                                     {"position_mm", *p.position_mm},
+                                     {"position_shared_mm", *p.position_shared_mm},
+                                     {"twin_pairs", p.twin_pairs}}
+                    : nlohmann::json(nullptr);
+  };
+  record["measurement"]["uncertainty"] = {{"laser", noise(m.merged.laser)}, {"stereo", noise(m.merged.stereo)}};
   if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
   if (!surface_record.is_null()) record["measurement"]["surface"] = surface_record;
   if (o.truth) {
@@ -411,6 +425,11 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                         {"strain_rms", result.against_recording->strain_rms}};
   }
   result.data_loss = dataLoss(result.run);
+  // Data that arrived whole but measured much less than the plan predicts is as damaged a result.
+  if (const auto shortfall = measurementShortfall(o.plan, m.elements)) {
+    observer.stageDone("elements", "short of the plan: " + *shortfall);
+    result.data_loss = result.data_loss ? *result.data_loss + "; " + *shortfall : *shortfall;
+  }
   record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
   if (!o.material.empty()) record["material"] = o.material;
   if (!o.program.empty()) record["program"] = o.program;
@@ -437,6 +456,39 @@ std::optional<std::string> dataLoss(const acquisition::ScanRunResult& r) {
   if (r.views_missing > 0) add(std::to_string(r.views_missing) + " stereo views missing (no frames from a camera)");
   if (r.sweeps_over_loss_limit > 0)
     add(std::to_string(r.sweeps_over_loss_limit) + " sweeps lost more digitizer profiles than allowed even when repeated");
+  if (text.empty()) return std::nullopt;
+  return text;
+}
+
+std::optional<std::string> measurementShortfall(const acquisition::ScanPlan& plan,
+                                                const std::vector<registration::GridElement>& measurements) {
+  std::vector<std::uint32_t> expected;
+  for (const acquisition::PlanStep& step : plan.steps)
+    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart)
+      expected.push_back(s->expected_elements);
+  std::vector<std::size_t> found(expected.size(), 0);
+  for (const registration::GridElement& g : measurements)
+    if (g.source == registration::Source::Laser && g.view < found.size()) ++found[g.view];
+  // Sweeps that expect a handful only are left out of the per-sweep test: one element more or less
+  // is a large share of a few.
+  constexpr std::uint32_t kFewest = 10;
+  std::size_t total_expected = 0, total_found = 0;
+  std::string short_sweeps;
+  for (std::size_t k = 0; k < expected.size(); ++k) {
+    if (expected[k] == 0) continue;
+    total_expected += expected[k];
+    total_found += found[k];
+    if (expected[k] >= kFewest && static_cast<double>(found[k]) < kShortSweep * expected[k])
+      short_sweeps += (short_sweeps.empty() ? "" : ", ") + std::to_string(k + 1) + " (" + std::to_string(found[k]) + " of " +
+                      std::to_string(expected[k]) + ")";
+  }
+  if (total_expected == 0) return std::nullopt;
+  std::string text;
+  if (static_cast<double>(total_found) < kShortScan * static_cast<double>(total_expected))
+    text = "the part sweeps found " + std::to_string(total_found) + " grid elements where the plan predicts " +
+           std::to_string(total_expected);
+  if (!short_sweeps.empty())
+    text += (text.empty() ? "" : "; ") + std::string("part sweeps found much less than predicted: ") + short_sweeps;
   if (text.empty()) return std::nullopt;
   return text;
 }

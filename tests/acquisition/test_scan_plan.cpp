@@ -38,12 +38,36 @@ TEST(ScanPlan, PlanFileRoundTrip) {
       expectSamePose(t.start, s->start);
       expectSamePose(t.end, s->end);
       EXPECT_DOUBLE_EQ(t.speed, s->speed);
+      EXPECT_EQ(t.expected_elements, s->expected_elements);
     } else {
       const auto& v = std::get<StereoStep>(plan.steps[k]);
       const auto& w = std::get<StereoStep>(back.steps[k]);
       EXPECT_EQ(w.scene, v.scene);
       expectSamePose(w.pose, v.pose);
     }
+  }
+}
+
+TEST(ScanPlan, ASweepsPredictedElementsRoundTripAndAreChecked) {
+  ScanPlan plan;
+  SweepStep w;
+  w.start.position = {0, -40, 160};
+  w.end.position = {0, 40, 160};
+  w.expected_elements = 137;
+  plan.steps.emplace_back(w);
+  const std::string text = toToml(plan);
+  EXPECT_NE(text.find("expected_elements = 137"), std::string::npos) << text;
+  EXPECT_EQ(std::get<SweepStep>(parseScanPlan(text, "plan").steps[0]).expected_elements, 137u);
+  // Without a prediction the key is left out, and a bad one names its line.
+  plan.steps[0] = SweepStep{};
+  EXPECT_EQ(toToml(plan).find("expected_elements"), std::string::npos);
+  std::string bad = text;
+  bad.replace(bad.find("137"), 3, "-2");
+  try {
+    parseScanPlan(bad, "bad.toml");
+    FAIL() << "a negative prediction was accepted";
+  } catch (const PlanError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected_elements"), std::string::npos) << e.what();
   }
 }
 

@@ -28,6 +28,44 @@ fs::path onlyRunFolder(const fs::path& runs) {
   return dirs.empty() ? fs::path() : dirs.front();
 }
 
+// A scan whose data arrived whole but whose sweeps found much less than the plan predicts says so.
+TEST(ScanShortfall, ASweepThatFoundMuchLessThanPredictedIsNamed) {
+  acquisition::ScanPlan plan;
+  for (std::uint32_t expected : {100u, 120u, 4u}) {
+    acquisition::SweepStep w;
+    w.expected_elements = expected;
+    plan.steps.emplace_back(w);
+  }
+  acquisition::SweepStep sphere;
+  sphere.scene = acquisition::kSceneSphere;
+  plan.steps.insert(plan.steps.begin(), sphere);  // not a part sweep: not counted
+  const auto found = [](std::vector<std::size_t> per_sweep) {
+    std::vector<registration::GridElement> m;
+    for (std::size_t k = 0; k < per_sweep.size(); ++k)
+      for (std::size_t i = 0; i < per_sweep[k]; ++i) {
+        registration::GridElement g;
+        g.view = static_cast<std::uint32_t>(k);
+        m.push_back(g);
+      }
+    registration::GridElement stereo;  // the stereo views' elements are not the sweeps'
+    stereo.source = registration::Source::Stereo;
+    stereo.view = 1000;
+    m.push_back(stereo);
+    return m;
+  };
+  EXPECT_FALSE(measurementShortfall(plan, found({104, 118, 0})).has_value()) << "a sweep predicted to see 4 found none";
+  const auto half = measurementShortfall(plan, found({100, 50, 4}));
+  ASSERT_TRUE(half.has_value());
+  EXPECT_NE(half->find("2 (50 of 120)"), std::string::npos) << *half;
+  const auto all = measurementShortfall(plan, found({80, 90, 4}));
+  ASSERT_TRUE(all.has_value());
+  EXPECT_NE(all->find("found 174 grid elements where the plan predicts 224"), std::string::npos) << *all;
+  // A plan that predicts nothing is not checked.
+  acquisition::ScanPlan silent;
+  silent.steps.emplace_back(acquisition::SweepStep{});
+  EXPECT_FALSE(measurementShortfall(silent, found({0})).has_value());
+}
+
 TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   const fs::path runs = work() / "runs";
   const RunResult r = run("scan -q --part-id P-17 -o " + quote(runs));

@@ -41,21 +41,30 @@ CmmMachine::CmmMachine(VirtualCmmConfig config)
       speed_(config_.default_speed),
       accel_(config_.default_accel) {}
 
-MachinePose CmmMachine::poseLocked(Clock::time_point now) const {
-  if (move_ && move_->followed) {
-    const std::array<double, 6> axes =
-        move_->followed->pose_at(std::clamp(seconds(now - move_->start), 0.0, move_->followed->seconds));
+MachinePose CmmMachine::Move::at(double elapsed) const {
+  if (followed) {
+    const std::array<double, 6> axes = followed->pose_at(std::clamp(elapsed, 0.0, followed->seconds));
     MachinePose p;
     for (std::size_t i = 0; i < 6; ++i) p.axis(i) = axes[i];
     return p;
   }
-  if (!move_ || move_->progress.distance == 0) return pose_;
-  const double fraction = move_->progress.distanceAt(seconds(now - move_->start));
+  if (progress.distance == 0) return from;
+  const double fraction = progress.distanceAt(elapsed);
   MachinePose p;
-  for (std::size_t i = 0; i < 6; ++i) {
-    p.axis(i) = move_->from.axis(i) + (move_->to.axis(i) - move_->from.axis(i)) * fraction;
-  }
+  for (std::size_t i = 0; i < 6; ++i) p.axis(i) = from.axis(i) + (to.axis(i) - from.axis(i)) * fraction;
   return p;
+}
+
+MachinePose CmmMachine::poseLocked(Clock::time_point when) const {
+  if (move_ && when >= move_->start) return move_->at(seconds(when - move_->start));
+  // The latest ended move that had started by then: on it, or at rest after it.
+  for (auto m = history_.rbegin(); m != history_.rend(); ++m) {
+    if (when < m->start) continue;
+    return when < *m->end ? m->at(seconds(when - m->start)) : m->rest;
+  }
+  // Before every move remembered: where the oldest started, or the machine's pose when none did.
+  if (!history_.empty()) return history_.front().from;
+  return move_ ? move_->from : pose_;
 }
 
 Vec3 CmmMachine::position(Clock::time_point now) const {
@@ -217,6 +226,10 @@ void CmmMachine::endMove(bool reached, Clock::time_point now) {
   if (!move_) return;
   // Reached: exactly the commanded target, not the interpolation's rounding of it.
   pose_ = reached ? move_->to : poseLocked(now);
+  move_->end = now;
+  move_->rest = pose_;
+  history_.push_back(std::move(*move_));
+  while (!history_.empty() && *history_.front().end < now - kHistory) history_.pop_front();
   move_.reset();
   ++(reached ? completed_ : aborted_);
 }

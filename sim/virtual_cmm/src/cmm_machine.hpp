@@ -9,6 +9,7 @@
 
 #include <array>
 #include <chrono>
+#include <deque>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -86,8 +87,18 @@ class CmmMachine {
     MachinePose from, to;
     TrapezoidMove progress;  // "distance" 0..1 along the move; 0 long when nothing moves
     std::optional<FollowedMove> followed;  // a replayed move, followed instead of `progress`
+    // Once ended: when, and where the machine stood from then on (the target, or where it stopped).
+    std::optional<Clock::time_point> end;
+    MachinePose rest;
+    // The pose `elapsed` seconds after the start, the move still running.
+    MachinePose at(double elapsed) const;
   };
-  MachinePose poseLocked(Clock::time_point now) const;
+  // The pose at any time: a time before the current move (a sensor whose data are built late, on a
+  // loaded host, asks for the pose at its exposure) is looked up in the moves that ended.
+  MachinePose poseLocked(Clock::time_point when) const;
+  // The ended moves, oldest first, kept for kHistory.
+  static constexpr std::chrono::seconds kHistory{120};
+  std::deque<Move> history_;
 
   const VirtualCmmConfig config_;
   mutable std::mutex mutex_;

@@ -96,6 +96,7 @@ RunInfo readRunInfo(const std::filesystem::path& run_dir) {
     info.material = textOf(run, "material");
     info.calibration = calibrationText(run);
     info.accuracy = accuracyText(run);
+    info.data_loss = textOf(run, "data_loss");
   } catch (const nlohmann::json::exception& e) {
     throw ReportError(file.string() + ": damaged (" + e.what() + ")");
   }

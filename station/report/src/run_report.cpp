@@ -227,6 +227,12 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
   } catch (const std::invalid_argument& e) {
     throw ReportError(cloud_file.string() + ": " + e.what());
   }
+  // A scan that lacks data may miss the very spot that fails: what it measured cannot call the part good.
+  if (!summary.run.data_loss.empty() && analysis.verdict == Verdict::Good) {
+    analysis.verdict = Verdict::Marginal;
+    analysis.verdict_reason = "the measured elements are good, but the scan is incomplete (" + summary.run.data_loss +
+                              "): scan the part again";
+  }
 
   // The maps: every quantity from every view, rendered and encoded in parallel.
   const auto t_draw = Clock::now();

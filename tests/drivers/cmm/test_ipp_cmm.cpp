@@ -160,6 +160,25 @@ TEST_F(CmmDriver, GoToReportsPositionsAlongTheTrapezoid) {
   EXPECT_TRUE(log.reports().empty()) << "reports after StopDaemon";
 }
 
+// A sensor whose data are built late (a loaded host) asks for the machine's pose at its exposure:
+// after the move has ended, a time during it is on the move, not at its end; a time before it is
+// where it started.
+TEST_F(CmmDriver, ThePoseAtAPastTimeIsWhereTheMachineWasThen) {
+  cmm_->home();
+  const auto before = std::chrono::steady_clock::now();
+  const CmmPosition start = cmm_->position();
+  const CmmPosition target{start.x + 60, start.y, start.z};
+  const auto began = std::chrono::steady_clock::now();
+  ASSERT_EQ(cmm_->goTo(target), MoveOutcome::Reached);
+  const auto ended = std::chrono::steady_clock::now();
+  ASSERT_FALSE(server_.status().moving);
+  const sim::VirtualCmmStatus middle = server_.statusAt(began + (ended - began) / 2);
+  EXPECT_GT(middle.position[0], start.x + 5) << "the middle of the move is not at its start";
+  EXPECT_LT(middle.position[0], target.x - 5) << "the middle of the move is not at its end";
+  EXPECT_NEAR(server_.statusAt(before).position[0], start.x, 1e-9);
+  EXPECT_NEAR(server_.statusAt(ended + std::chrono::seconds(1)).position[0], target.x, 1e-9);
+}
+
 TEST_F(CmmDriver, SpeedStaysWithinTheLimits) {
   cmm_->home();
   const double max_speed = server_.config().max_speed;

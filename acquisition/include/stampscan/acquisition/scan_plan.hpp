@@ -21,6 +21,7 @@
 //   end = [-30, 40, 160]
 //   head = [0, -2]                # degrees: tilt a, turn b (see registration::headPose)
 //   speed = 25                    # mm/s
+//   expected_elements = 120       # optional: grid elements the planner predicts the sweep sees whole
 //   [[step]]
 //   kind = "stereo"               # the stereo pair is triggered at pose, after settling
 //   scene = "part"
@@ -63,6 +64,9 @@ struct SweepStep {
   std::uint32_t index = 0;  // within the scene
   HeadPose start, end;      // the head moves from start to end in a straight line, angles fixed
   double speed = 25;        // mm/s
+  // The grid elements the planner predicts this sweep sees whole (a part sweep); 0 when the plan
+  // does not say. A scan that finds clearly fewer has not measured what it was planned to.
+  std::uint32_t expected_elements = 0;
   bool operator==(const SweepStep&) const = default;
 };
 

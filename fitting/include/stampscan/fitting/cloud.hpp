@@ -40,6 +40,12 @@ struct Cloud {
   void appendPoint(const Cloud& other, std::size_t i);
 };
 
+// Cloud4D scalars with a meaning downstream stages rely on: the standard (k = 1) uncertainty of a
+// point's strain, and of its position along each axis (mm). A strain field weights its samples by
+// the first when a cloud has it.
+inline constexpr char kStrainUncertainty[] = "strain_uncertainty";
+inline constexpr char kPositionUncertainty[] = "position_uncertainty";
+
 // Axis-aligned bounds of a cloud; an empty cloud gives min = +inf, max = -inf.
 struct Bounds {
   Vec3 min;

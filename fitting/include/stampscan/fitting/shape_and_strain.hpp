@@ -51,7 +51,10 @@ struct ShapeAndStrain {
 };
 
 // `shape`: the dense points (positions; normals are not needed, strain must be absent). `carriers`:
-// points with strain (further scalars are not carried). Both are borrowed for the call. Throws
+// points with strain, one per grid element: several measurements of one element, a few micrometres
+// apart, are to be merged first (registration's element_merge.hpp), or their distance would be
+// taken for the grid's spacing and the field would reach almost nowhere. A kStrainUncertainty
+// scalar, when present, weights each carrier by its inverse variance; further scalars are not carried. Both are borrowed for the call. Throws
 // std::invalid_argument when either is empty, the shape has strain, the carriers have none, or the
 // spacing is not positive.
 ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, const ShapeAndStrainParams& params = {});

@@ -5,6 +5,7 @@
 #include "stampscan/fitting/cloud.hpp"
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace stampscan::registration {
@@ -23,10 +24,16 @@ struct GridElement {
   std::size_t edge_points = 0;
   Source source = Source::Laser;
   std::uint32_t view = 0;  // sweep or stereo pose
+  // Standard (k = 1) uncertainties of the thickness strain and of the position along each axis
+  // (element_merge.hpp: from the scan's own repeated measurements); NaN while not known.
+  double strain_sigma = std::numeric_limits<double>::quiet_NaN();
+  double position_sigma_mm = std::numeric_limits<double>::quiet_NaN();
+  std::uint32_t measurements = 1;  // how many measurements this element merges (element_merge.hpp)
 };
 
 // As a Cloud4D: x y z, nx ny nz, strain (thickness), major_strain, minor_strain, major_dir_x/y/z,
-// source, view, quality (fit_rms).
+// source, view, quality (fit_rms); and strain_uncertainty, position_uncertainty (standard, k = 1)
+// when every element's is known.
 fitting::Cloud toCloud(const std::vector<GridElement>& elements);
 
 }  // namespace stampscan::registration

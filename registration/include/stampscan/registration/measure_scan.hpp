@@ -12,6 +12,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/camera_calibration.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
+#include "stampscan/registration/element_merge.hpp"
 #include "stampscan/registration/grid_element.hpp"
 #include "stampscan/registration/laser_rings.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -77,7 +78,10 @@ class MeasureObserver {
 };
 
 struct ScanMeasurement {
-  std::vector<GridElement> elements;  // the laser's, then the stereo views'
+  std::vector<GridElement> elements;  // every measurement: the laser's, then the stereo views'
+  // One element per printed element, the measurements of each merged (element_merge.hpp): what the
+  // strain field over the surface is fitted to.
+  MergedElements merged;
   // Every return of the part sweeps, machine frame, sweep after sweep (MeasureParams::keep_surface_points).
   std::vector<Vec3> surface_points;
 

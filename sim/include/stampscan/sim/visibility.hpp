@@ -49,6 +49,8 @@ struct VisibilityParams {
 struct ElementVisibility {
   // Per element of the truth cloud, in its order: 1 when seen whole by that sensor.
   std::vector<std::uint8_t> laser, stereo;
+  // Per part sweep of the plan, in its order: how many elements that sweep sees whole.
+  std::vector<std::uint32_t> laser_per_sweep;
   bool visible(std::size_t i) const { return laser[i] != 0 || stereo[i] != 0; }
   std::size_t visibleCount() const;
   // 1 where either sensor sees the element whole.
@@ -59,5 +61,8 @@ struct ElementVisibility {
 // printed outline); the plan's part sweeps and part views are the poses considered.
 ElementVisibility visibleElements(const ScanParams& world, const acquisition::ScanPlan& plan,
                                   const fitting::Cloud& truth, const VisibilityParams& params = {});
+
+// The plan's part sweeps with the planner's prediction of what each sees (SweepStep::expected_elements).
+void predictElements(acquisition::ScanPlan& plan, const ElementVisibility& visibility);
 
 }  // namespace stampscan::sim

@@ -105,6 +105,15 @@ struct ScanJobResult {
 // The data a finished run lacks, in one line, or nothing when it recorded all the plan asked for.
 std::optional<std::string> dataLoss(const acquisition::ScanRunResult& r);
 
+// What the plan predicted the part sweeps would see (SweepStep::expected_elements) against the
+// laser's measurements (GridElement::view is the part sweep's index): a sweep that found under
+// kShortSweep of its prediction, or all of them under kShortScan of theirs, did not measure the
+// part it was planned to (a sensor, its timing or the machine's load); nothing when the plan
+// predicts nothing or the scan found what it should.
+inline constexpr double kShortSweep = 0.6, kShortScan = 0.85;
+std::optional<std::string> measurementShortfall(const acquisition::ScanPlan& plan,
+                                                const std::vector<registration::GridElement>& measurements);
+
 class ScanJobObserver : public acquisition::ScanObserver, public registration::MeasureObserver {
  public:
   virtual void runFolder(const std::filesystem::path& /*dir*/) {}

@@ -38,6 +38,7 @@ struct ReportOptions {
 struct RunInfo {
   std::string part_id, program, plan, cell, date, calibration, material;
   std::string accuracy;  // on the virtual cell: the accuracy against the simulated part
+  std::string data_loss;  // what the scan lacks (run.json data_loss); empty when it measured all it should
 };
 
 // Where the material of a report came from.

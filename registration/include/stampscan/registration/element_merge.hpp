@@ -1,0 +1,45 @@
+// One printed grid element, however often it was measured. The laser's overlapping sweeps find
+// most elements twice, and each stereo view finds them again: a few hundredths of a millimetre
+// apart, with strains that differ by the measurements' noise. Downstream (the strain field over
+// the surface, the report) these are one element, never a spacing of a few micrometres.
+//
+// Each sensor path's uncertainty is estimated from the scan itself, in two parts. Measurements of
+// the same element by the same path (two overlapping sweeps, two stereo views) differ by the part
+// of their error each has of its own; the pooled spread of such twins gives its variance. Part of a
+// path's error is shared by all its measurements of one element (the same printed shape read the
+// same way, the same calibration): twins cannot see it, but the laser and the stereo views measure
+// each element in wholly different ways, so their disagreement shows the two paths' whole errors;
+// what it holds beyond their own parts is taken as shared, half to each path. The merged element is
+// the inverse-variance weighted mean of its paths' means, with the combined standard uncertainty.
+#pragma once
+
+#include "stampscan/registration/grid_element.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace stampscan::registration {
+
+// The standard (k = 1) uncertainty of one measurement by a sensor path, and of it the part shared by
+// all that path's measurements of one element (which repeating them does not reduce).
+struct PathNoise {
+  std::optional<double> strain, strain_shared;            // thickness true strain
+  std::optional<double> position_mm, position_shared_mm;  // along each axis
+  std::size_t twin_pairs = 0;                             // same-path pairs of measurements
+};
+
+struct MergedElements {
+  std::vector<GridElement> elements;      // one per printed element, with strain_sigma and position_sigma_mm
+  std::vector<std::uint32_t> element_of;  // for each measurement, the index of its element
+  PathNoise laser, stereo;
+  std::size_t measurements = 0;
+};
+
+// Measurements closer than `twin_radius_mm` (a quarter of the grid's pitch is safe: neighbouring
+// elements stand a pitch apart, stretched or compressed by at most a few tens of percent) are one
+// element. The result does not depend on the order of the measurements.
+MergedElements mergeMeasurements(const std::vector<GridElement>& measurements, double twin_radius_mm);
+
+}  // namespace stampscan::registration
