@@ -176,19 +176,17 @@ class CarrierStrain {
     std::uint32_t nearest = 0;
     double h = field_->at(x, 4, &nearest);
     if ((positions_[nearest] - x).squaredNorm() > reach_ * reach_) return std::numeric_limits<double>::quiet_NaN();
-    // The carriers' choice holds where a carrier's neighbours surround it; in a gap of the grid (an
-    // element not found, the grid's edge) one or two carriers would carry all the weight and the
-    // linear field's slope would be extrapolated from them. The support widens until enough
-    // carriers carry weight for a slope.
+    // The carriers' choice holds wherever the field there is interpolated, not extrapolated: then it
+    // is what the cross-validation chose it to be, the best prediction between elements, and at an
+    // element it keeps that element's own value (its weight dominates, its neighbours give the
+    // slope), so a peak the elements measured stays in the map. The linear fit's value at x is a
+    // weighted sum of the carriers' values; where x lies off the carriers that carry weight (a gap
+    // in the grid, the grid's edge), the sum's coefficients grow and alternate in sign, and one
+    // carrier's noise is amplified. The support widens until their absolute sum (the fit's
+    // amplification of noise, 1 for an average) is small.
     for (int widen = 0; widen < kCandidates; ++widen, h *= kCandidateStep) {
       tree_.radius(x, detail::kSupport * h, scratch.near);
-      double sum = 0, sum_sq = 0;
-      for (const Neighbor& nb : scratch.near) {
-        const double w = weight(nb, h);
-        sum += w;
-        sum_sq += w * w;
-      }
-      if (sum_sq > 0 && sum * sum >= kLeastEffectiveCarriers * sum_sq) break;
+      if (amplification(x, normal, h, scratch.near) <= kMostAmplification) break;
     }
     // The smooth field over the carriers of that support (scalar_field.hpp), Gaussian weights (Eq. (3)).
     scratch.samples.clear();
@@ -201,6 +199,33 @@ class CarrierStrain {
   double spacing() const { return spacing_; }
 
  private:
+  // The sum of the absolute coefficients of the tangent-linear fit's value at x over `near`
+  // (infinite when the fit is not determined): for weights w_i and design rows a_i = (1, u_i, v_i),
+  // the value is sum_i w_i (a_i . z) s_i with z = (sum_i w_i a_i a_i^T)^-1 (1, 0, 0).
+  double amplification(const Vec3& x, const Vec3& normal, double h, const std::vector<Neighbor>& near) const {
+    const Eigen::Matrix3d frame = frameAround(normal);
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    const auto row = [&](const Neighbor& nb) {
+      const Vec3 d = (positions_[nb.index] - x) / h;  // scaled, for conditioning
+      return Eigen::Vector3d(1.0, d.dot(frame.col(0)), d.dot(frame.col(1)));
+    };
+    std::size_t used = 0;
+    for (const Neighbor& nb : near) {
+      if (!std::isfinite(strain_[nb.index])) continue;
+      const Eigen::Vector3d a = row(nb);
+      M += weight(nb, h) * a * a.transpose();
+      ++used;
+    }
+    if (used < 3) return std::numeric_limits<double>::infinity();
+    const Eigen::LDLT<Eigen::Matrix3d> solver(M);
+    if (solver.info() != Eigen::Success || !(std::abs(M.determinant()) > 1e-12 * std::pow(M.trace(), 3)))
+      return std::numeric_limits<double>::infinity();
+    const Eigen::Vector3d z = solver.solve(Eigen::Vector3d::UnitX());
+    double sum = 0;
+    for (const Neighbor& nb : near)
+      if (std::isfinite(strain_[nb.index])) sum += std::abs(weight(nb, h) * row(nb).dot(z));
+    return std::isfinite(sum) ? sum : std::numeric_limits<double>::infinity();
+  }
   // A carrier's weight at bandwidth h: the Gaussian of Eq. (3) times its certainty.
   double weight(const Neighbor& nb, double h) const {
     return gaussianWeightSq(nb.distance_sq, h * h) * certainty_[nb.index];
@@ -209,8 +234,9 @@ class CarrierStrain {
   static constexpr int kCandidates = 9;
   static constexpr double kCandidateStep = 1.4;
   static constexpr std::size_t kPitchRank = 4;
-  // A linear field has three parameters.
-  static constexpr double kLeastEffectiveCarriers = 3.0;
+  // The most a field value may amplify the carriers' noise (1: an average of them; an interpolation
+  // within a grid cell stays near it, an extrapolation beyond the last carriers exceeds it).
+  static constexpr double kMostAmplification = 1.5;
   // A carrier's neighbourhood for the choice (and for its tangent plane): a few pitches across.
   static constexpr std::size_t kPoolSize = 16;
   const std::vector<Vec3>& positions_;
@@ -254,6 +280,14 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
       feet[k] = shape_fit.surface().project(starts[k]);
       if (feet[k].valid) strain[k] = strain_field.at(feet[k].point, feet[k].normal, scratch);
+    }
+  });
+  out.strain_at_carriers.assign(carriers.size(), std::numeric_limits<double>::quiet_NaN());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, carriers.size(), 256), [&](const auto& range) {
+    CarrierStrain::Scratch scratch;
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      const Projection foot = shape_fit.surface().project(carriers.positions[k]);
+      if (foot.valid) out.strain_at_carriers[k] = strain_field.at(foot.point, foot.normal, scratch);
     }
   });
   for (std::size_t k = 0; k < starts.size(); ++k) {

@@ -19,6 +19,7 @@ fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
   auto& source = c.scalars["source"];
   auto& view = c.scalars["view"];
   auto& quality = c.scalars["quality"];
+  auto& measurements = c.scalars["measurements"];
   for (const GridElement& g : elements) {
     c.positions.push_back(g.position);
     c.normals.push_back(g.normal);
@@ -31,6 +32,7 @@ fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
     source.push_back(static_cast<double>(g.source));
     view.push_back(g.view);
     quality.push_back(g.fit_rms);
+    measurements.push_back(g.measurements);
   }
   // The uncertainties only when every element has them: a column of NaN would make readers skip rows.
   const auto known = [&](auto member) {

@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct ProcessOptions {
-  std::string input, output, elements, fit, mesh, calibration_dir, save_calibration;
+  std::string input, output, measurements, fit, mesh, calibration_dir, save_calibration;
   bool ascii = false, quiet = false, with_stereo = false, accept_damaged = false;
 };
 
@@ -60,9 +60,9 @@ CommandRunner addProcessCommand(CLI::App& app) {
                                                 "frame, printed circles, strains; writes a Cloud4D PLY");
   cmd->add_option("trace", opt->input, "Recorded or simulated trace (.mcap)")->required();
   cmd->add_option("-o,--output", opt->output, "Cloud4D PLY of the grid elements")->required();
-  cmd->add_option("--elements", opt->elements,
-                  "Also write one point per printed grid element: its measurements by every sweep and view merged, "
-                  "with the standard uncertainties of its strain and position");
+  cmd->add_option("--measurements", opt->measurements,
+                  "Also write every measurement of every element (each sweep's and view's, with its source, view and "
+                  "standard uncertainties); the Cloud4D holds one merged point per printed element");
   cmd->add_option("--fit", opt->fit,
                   "Also fit the surface: its shape from every laser return, the grid elements' strain on it; "
                   "written as points 0.5 mm apart with normals and strain");
@@ -78,7 +78,7 @@ CommandRunner addProcessCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     checkFolder(opt->output, "output");
-    checkFolder(opt->elements, "elements output");
+    checkFolder(opt->measurements, "measurements output");
     checkFolder(opt->fit, "fit output");
     checkFolder(opt->mesh, "mesh output");
     if (!opt->mesh.empty() && opt->fit.empty()) throw std::runtime_error("--mesh needs --fit");
@@ -143,23 +143,29 @@ CommandRunner addProcessCommand(CLI::App& app) {
                                        cameras ? &*cameras : nullptr);
     }
 
-    fitting::Cloud cloud = registration::toCloud(m.elements);
+    // The Cloud4D: one point per printed element, its measurements by every sweep and view merged.
+    fitting::Cloud cloud = registration::toCloud(m.merged.elements);
     fitting::PlyWriteOptions w;
     w.format = opt->ascii ? fitting::PlyFormat::Ascii : fitting::PlyFormat::BinaryLittleEndian;
     w.comment = "StampScan Cloud4D from " + fs::path(opt->input).filename().string();
     fitting::writePly(opt->output, cloud, w);
-    std::printf("  wrote       %s: %zu points\n", opt->output.c_str(), cloud.size());
-    if (!opt->elements.empty()) {
-      fitting::writePly(opt->elements, registration::toCloud(m.merged.elements), w);
-      std::printf("  wrote       %s: %zu elements\n", opt->elements.c_str(), m.merged.elements.size());
+    std::printf("  wrote       %s: %zu grid elements\n", opt->output.c_str(), cloud.size());
+    if (!opt->measurements.empty()) {
+      fitting::PlyWriteOptions wm = w;
+      wm.comment = "StampScan measurements of the grid elements from " + fs::path(opt->input).filename().string();
+      fitting::writePly(opt->measurements, registration::toCloud(m.elements), wm);
+      std::printf("  wrote       %s: %zu measurements\n", opt->measurements.c_str(), m.elements.size());
     }
     if (!opt->fit.empty()) {
       const double before = since();
       fitting::Cloud shape;
       shape.positions = std::move(m.surface_points);
       if (shape.empty()) throw std::runtime_error(opt->input + ": the part sweeps have no laser returns to fit a surface to");
-      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, registration::toCloud(m.merged.elements), !opt->quiet);
+      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, !opt->quiet);
       printShapeAndStrainSummary(fit);
+      // The Cloud4D again, with the surface's strain at each element beside the element's own.
+      cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
+      fitting::writePly(opt->output, cloud, w);
       fitting::writePly(opt->fit, fit.surface, w);
       std::printf("  fit         %s (%.2f s)\n", opt->fit.c_str(), since() - before);
       if (!opt->mesh.empty()) {

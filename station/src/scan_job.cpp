@@ -343,12 +343,15 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   registration::ScanMeasurement m = measuring->finish();
   measuring.reset();
-  fitting::Cloud cloud = registration::toCloud(m.elements);
+  // The Cloud4D: one point per printed element (its measurements by every sweep and view merged);
+  // every measurement beside it.
+  fitting::Cloud cloud = registration::toCloud(m.merged.elements);
   fitting::PlyWriteOptions w;
   w.comment = "StampScan Cloud4D, part " + o.part_id;
   fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
-  const fitting::Cloud elements = registration::toCloud(m.merged.elements);
-  fitting::writePly(result.run_dir / "elements.ply", elements, w);
+  fitting::PlyWriteOptions wm = w;
+  wm.comment = "StampScan measurements of the grid elements, part " + o.part_id;
+  fitting::writePly(result.run_dir / "measurements.ply", registration::toCloud(m.elements), wm);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // The surface: its shape from the laser's returns, the elements' strain on it.
   fitting::Cloud shape;
@@ -356,9 +359,12 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   nlohmann::json surface_record;
   if (!shape.empty()) {
     observer.stageDone("surface", "fitting the surface to " + std::to_string(shape.size()) + " laser returns");
-    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, elements, false);
+    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, false);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
     fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+    // The Cloud4D again, with the surface's strain at each element beside the element's own.
+    cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
+    fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
     surface_record = {{"laser_returns", fit.shape_points},
                       {"points", fit.surface.size()},
                       {"points_without_strain", fit.without_strain},
@@ -371,7 +377,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   } else {
     // No returns kept (a plan without part sweeps): the surface of the elements alone.
     MeshRequest mesh_request;
-    FitOutcome fit = runFit(elements, fitting::FitParams{}, &mesh_request, false);
+    FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
     colorByStrain(fit.surface);
     colorByStrain(fit.mesh.vertices);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
@@ -386,7 +392,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                            {"seconds_after_scan", result.measure_seconds},
                            {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
                            {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
-  record["measurement"]["printed_elements"] = m.merged.elements.size();
+  record["measurement"]["measurements"] = m.elements.size();
   // One measurement's standard uncertainty per sensor path, and its part shared by the path's
   // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
   const auto noise = [](const registration::PathNoise& p) {
@@ -415,7 +421,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     // The recording measured as `station process` measures it: a replay must give the same cloud.
     registration::MeasureParams params = measure;
     const registration::ScanTrace recorded = registration::loadScanTrace(o.replayed_trace, {}, params.with_stereo);
-    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).elements);
+    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).merged.elements);
     result.recording_elements = reference.size();
     result.against_recording = accuracyAgainst(cloud, reference);
     record["replay"] = {{"recording", o.replayed_trace.string()},

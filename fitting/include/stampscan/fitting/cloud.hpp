@@ -41,10 +41,12 @@ struct Cloud {
 };
 
 // Cloud4D scalars with a meaning downstream stages rely on: the standard (k = 1) uncertainty of a
-// point's strain, and of its position along each axis (mm). A strain field weights its samples by
-// the first when a cloud has it.
+// point's strain, and of its position along each axis (mm) (a strain field weights its samples by
+// the first when a cloud has it); the fitted surface's strain there.
 inline constexpr char kStrainUncertainty[] = "strain_uncertainty";
 inline constexpr char kPositionUncertainty[] = "position_uncertainty";
+// The fitted surface's strain at a grid element (fitShapeAndStrain), beside the element's own.
+inline constexpr char kFittedStrain[] = "fitted_strain";
 
 // Axis-aligned bounds of a cloud; an empty cloud gives min = +inf, max = -inf.
 struct Bounds {

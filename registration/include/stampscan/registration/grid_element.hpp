@@ -32,8 +32,9 @@ struct GridElement {
 };
 
 // As a Cloud4D: x y z, nx ny nz, strain (thickness), major_strain, minor_strain, major_dir_x/y/z,
-// source, view, quality (fit_rms); and strain_uncertainty, position_uncertainty (standard, k = 1)
-// when every element's is known.
+// source, view, quality (fit_rms), measurements (how many it merges: 1 for a single measurement);
+// and strain_uncertainty, position_uncertainty (standard, k = 1) when every element's is known. A
+// merged element's source and view are those of its most certain measurement.
 fitting::Cloud toCloud(const std::vector<GridElement>& elements);
 
 }  // namespace stampscan::registration
