@@ -249,6 +249,9 @@ class CarrierStrain {
 };
 }  // namespace
 
+// How far a carrier may lie from its foot on the shape, in carrier spacings, to be on the surface.
+constexpr double kMostCarrierOffset = 0.1;
+
 ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, const ShapeAndStrainParams& params) {
   if (shape.empty()) throw std::invalid_argument("shape and strain: no shape points");
   if (shape.hasStrain()) throw std::invalid_argument("shape and strain: the shape points must not carry strain");
@@ -286,8 +289,11 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, carriers.size(), 256), [&](const auto& range) {
     CarrierStrain::Scratch scratch;
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      // A carrier beyond the shape's points (an element only the stereo views saw) has no surface
+      // under it: its projection lands elsewhere, or nowhere.
       const Projection foot = shape_fit.surface().project(carriers.positions[k]);
-      if (foot.valid) out.strain_at_carriers[k] = strain_field.at(foot.point, foot.normal, scratch);
+      if (foot.valid && (foot.point - carriers.positions[k]).norm() <= kMostCarrierOffset * strain_field.spacing())
+        out.strain_at_carriers[k] = strain_field.at(foot.point, foot.normal, scratch);
     }
   });
   for (std::size_t k = 0; k < starts.size(); ++k) {

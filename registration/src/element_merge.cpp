@@ -51,6 +51,7 @@ struct PairDifferences {
 struct PathVariances {
   std::optional<double> strain_own, position_own;
   double strain_shared = 0, position_shared = 0;
+  bool shared_known = false;  // from the two paths' disagreement; 0 without it
   bool known() const { return strain_own.has_value(); }
   double strain() const { return *strain_own + strain_shared; }
   double position() const { return *position_own + position_shared; }
@@ -75,6 +76,7 @@ void estimateNoise(const PairDifferences& laser, const PairDifferences& stereo, 
   if (l.known() && s.known()) {
     l.strain_shared = s.strain_shared = std::max(0.0, 0.5 * (sum_strain - *l.strain_own - *s.strain_own));
     l.position_shared = s.position_shared = std::max(0.0, 0.5 * (sum_position - *l.position_own - *s.position_own));
+    l.shared_known = s.shared_known = true;
     return;
   }
   const PathVariances& known = l.known() ? l : s;
@@ -217,8 +219,9 @@ MergedElements mergeMeasurements(const std::vector<GridElement>& m, double twin_
     noise.twin_pairs = pairs;
     if (!v.known()) return;
     noise.strain = std::sqrt(v.strain());
-    noise.strain_shared = std::sqrt(v.strain_shared);
     noise.position_mm = std::sqrt(v.position());
+    if (!v.shared_known) return;
+    noise.strain_shared = std::sqrt(v.strain_shared);
     noise.position_shared_mm = std::sqrt(v.position_shared);
   };
   describe(l, laser.strain_sq.size(), out.laser);

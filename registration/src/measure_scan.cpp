@@ -379,9 +379,13 @@ ScanMeasurement ScanMeasurer::finish() {
     g.position_sigma_mm = path_sigma(g.source, &PathNoise::position_mm);
   }
   const auto noise = [](const PathNoise& p) {
-    return p.strain ? format("strain %.5f (%.5f shared by its twins), position %.4f mm (%.4f shared), %zu twins", *p.strain,
-                             *p.strain_shared, *p.position_mm, *p.position_shared_mm, p.twin_pairs)
-                    : std::string("not known (too few twins)");
+    if (!p.strain) return std::string("not known (too few twins)");
+    if (!p.strain_shared)
+      return format("strain %.5f, position %.4f mm from %zu twins (the part its twins share is not known: no element "
+                    "was measured by both paths)",
+                    *p.strain, *p.position_mm, p.twin_pairs);
+    return format("strain %.5f (%.5f shared by its twins), position %.4f mm (%.4f shared), %zu twins", *p.strain,
+                  *p.strain_shared, *p.position_mm, *p.position_shared_mm, p.twin_pairs);
   };
   tell("elements", format("%zu measurements of %zu printed elements; one measurement's uncertainty: laser %s%s",
                           out_.merged.measurements, out_.merged.elements.size(), noise(out_.merged.laser).c_str(),

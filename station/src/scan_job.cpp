@@ -396,10 +396,11 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   // One measurement's standard uncertainty per sensor path, and its part shared by the path's
   // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
   const auto noise = [](const registration::PathNoise& p) {
+    const auto number = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); };
     return p.strain ? nlohmann::json{{"strain", *p.strain},
-                                     {"strain_shared", *p.strain_shared},
+                                     {"strain_shared", number(p.strain_shared)},
                                      {"position_mm", *p.position_mm},
-                                     {"position_shared_mm", *p.position_shared_mm},
+                                     {"position_shared_mm", number(p.position_shared_mm)},
                                      {"twin_pairs", p.twin_pairs}}
                     : nlohmann::json(nullptr);
   };

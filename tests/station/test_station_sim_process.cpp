@@ -4,6 +4,8 @@
 
 #include "stampscan/fitting/kdtree.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace stampscan::station::test {
@@ -186,6 +188,64 @@ TEST_F(StationTest, ProcessMeasuresASquareGridOnThePan) {
               measured.size(), std::sqrt(sq_pos / n), std::sqrt(sq_strain / n));
   EXPECT_LE(std::sqrt(sq_pos / n), 0.05);
   EXPECT_LE(std::sqrt(sq_strain / n), 0.005);
+}
+
+// Laser and full-resolution stereo measure most elements several times, a few hundredths of a
+// millimetre apart: the Cloud4D holds each printed element once, with its uncertainty, and the
+// fitted surface carries strain everywhere within the grid, its strain at the elements as true as
+// the elements'.
+TEST_F(StationTest, ProcessWithStereoGivesOneElementEachAndStrainOverTheWholeGrid) {
+  const fs::path trace = work() / "pan.mcap", truth = work() / "truth.ply", out = work() / "cloud4d.ply";
+  const fs::path measurements = work() / "measurements.ply", fitted = work() / "fitted.ply";
+  ASSERT_EQ(run("sim generate --quick --image-scale 1 --part pan --grid square --seed 21 -o " + quote(trace) + " --truth " +
+                quote(truth)).exit_code, 0);
+  const RunResult r = run("process " + quote(trace) + " --with-stereo -o " + quote(out) + " --measurements " +
+                          quote(measurements) + " --fit " + quote(fitted) + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const Cloud elements = fitting::readPly(out), all = fitting::readPly(measurements), t = fitting::readPly(truth);
+  const Cloud surface = fitting::readPly(fitted);
+  // Both paths measured, most elements more than once; the Cloud4D holds each once.
+  const auto& source = all.scalars.at("source");
+  ASSERT_GT(std::count(source.begin(), source.end(), 1.0), 300) << "the stereo views found too few elements";
+  ASSERT_GT(all.size(), 2 * elements.size());
+  ASSERT_TRUE(elements.scalars.count(fitting::kStrainUncertainty));
+  ASSERT_TRUE(elements.scalars.count(fitting::kFittedStrain));
+  const fitting::KdTree element_tree(elements.positions);
+  std::vector<fitting::Neighbor> nn;
+  for (std::size_t i = 0; i < elements.size(); ++i) {
+    element_tree.knn(elements.positions[i], 2, nn);
+    ASSERT_EQ(nn.size(), 2u);
+    EXPECT_GT(std::sqrt(nn[1].distance_sq), 1.5) << "element " << i << " twice in the Cloud4D";
+  }
+  // Every point of the surface within the grid (within a pitch of an element) carries strain.
+  std::size_t within = 0, without = 0;
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    element_tree.knn(surface.positions[i], 1, nn);
+    if (nn[0].distance_sq > 2.54 * 2.54) continue;
+    ++within;
+    without += !std::isfinite(surface.strain[i]);
+  }
+  ASSERT_GT(within, 10000u);
+  EXPECT_EQ(without, 0u) << "of " << within << " surface points within the grid";
+  // The surface's strain at the elements against the truth, beside the elements' own.
+  const fitting::KdTree true_tree(t.positions);
+  double sq_element = 0, sq_surface = 0;
+  std::size_t n = 0;
+  const auto& on_surface = elements.scalars.at(fitting::kFittedStrain);
+  for (std::size_t i = 0; i < elements.size(); ++i) {
+    if (!std::isfinite(on_surface[i])) continue;  // beyond the laser's surface
+    true_tree.knn(elements.positions[i], 1, nn);
+    if (nn[0].distance_sq > 0.5 * 0.5) continue;
+    sq_element += std::pow(elements.strain[i] - t.strain[nn[0].index], 2);
+    sq_surface += std::pow(on_surface[i] - t.strain[nn[0].index], 2);
+    ++n;
+  }
+  ASSERT_GT(n, 400u);
+  const double element_rms = std::sqrt(sq_element / static_cast<double>(n));
+  const double surface_rms = std::sqrt(sq_surface / static_cast<double>(n));
+  std::printf("with stereo: %zu measurements of %zu elements; at %zu elements strain RMS %.4f, the surface's %.4f\n",
+              all.size(), elements.size(), n, element_rms, surface_rms);
+  EXPECT_LE(surface_rms, 1.15 * element_rms);
 }
 
 TEST_F(StationTest, ProcessRejectsForeignFilesAndBadCalibrations) {

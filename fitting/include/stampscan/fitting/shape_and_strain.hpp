@@ -41,7 +41,8 @@ struct ShapeAndStrain {
   Cloud surface;  // points on the shape with normals and strain
   Mesh mesh;      // empty unless asked for
   // The surface's strain at each carrier (at its foot on the shape), in the carriers' order: what
-  // the map shows where an element was measured, to compare with the element's own value.
+  // the map shows where an element was measured, to compare with the element's own value. NaN
+  // where the surface does not reach the carrier (its foot more than a tenth of a spacing away).
   std::vector<double> strain_at_carriers;
   FitStats shape_stats;
   BandwidthSummary strain_bandwidth;  // the strain field's, chosen at the carriers by cross-validation

@@ -23,7 +23,8 @@
 namespace stampscan::registration {
 
 // The standard (k = 1) uncertainty of one measurement by a sensor path, and of it the part shared by
-// all that path's measurements of one element (which repeating them does not reduce).
+// all that path's measurements of one element (which repeating them does not reduce; not known
+// when no element was measured by both paths, and then not in the uncertainty).
 struct PathNoise {
   std::optional<double> strain, strain_shared;            // thickness true strain
   std::optional<double> position_mm, position_shared_mm;  // along each axis
