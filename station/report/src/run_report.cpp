@@ -16,6 +16,7 @@
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 
@@ -248,7 +249,20 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
   std::vector<std::vector<double>> vertex_values;
   if (mesh) {
     const ElementsToVertices carry(analysis, mesh->vertices.positions);
-    for (const auto& values : element_values) vertex_values.push_back(carry.apply(values));
+    for (std::size_t q = 0; q < element_values.size(); ++q) {
+      // The thinning is the fitted surface's own strain field where the mesh carries it (the field
+      // the fit made from the elements, as fitted.ply and the panel show it), not a second
+      // interpolation of the elements.
+      const std::vector<double>& strain = mesh->vertices.strain;
+      if (kMapQuantities[q] == MapQuantity::Thinning && strain.size() == mesh->vertices.size()) {
+        std::vector<double> thinning(strain.size(), std::numeric_limits<double>::quiet_NaN());
+        for (std::size_t v = 0; v < strain.size(); ++v)
+          if (std::isfinite(strain[v])) thinning[v] = thinningPercent(strain[v]);
+        vertex_values.push_back(std::move(thinning));
+      } else {
+        vertex_values.push_back(carry.apply(element_values[q]));
+      }
+    }
   }
   const std::vector<fitting::Vec3>& surface_points = mesh ? mesh->vertices.positions : element_positions;
 
