@@ -141,8 +141,9 @@ CommandRunner addScanCommand(CLI::App& app) {
       const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
       r = scan.run(job);
     }
-    std::printf("  measured    %zu grid elements; cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply %.2f s after it\n",
-                r.elements, r.cloud4d_seconds, r.measure_seconds);
+    std::printf("  measured    %zu grid elements (%zu measurements); cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply "
+                "%.2f s after it\n",
+                r.elements, r.measurements, r.cloud4d_seconds, r.measure_seconds);
     std::printf("  calibration digitizer: %s; cameras: %s\n", r.digitizer_calibration.c_str(), r.camera_calibration.c_str());
     if (r.accuracy && hosted)
       std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "

@@ -386,6 +386,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   std::vector<fitting::Vec3>().swap(shape.positions);
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.elements = cloud.size();
+  result.measurements = m.elements.size();
   result.digitizer = m.digitizer;
   if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
   record["measurement"] = {{"elements", cloud.size()},
@@ -419,14 +420,16 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                                        {"found_not_visible", result.accuracy->found_not_visible}};
   }
   if (!o.replayed_trace.empty()) {
-    // The recording measured as `station process` measures it: a replay must give the same cloud.
+    // The recording measured as `station process` measures it: a replay must give the same
+    // measurements. (Compared measurement by measurement: a sweep's end that the replay measures
+    // one element less would shift a merged element by half its twins' distance.)
     registration::MeasureParams params = measure;
     const registration::ScanTrace recorded = registration::loadScanTrace(o.replayed_trace, {}, params.with_stereo);
-    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).merged.elements);
-    result.recording_elements = reference.size();
-    result.against_recording = accuracyAgainst(cloud, reference);
+    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).elements);
+    result.recording_measurements = reference.size();
+    result.against_recording = accuracyAgainst(registration::toCloud(m.elements), reference);
     record["replay"] = {{"recording", o.replayed_trace.string()},
-                        {"reference_elements", reference.size()},
+                        {"reference_measurements", reference.size()},
                         {"matched", result.against_recording->matched},
                         {"position_rms_mm", result.against_recording->position_rms_mm},
                         {"strain_rms", result.against_recording->strain_rms}};

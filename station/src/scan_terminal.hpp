@@ -71,9 +71,9 @@ inline void printReplay(const sim::CellReplay& replay, const ScanJobResult& r) {
               "(%zu ticks without one), %zu frames\n",
               s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
   if (const auto& a = r.against_recording)
-    std::printf("  against     station process on the recording (%zu elements): %zu of %zu matched, position RMS %.4f mm, "
-                "thickness strain RMS %.5f\n",
-                r.recording_elements, a->matched, r.elements, a->position_rms_mm, a->strain_rms);
+    std::printf("  against     station process on the recording (%zu measurements): %zu of %zu matched, position RMS "
+                "%.4f mm, thickness strain RMS %.5f\n",
+                r.recording_measurements, a->matched, r.measurements, a->position_rms_mm, a->strain_rms);
 }
 
 }  // namespace stampscan::station

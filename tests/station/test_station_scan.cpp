@@ -223,11 +223,11 @@ TEST_F(StationTest, AReplayedScanGivesTheCloudOfItsRecording) {
   EXPECT_NE(dir.filename().string().find("R-1"), std::string::npos) << "the part id comes from the recording";
   std::ifstream in(dir / "run.json");
   const nlohmann::json j = nlohmann::json::parse(in).at("replay");
-  EXPECT_GT(j.at("reference_elements").get<std::size_t>(), 150u) << recorded.out << r.out;
-  // Every element of the replay is one of the recording's, at the same place and strain. On an idle
+  EXPECT_GT(j.at("reference_measurements").get<std::size_t>(), 150u) << recorded.out << r.out;
+  // Every measurement of the replay is one of the recording's, at the same place and strain. On an idle
   // machine all of them come back (358 of 358); under load the CMM's reports come late, the head
   // track is sampled elsewhere and a few elements at the sweeps' ends fall to the track-error filter.
-  EXPECT_GE(j.at("matched").get<std::size_t>(), j.at("reference_elements").get<std::size_t>() * 9 / 10) << j.dump(2);
+  EXPECT_GE(j.at("matched").get<std::size_t>(), j.at("reference_measurements").get<std::size_t>() * 9 / 10) << j.dump(2);
   EXPECT_LE(j.at("position_rms_mm").get<double>(), 0.002) << j.dump(2);
   EXPECT_LE(j.at("strain_rms").get<double>(), 0.0005) << j.dump(2);
 

@@ -81,7 +81,8 @@ struct ScanAccuracy {
 struct ScanJobResult {
   std::filesystem::path run_dir;
   acquisition::ScanRunResult run;
-  std::size_t elements = 0;
+  std::size_t elements = 0;      // printed elements in the Cloud4D
+  std::size_t measurements = 0;  // the sweeps' and views' measurements they merge
   double measure_seconds = 0;     // from the end of the scan to the files written
   double cloud4d_seconds = 0;     // from the end of the scan to cloud4d.ply written (the fit comes after)
   registration::DigitizerCalibration digitizer;
@@ -89,9 +90,9 @@ struct ScanJobResult {
   std::string digitizer_calibration, camera_calibration;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
-  // With ScanJobOptions::replayed_trace: this run's elements against the recording's.
+  // With ScanJobOptions::replayed_trace: this run's measurements against the recording's.
   std::optional<ScanAccuracy> against_recording;
-  std::size_t recording_elements = 0;
+  std::size_t recording_measurements = 0;
   // What the scan did not record that the plan asked for (missing views, sweeps over the loss
   // limit): the result lacks elements there. Also in run.json as "data_loss".
   std::optional<std::string> data_loss;
