@@ -110,14 +110,15 @@ std::string elementsCsv(const StrainAnalysis& a) {
   std::string out =
       "element,x_mm,y_mm,z_mm,major_true_strain,minor_true_strain,thickness_true_strain,major_engineering_percent,"
       "minor_engineering_percent,thinning_percent,flc_major_engineering_percent,safety_margin_percent,zone,patch_"
-      "elements\n";
+      "elements,thickness_strain_uncertainty\n";
   out.reserve(out.size() + a.elements.size() * 140);
   for (const ElementStrain& e : a.elements) {
     out += std::to_string(e.index) + "," + csvNumber(e.position.x(), 3) + "," + csvNumber(e.position.y(), 3) + "," +
            csvNumber(e.position.z(), 3) + "," + csvNumber(e.major_true, 5) + "," + csvNumber(e.minor_true, 5) + "," +
            csvNumber(e.thickness_true, 5) + "," + csvNumber(e.major_percent, 3) + "," + csvNumber(e.minor_percent, 3) +
            "," + csvNumber(e.thinning_percent, 3) + "," + csvNumber(e.flc_major_percent, 3) + "," +
-           csvNumber(e.margin_percent, 3) + "," + toString(e.zone) + "," + std::to_string(e.patch_size) + "\n";
+           csvNumber(e.margin_percent, 3) + "," + toString(e.zone) + "," + std::to_string(e.patch_size) + "," +
+           csvNumber(e.thickness_uncertainty, 5) + "\n";
   }
   return out;
 }
@@ -147,6 +148,9 @@ std::string reportJson(const ReportSummary& s, const StrainAnalysis& a, const Ma
                                 {"zone", toString(e.zone)},
                                 {"patch_elements", w.patch_size},
                                 {"counted", w.counted}});
+    // The thickness strain's expanded uncertainty (k = 2, about 95 %), when the measurement states it.
+    if (std::isfinite(e.thickness_uncertainty))
+      j["worst_spots"].back()["thickness_strain_expanded_uncertainty"] = 2 * e.thickness_uncertainty;
   }
   return j.dump(2) + "\n";
 }

@@ -143,12 +143,14 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
       kept.push_back(static_cast<std::uint32_t>(i));
   if (kept.empty()) throw std::invalid_argument("the cloud has no element with finite strains");
 
+  const auto uncertainty = cloud.scalars.find(fitting::kStrainUncertainty);
   StrainAnalysis a;
   a.elements.resize(kept.size());
   tbb::parallel_for(std::size_t{0}, kept.size(), [&](std::size_t k) {
     const std::uint32_t i = kept[k];
     a.elements[k] = analyseElement(cloud.positions[i], major[i], minor[i], cloud.strain[i], material, params);
     a.elements[k].index = i;
+    if (uncertainty != cloud.scalars.end()) a.elements[k].thickness_uncertainty = uncertainty->second[i];
   });
 
   std::vector<fitting::Vec3> positions(a.elements.size());

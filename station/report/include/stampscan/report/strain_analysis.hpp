@@ -24,6 +24,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,8 @@ struct ElementStrain {
   double margin_percent = 0;  // along the strain path to the FLC; +infinity when the path never meets it
   Zone zone = Zone::Safe;
   std::uint32_t patch_size = 1;  // grid elements in its patch (failure: of failures; marginal: of either)
+  // The thickness strain's standard uncertainty (k = 1) when the cloud states it (fitting::kStrainUncertainty).
+  double thickness_uncertainty = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct WorstSpot {
