@@ -151,6 +151,14 @@ std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& li
       problems.push_back(what + " head tilt " + shown(p.a / kDeg) + " deg is beyond the head's +-" + shown(limits.max_tilt / kDeg));
     if (std::fabs(p.b) > limits.max_turn + 1e-12)
       problems.push_back(what + " head turn " + shown(p.b / kDeg) + " deg is beyond the head's +-" + shown(limits.max_turn / kDeg));
+    if (limits.index_step > 0)
+      for (const auto& [angle, name] : {std::pair{p.a, "tilt"}, std::pair{p.b, "turn"}}) {
+        // The plan file holds degrees with a few decimals: a stop within 1e-4 degrees is the stop.
+        const double steps = angle / limits.index_step;
+        if (std::fabs(steps - std::round(steps)) * limits.index_step > 1e-4 * kDeg)
+          problems.push_back(what + " head " + name + " " + shown(angle / kDeg) + " deg is not a stop of the indexing head (every " +
+                             shown(limits.index_step / kDeg) + " deg)");
+      }
   };
   auto checkSpeed = [&](const std::string& what, double v) {
     if (!(v >= limits.min_speed && v <= limits.max_speed))

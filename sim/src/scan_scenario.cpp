@@ -12,11 +12,72 @@
 #include <memory>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 #include <variant>
 
 namespace stampscan::sim {
 
 namespace msg = stampscan::trace;
+
+namespace {
+
+Eigen::Isometry3d isometry(const trace::RigidPose& p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = p.rotation[static_cast<std::size_t>(3 * r + c)];
+    T.translation()(r) = p.translation[static_cast<std::size_t>(r)];
+  }
+  return T;
+}
+
+Vec3 vec(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
+
+}  // namespace
+
+ScanParams::ScanParams() { setCell(acquisition::virtualCell()); }
+
+void ScanParams::setCell(const acquisition::CellConfig& config) {
+  constexpr double kDeg = std::numbers::pi / 180;
+  // The simulated parts and their built-in plans stand at the table's origin.
+  if (config.geometry.fixture.datum != acquisition::Placement{})
+    throw std::runtime_error(config.source + ": [fixture] datum_mm and datum_rotation_deg: the simulated parts and "
+                             "their built-in plans stand at the table's origin; give 0 (a part program's own plan may "
+                             "use another datum)");
+  cell = config.geometry;
+  index_step = config.limits.index_step;
+  const acquisition::DigitizerDrawing& d = cell.digitizer;
+  digitizer.points_per_profile = d.points_per_profile;
+  digitizer.half_angle = 0.5 * d.fan_angle_deg * kDeg;
+  digitizer.standoff = d.standoff_mm;
+  digitizer.measuring_range = d.measuring_range_mm;
+  digitizer.profile_rate = d.profile_rate_hz;
+  digitizer.max_incidence = d.incidence_limit_deg * kDeg;
+  digitizer.steep_from = std::min(digitizer.steep_from, 0.75 * digitizer.max_incidence);
+  const trace::CameraIntrinsicsRecord c = acquisition::nominalIntrinsics(cell.cameras);
+  camera.width = c.width;
+  camera.height = c.height;
+  camera.fx = c.fx;
+  camera.fy = c.fy;
+  camera.cx = c.cx;
+  camera.cy = c.cy;
+  camera.k1 = c.k1;
+  camera.k2 = c.k2;
+  camera.p1 = camera.p2 = camera.k3 = 0;
+  camera_sensor.bits = cell.cameras.bits;
+  stereo_standoff = cell.cameras.convergence_mm;
+  sphere.centre = vec(cell.sphere.centre_mm);
+  sphere.radius = 0.5 * cell.sphere.diameter_mm;
+  has_second_sphere = cell.ball_bar.has_value();
+  if (cell.ball_bar) {
+    second_sphere.centre = vec(cell.ball_bar->centre_mm);
+    second_sphere.radius = 0.5 * cell.ball_bar->diameter_mm;
+  }
+  plate.columns = cell.plate.columns;
+  plate.rows = cell.plate.rows;
+  plate.pitch = cell.plate.pitch_mm;
+  plate.dot_diameter = cell.plate.dot_diameter_mm;
+  plate.margin = cell.plate.pitch_mm;
+}
 
 ScanParams ScanParams::quick() {
   ScanParams p;
@@ -59,42 +120,17 @@ Eigen::Matrix3d smallRotation(std::mt19937_64& rng, double sigma) {
   return Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
 }
 
-// A camera on the head at `position`, looking at `target` (both head frame), OpenCV axes.
-Eigen::Isometry3d cameraOnHead(const Vec3& position, const Vec3& target) {
-  const Vec3 z = (target - position).normalized();
-  const Vec3 x = (Vec3::UnitX() - Vec3::UnitX().dot(z) * z).normalized();
-  const Vec3 y = z.cross(x);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = y;
-  T.linear().col(2) = z;
-  T.translation() = position;
-  return T;
-}
-
 constexpr double kLoadSeconds = 1.0, kUnloadSeconds = 0.6;  // part loading and unloading, door open
-constexpr double kRigHalfBaseline = 60;  // mm: cameras at x = -+60 on the head
-constexpr double kRigDrop = 60;          // mm below the head's reference point
-const Vec3 kDigitizerMount(0, 0, -120);  // nominal: the mirror 120 mm below the reference point
 
 
 // ---- The plan -----------------------------------------------------------------------------------
 // What the cell does, as a plan both executors play (this simulator and the ScanRunner on a cell).
 
-// The plate stands still on its fixture beside the part, tilted a little.
-Eigen::Isometry3d platePoseFor(const CirclePlate& plate) {
-  const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.translate(Vec3(-250, 0, -40));
-  pose.rotate(Eigen::AngleAxisd(0.2, Vec3::UnitZ()) * Eigen::AngleAxisd(0.15, Vec3::UnitX()) *
-              Eigen::AngleAxisd(-0.1, Vec3::UnitY()));
-  pose.translate(-centre_on_plate);
-  return pose;
-}
-
 class Planner {
  public:
-  explicit Planner(const ScanParams& p) : p_(p), part_(makePart(p)), rng_(p.seed * 0x2545F4914F6CDD1Dull + 0x9Aull) {}
+  explicit Planner(const ScanParams& p)
+      : p_(p), part_(makePart(p)), rng_(p.seed * 0x2545F4914F6CDD1Dull + 0x9Aull), mount_(nominalDigitizerMount(p)),
+        rig_drop_(p.cell.cameras.drop_mm) {}
 
   acquisition::ScanPlan plan() {
     plan_.name = std::string(part_->name()) + (p_.calibration ? ", with calibration" : "");
@@ -109,7 +145,7 @@ class Planner {
       planPlate();
       planSphere(p_.sphere, acquisition::kSceneSphere, p_.sphere_sweeps);
     }
-    if (p_.second_sphere_sweeps > 0) planSphere(p_.second_sphere, acquisition::kSceneSecondSphere, p_.second_sphere_sweeps);
+    if (p_.second_sphere_sweeps > 0 && p_.has_second_sphere) planSphere(p_.second_sphere, acquisition::kSceneSecondSphere, p_.second_sphere_sweeps);
     if (p_.laser) planLaserStrips();
     if (p_.stereo) planStereo();
     return std::move(plan_);
@@ -118,11 +154,22 @@ class Planner {
  private:
   static acquisition::HeadPose pose(const Vec3& head, double a, double b) { return {{head.x(), head.y(), head.z()}, a, b}; }
 
+  // The head angle the head can take nearest to `angle`: an indexing head's nearest stop.
+  double stop(double angle) const {
+    if (p_.index_step <= 0) return angle;
+    return std::round(angle / p_.index_step) * p_.index_step;
+  }
+
   // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
   // nominal mount (the planner does not know the true one).
-  static Vec3 headForSensor(const Vec3& sensor, double a, double b) {
+  Vec3 headForSensor(const Vec3& sensor, double a, double b) const {
     const HeadState h{Vec3::Zero(), a, b, 0};
-    return sensor - h.pose().linear() * kDigitizerMount;
+    return sensor - h.pose().linear() * mount_.translation();
+  }
+  // The direction the digitizer looks (its -z) and its fan's direction (x), machine frame.
+  Eigen::Matrix3d sensorAxes(double a, double b) const {
+    const HeadState h{Vec3::Zero(), a, b, 0};
+    return h.pose().linear() * mount_.linear();
   }
 
   void sweep(const char* scene, std::uint32_t index, const Vec3& sensor_from, const Vec3& sensor_to, double a, double b,
@@ -152,14 +199,15 @@ class Planner {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     const CirclePlate& plate = p_.plate;
     const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
-    const Eigen::Isometry3d plate_pose = platePoseFor(plate);
+    const Eigen::Isometry3d plate_pose = platePose(p_);
     for (int k = 0; k < p_.plate_poses; ++k) {
       // Turns within +-30 degrees: the plate then stays within +-45 degrees of upright in the image,
-      // where its dots are numbered unambiguously.
-      const double a = 0.4 * u(rng_), b = 0.5 * u(rng_);
+      // where its dots are numbered unambiguously. An indexing head takes its nearest stops; a head
+      // with a coarse step may give views that turn alike.
+      const double a = stop(0.4 * u(rng_)), b = stop(0.5 * u(rng_));
       const Vec3 target = plate_pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
       const HeadState h{Vec3::Zero(), a, b, 0};
-      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
+      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, rig_drop_ + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
       view(acquisition::kScenePlate, static_cast<std::uint32_t>(k), head, a, b);
     }
   }
@@ -180,12 +228,12 @@ class Planner {
                                {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
     for (int k = 0; k < count; ++k) {
       const SweepPlan& plan = plans[k % 8];
-      const HeadState h{Vec3::Zero(), plan.a, plan.b, 0};
-      const Eigen::Matrix3d R = h.pose().linear();  // the nominal mount does not turn the sensor
+      const double a = stop(plan.a), b = stop(plan.b);
+      const Eigen::Matrix3d R = sensorAxes(a, b);
       // The mirror above the ball, offset across the fan and along the view.
       const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
       const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
-      sweep(scene, static_cast<std::uint32_t>(k), centre - along, centre + along, plan.a, plan.b, plan.speed);
+      sweep(scene, static_cast<std::uint32_t>(k), centre - along, centre + along, a, b, plan.speed);
     }
   }
 
@@ -207,10 +255,14 @@ class Planner {
     // the elements at the region's edge are crossed where the head's track can be trusted.
     const double lead = p_.grid.pitch + acquisition::sweepRunUp(p_.sweep_speed, acquisition::MachineLimits{}.acceleration);
     for (int k = 0; k < strips; ++k) {
-      // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1.
-      const double b = (k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180;
-      const Vec3 along(-std::sin(b), std::cos(b), 0);
-      const Vec3 centre(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid + d.standoff);
+      // Neighbouring strips cross at small angles (+-2 degrees), as in the paper's Sec. 3.1; an
+      // indexing head's nearest stop may make them parallel.
+      const double b = stop((k % 2 ? 2.0 : -2.0) * std::numbers::pi / 180);
+      // The sensor over the strip's middle at its standoff along its own axis, moving along the
+      // fan's normal (its y).
+      const Eigen::Matrix3d R = sensorAxes(0, b);
+      const Vec3 along = Vec3(R(0, 1), R(1, 1), 0).normalized();
+      const Vec3 centre = Vec3(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid) + d.standoff * R.col(2);
       const double half = 0.5 * (r.max.y() - r.min.y()) + lead;
       const double direction = k % 2 ? -1.0 : 1.0;
       sweep(acquisition::kScenePart, static_cast<std::uint32_t>(k), centre - direction * half * along,
@@ -234,12 +286,12 @@ class Planner {
         // Outer views stand further out and look inwards, so that the walls are seen too.
         const Vec2 offset = at - Vec2::Zero();
         const double reach = std::min(1.0, offset.norm() / max_reach);
-        const double a = 0.35 * reach;
+        const double a = stop(0.35 * reach);
         const double phi = std::atan2(offset.y(), offset.x());
-        const double b = reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0;
+        const double b = stop(reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0);
         const HeadState h{Vec3::Zero(), a, b, 0};
         const Vec3 target(at.x(), at.y(), z_mid);
-        const Vec3 head = target + h.pose().linear() * Vec3(0, 0, kRigDrop + p_.stereo_standoff);
+        const Vec3 head = target + h.pose().linear() * Vec3(0, 0, rig_drop_ + p_.stereo_standoff);
         view(acquisition::kScenePart, index++, head, a, b);
       }
   }
@@ -247,6 +299,8 @@ class Planner {
   const ScanParams& p_;
   std::unique_ptr<FormedPart> part_;
   std::mt19937_64 rng_;
+  Eigen::Isometry3d mount_;  // the digitizer's nominal mount
+  double rig_drop_;          // mm: the stereo pair below the head's reference point
   acquisition::ScanPlan plan_;
 };
 
@@ -269,22 +323,21 @@ CellTruth drawTruth(const ScanParams& p) {
     c->p1 = 2e-4 * g(rng);
     c->p2 = 2e-4 * g(rng);
   }
-  const Vec3 look(0, 0, -kRigDrop - p.stereo_standoff);
-  Eigen::Isometry3d left = cameraOnHead(Vec3(-kRigHalfBaseline, 0, -kRigDrop), look);
-  Eigen::Isometry3d right = cameraOnHead(Vec3(kRigHalfBaseline, 0, -kRigDrop), look);
+  Eigen::Isometry3d left = isometry(acquisition::nominalCameraMount(p.cell.cameras, 0));
+  Eigen::Isometry3d right = isometry(acquisition::nominalCameraMount(p.cell.cameras, 1));
   for (Eigen::Isometry3d* T : {&left, &right}) {
     T->linear() = smallRotation(rng, 0.003) * T->linear();
     T->translation() += Vec3(0.3 * g(rng), 0.3 * g(rng), 0.3 * g(rng));
   }
   truth.head_from_left = left;
   truth.head_from_right = right;
-  truth.head_from_digitizer_nominal = Eigen::Isometry3d::Identity();
-  truth.head_from_digitizer_nominal.translation() = kDigitizerMount;
+  truth.head_from_digitizer_nominal = nominalDigitizerMount(p);
   truth.head_from_digitizer = truth.head_from_digitizer_nominal;
-  truth.head_from_digitizer.linear() = smallRotation(rng, 0.008);
+  truth.head_from_digitizer.linear() = smallRotation(rng, 0.008) * truth.head_from_digitizer_nominal.linear();
   truth.head_from_digitizer.translation() += Vec3(g(rng), g(rng), g(rng));
   truth.digitizer_clock_offset_ns = toNs(1 + 99 * u(rng));
-  truth.digitizer_latency_ns = toNs(0.002 + 0.002 * u(rng));
+  // Within a millisecond of the drawing's latency.
+  truth.digitizer_latency_ns = toNs(std::max(0.0, 1e-3 * p.cell.digitizer.latency_ms + 0.002 * (u(rng) - 0.5)));
   truth.camera_clock_offset_ns[0] = toNs(10 + 1000 * u(rng));
   truth.camera_clock_offset_ns[1] = toNs(10 + 1000 * u(rng));
   truth.sphere = p.sphere;
@@ -345,7 +398,7 @@ class SessionGenerator {
     part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
     second_sphere_scene_ = std::make_unique<SphereScene>(p_.second_sphere);
-    plate_scene_ = std::make_unique<PlateScene>(p_.plate, platePose(p_.plate));
+    plate_scene_ = std::make_unique<PlateScene>(p_.plate, platePose(p_));
     makeTruth();
     const acquisition::ScanPlan plan = planScan(p_);
     const Vec3 park(plan.park.position[0], plan.park.position[1], plan.park.position[2]);
@@ -391,7 +444,7 @@ class SessionGenerator {
         addSegment({Activity::Sweep, sceneNamed(scene), scene, w->index, first, last});
       } else {
         const auto& v = std::get<acquisition::StereoStep>(plan.steps[k]);
-        if (scene == acquisition::kScenePlate) truth_.plate_poses.push_back(platePose(p_.plate));
+        if (scene == acquisition::kScenePlate) truth_.plate_poses.push_back(platePose(p_));
         travelTo(toVec(v.pose), v.pose.a, v.pose.b, plan.travel_speed);
         trajectory_.dwell(v.settle_s, "settle and trigger");
         addSegment({Activity::Trigger, sceneNamed(scene), scene, v.index, first, last});
@@ -623,35 +676,26 @@ class SessionGenerator {
 
 acquisition::ScanPlan planScan(const ScanParams& params) { return Planner(params).plan(); }
 
-Eigen::Isometry3d platePose(const CirclePlate& plate) { return platePoseFor(plate); }
+Eigen::Isometry3d platePose(const ScanParams& params) { return isometry(acquisition::machineFromPlate(params.cell.plate)); }
 
 CellTruth drawCellTruth(const ScanParams& params) { return drawTruth(params); }
 
 trace::SessionDescription describeSession(const ScanParams& p) {
-  const DigitizerSpec& d = p.digitizer;
-  trace::SessionDescription cell;
-  cell.part = p.part == PartKind::Dome ? "dome" : "pan";
-  cell.grid = toString(p.grid.kind);
-  cell.grid_pitch_mm = p.grid.pitch;
-  cell.grid_circle_diameter_mm = p.grid.circle_diameter;
-  cell.grid_line_width_mm = p.grid.line_width;
-  cell.digitizer_points_per_profile = d.points_per_profile;
-  cell.digitizer_profile_rate_hz = d.profile_rate;
-  cell.digitizer_standoff_mm = d.standoff;
-  cell.digitizer_measuring_range_mm = d.measuring_range;
-  cell.head_from_digitizer_nominal = rigidPose(nominalDigitizerMount());
-  cell.camera_nominal = intrinsicsRecord(p.camera.scaled(p.image_scale));
-  cell.camera_bits = p.camera_sensor.bits;
-  cell.stereo_half_baseline_mm = kRigHalfBaseline;
-  cell.plate = trace::PlateRecord{p.plate.columns, p.plate.rows, p.plate.pitch, p.plate.dot_diameter};
-  cell.reference_sphere_radius_mm = p.sphere.radius;
-  return cell;
+  acquisition::CellGeometry cell = p.cell;
+  cell.cameras = acquisition::atResolution(cell.cameras, p.image_scale);
+  acquisition::ScanPlan plan;  // the part and its grid; the plan itself is the caller's
+  plan.part.kind = p.part == PartKind::Dome ? "dome" : "pan";
+  plan.part.grid = toString(p.grid.kind);
+  plan.part.pitch = p.grid.pitch;
+  plan.part.circle_diameter = p.grid.circle_diameter;
+  plan.part.line_width = p.grid.line_width;
+  trace::SessionDescription session = acquisition::describeSession(cell, plan);
+  session.plan.clear();
+  return session;
 }
 
-Eigen::Isometry3d nominalDigitizerMount() {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = kDigitizerMount;
-  return T;
+Eigen::Isometry3d nominalDigitizerMount(const ScanParams& params) {
+  return isometry(acquisition::toRigidPose(params.cell.digitizer.mount));
 }
 
 std::unique_ptr<FormedPart> makePart(const ScanParams& params) {

@@ -19,7 +19,8 @@ namespace stampscan::station {
 namespace {
 
 struct CalibrateOptions {
-  std::string what = "all", cell, plan, calibration_dir, engineer;
+  std::string what = "all", plan, calibration_dir, engineer;
+  CellChoice cell;
   bool accept = false, quarter_resolution = false, quiet = false;
   VirtualWorldOptions world;
 };
@@ -65,7 +66,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
                    "uncertainty, residuals against the acceptance limits, the change against the calibration in use; a "
                    "passing calibration is put in use (exit 2 when one fails its limits)");
   cmd->add_option("what", opt->what, "digitizer, cameras or all")->check(CLI::IsMember({"digitizer", "cameras", "all"}));
-  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  opt->cell.addTo(cmd);
   cmd->add_option("--plan", opt->plan,
                   "The calibration plan (TOML; its sphere sweeps and plate views are used); default: the built-in one "
                   "of the virtual cell");
@@ -81,12 +82,13 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
   opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
-    const bool virtual_cell = opt->cell.empty();
-    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    const bool virtual_cell = opt->cell.hosted();
+    acquisition::CellConfig config = opt->cell.load();
     const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
     // The simulator's calibration scenes: every sphere sweep and plate view of a full session, the
     // cameras at their full resolution (or the quick session's quarter, to match the default scan).
-    sim::ScanParams world = opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{};
+    sim::ScanParams world =
+        worldOnCell(opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     opt->world.applyTo(world);
     CalibrateJobOptions job;
@@ -106,9 +108,8 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
       config = hosted->config();
     }
     acquisition::Cell cell(config);
-    job.run.session = sim::describeSession(world);
+    job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "calibration";
-    applySphereCertificate(config.calibration, job.run.session);
 
     std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");

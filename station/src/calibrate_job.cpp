@@ -351,10 +351,6 @@ std::filesystem::path calibrationFolder(const std::string& option, const acquisi
   return runs / "calibration";
 }
 
-void applySphereCertificate(const acquisition::CalibrationPolicy& policy, trace::SessionDescription& session) {
-  if (policy.sphere_diameter_mm > 0) session.reference_sphere_radius_mm = 0.5 * policy.sphere_diameter_mm;
-}
-
 acquisition::ScanPlan calibrationScenesOf(const acquisition::ScanPlan& plan, bool digitizer, bool cameras) {
   acquisition::ScanPlan out = plan;
   out.name = std::string("calibration of the ") + (digitizer && cameras ? "digitizer and the cameras" : digitizer ? "digitizer" : "cameras");

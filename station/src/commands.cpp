@@ -5,7 +5,7 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 15> kCommands{{
+  static constexpr std::array<CommandEntry, 16> kCommands{{
       {"scan", addScanCommand},
       {"process", addProcessCommand},
       {"report", addReportCommand},
@@ -17,6 +17,7 @@ std::span<const CommandEntry> commandTable() {
       {"calibrate", addCalibrateCommand},
       {"verify", addVerifyCommand},
       {"calibration", addCalibrationCommand},
+      {"cell", addCellCommand},
       {"trace", addTraceCommand},
       {"sim", addSimCommand},
       {"sample", addSampleCommand},

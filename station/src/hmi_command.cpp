@@ -9,6 +9,7 @@
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/verify_job.hpp"
 #include "virtual_digitizer_host.hpp"
+#include "virtual_world_options.hpp"
 
 #include <toml++/toml.h>
 
@@ -24,7 +25,8 @@ namespace stampscan::station {
 namespace {
 
 struct HmiCommandOptions {
-  std::string cell, listen = "127.0.0.1:8080", users, runs = "stampscan-runs", calibration_dir, web, ready_file;
+  CellChoice cell;
+  std::string listen = "127.0.0.1:8080", users, runs = "stampscan-runs", calibration_dir, web, ready_file;
   bool hash_password = false;
   std::uint64_t seed = 1;
 };
@@ -67,7 +69,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
   auto opt = std::make_shared<HmiCommandOptions>();
   CLI::App* cmd = app.add_subcommand("hmi", "The operator's panel in the browser: cell view, scan, results, history, "
                                             "calibration (default: the built-in virtual cell on http://127.0.0.1:8080/)");
-  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  opt->cell.addTo(cmd);
   cmd->add_option("--listen", opt->listen, "HOST:PORT to serve on (port 0: any free one); any address but loopback "
                                            "requires a login");
   cmd->add_option("--users", opt->users, "Users file (TOML: [[user]] name, role, password_hash); default: [hmi] users "
@@ -82,27 +84,26 @@ CommandRunner addHmiCommand(CLI::App& app) {
                 "Read a password on standard input, print its hash for the users file, and exit");
   return [opt]() {
     if (opt->hash_password) return hashPasswordFromStdin();
-    const bool virtual_cell = opt->cell.empty();
-    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    const bool virtual_cell = opt->cell.hosted();
+    acquisition::CellConfig config = opt->cell.load();
     hmi::HmiOptions options;
     options.listen = opt->listen;
-    options.users_file = !opt->users.empty() ? opt->users : virtual_cell ? "" : usersFromCellConfig(opt->cell);
+    options.users_file = !opt->users.empty() ? opt->users : opt->cell.file.empty() ? "" : usersFromCellConfig(opt->cell.file);
     options.web_dir = opt->web;
     // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
     hmi::HmiServer::checkOptions(options);
 
     // The scan the panel starts: the built-in plan of the sample pan's region, as `station scan`.
-    sim::ScanParams world = sim::ScanParams::quick();
+    sim::ScanParams world = worldOnCell(sim::ScanParams::quick(), config, virtual_cell);
     world.part = sim::PartKind::Pan;
     world.seed = opt->seed;
     hmi::CellSetup setup;
     setup.scan.plan = sim::planScan(world);
     setup.scan.plan.name = setup.scan.plan.part.kind + ", laser and stereo, with calibration scenes";
     setup.scan.run.limits = config.limits;
-    setup.scan.run.session = sim::describeSession(world);
+    setup.scan.run.session = acquisition::describeSession(config.geometry, setup.scan.plan);
     setup.scan.runs_dir = opt->runs;
     setup.scan.results_database = config.results_database;
-    applySphereCertificate(config.calibration, setup.scan.run.session);
     setup.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
     setup.scan.calibration_dir = setup.calibration_dir;
     setup.scan.calibration_policy = config.calibration;
@@ -114,16 +115,14 @@ CommandRunner addHmiCommand(CLI::App& app) {
     VerifyJobOptions verify;
     verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
     verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
-    if (config.calibration.sphere_distance_mm > 0) {
-      verify.ball_bar = VerifyJobOptions::BallBar{config.calibration.second_sphere_diameter_mm,
-                                                  config.calibration.sphere_distance_mm, config.calibration.length_mpe_mm};
+    if (const auto& bar = config.geometry.ball_bar) {
+      verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
       sphere_world.second_sphere_sweeps = 4;
     }
     verify.plan = verificationStepsOf(sim::planScan(sphere_world));
     verify.run.limits = config.limits;
-    verify.run.session = sim::describeSession(sphere_world);
+    verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
     verify.run.session.part_id = "reference sphere";
-    applySphereCertificate(config.calibration, verify.run.session);
     verify.results_database = calibrationResultsDatabase(config.results_database, setup.calibration_dir);
     setup.verify = verify;
     // The calibration: the calibration scenes of a full session (every sphere sweep and plate view)
@@ -134,9 +133,8 @@ CommandRunner addHmiCommand(CLI::App& app) {
     CalibrateJobOptions calibrate;
     calibrate.plan = calibrationScenesOf(sim::planScan(calibration_world), true, true);
     calibrate.run.limits = config.limits;
-    calibrate.run.session = sim::describeSession(calibration_world);
+    calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
     calibrate.run.session.part_id = "calibration";
-    applySphereCertificate(config.calibration, calibrate.run.session);
     calibrate.calibration_dir = setup.calibration_dir;
     calibrate.policy = config.calibration;
     calibrate.results_database = verify.results_database;

@@ -23,7 +23,8 @@ namespace stampscan::station {
 namespace {
 
 struct ScanOptions {
-  std::string cell, plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
+  CellChoice cell;
+  std::string plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
   std::string material, program, calibration_dir;
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false, calibrated = false;
   VirtualWorldOptions world;
@@ -36,7 +37,7 @@ CommandRunner addScanCommand(CLI::App& app) {
   auto opt = std::make_shared<ScanOptions>();
   CLI::App* cmd = app.add_subcommand("scan", "Scan a part on the cell: checks, the plan's sweeps, then the measured "
                                              "strain (default: the sample pan on the built-in virtual cell)");
-  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  opt->cell.addTo(cmd);
   cmd->add_option("--plan", opt->plan, "Scan plan (TOML); default: the built-in plan for --part");
   cmd->add_option("--part", opt->part, "Built-in plan and, on the virtual cell, the part on the fixture")
       ->check(CLI::IsMember({"pan", "dome"}));
@@ -62,14 +63,15 @@ CommandRunner addScanCommand(CLI::App& app) {
                 "Exit 0 even when the scan lost data (missing stereo views, sweeps over the profile-loss limit)");
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
-    const bool virtual_cell = opt->cell.empty();
-    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    const bool virtual_cell = opt->cell.hosted();
+    acquisition::CellConfig config = opt->cell.load();
     // An unknown material is refused before anything moves (the report at the end would fail).
     const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
     if (!opt->material.empty()) (void)materials.find(opt->material);
 
     // The virtual world, and the built-in plan for its part (or the plan file).
-    sim::ScanParams world = opt->whole_part ? sim::ScanParams{} : sim::ScanParams::quick();
+    sim::ScanParams world = worldOnCell(opt->whole_part ? sim::ScanParams{} : sim::ScanParams::quick(), config,
+                                        virtual_cell);
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
     opt->world.applyTo(world);
@@ -81,7 +83,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     // A replay plays the recording's plan on a cell that serves the recording.
     std::shared_ptr<sim::CellReplay> replay;
     if (!opt->replay.empty()) {
-      if (!virtual_cell) throw std::runtime_error("--replay runs on the built-in virtual cell: leave --cell out");
+      if (!virtual_cell) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
       if (!opt->dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
       sim::PreparedReplay prepared = sim::prepareReplay(opt->replay, opt->accept_damaged, opt->plan);
       job.plan = std::move(prepared.plan);
@@ -126,11 +128,10 @@ CommandRunner addScanCommand(CLI::App& app) {
     job.material = opt->material;
     job.materials = &materials;
     job.program = opt->program;
-    // The cell's geometry as drawn: what calibration starts from. (A real cell's file does not carry
-    // it yet; the virtual cell's sensors are the simulator's; a replay's are the recording's.)
-    if (!replay) job.run.session = sim::describeSession(world);
+    // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
+    // recording's).
+    if (!replay) job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = opt->part_id;
-    applySphereCertificate(config.calibration, job.run.session);
 
     std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");

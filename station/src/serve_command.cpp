@@ -49,8 +49,13 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     // The virtual cell as one world (sim/virtual_cell): the cameras render the part, sphere and
     // plate from the head pose the CMM has, whoever moves it. The second camera address is added
     // to lo when missing, which needs root.
+    // The world is the cell file's: its sensors as drawn (the cameras at the file's resolution, so
+    // that what a station reads in the same file is what the cameras deliver), its artefacts where
+    // the file puts them.
     sim::VirtualCellOptions world;
     world.world = sim::ScanParams::quick();
+    world.world.image_scale = 1;
+    world.world.setCell(cell);
     world.world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.cmm_address = cell.cmm.host;
     world.cmm_port = static_cast<std::uint16_t>(cell.cmm.port);

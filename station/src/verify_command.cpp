@@ -23,7 +23,8 @@ namespace {
 namespace fs = std::filesystem;
 
 struct VerifyOptions {
-  std::string cell, plan, calibration_dir, calibration;
+  CellChoice cell;
+  std::string plan, calibration_dir, calibration;
   std::optional<double> form_mpe_mm, size_mpe_mm;
   bool no_stereo = false;
   VirtualWorldOptions world;
@@ -45,7 +46,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       "verify", "Check the digitizer on the reference sphere with the calibration in use: the probing form and size "
                 "errors of ISO 10360-8 against their MPE, one line each, and a record in the calibration history "
                 "(exit 2 when a check fails)");
-  cmd->add_option("--cell", opt->cell, "Cell configuration (TOML); default: the built-in virtual cell, hosted here");
+  opt->cell.addTo(cmd);
   cmd->add_option("--plan", opt->plan,
                   "The verification plan (TOML; its sweeps over the reference sphere and the ball bar are used); "
                   "default: the built-in one of the virtual cell");
@@ -65,20 +66,20 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
-    const bool virtual_cell = opt->cell.empty();
-    acquisition::CellConfig config = virtual_cell ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    const bool virtual_cell = opt->cell.hosted();
+    acquisition::CellConfig config = opt->cell.load();
     // The simulator's plan for the cell's sphere, its sweeps alone: every fan position, depth, head
     // angle, speed and direction of the calibration sweeps, so that the check sees what calibration saw.
     sim::ScanParams world = sim::ScanParams::quick();
+    world.image_scale = 1;  // the cameras at the resolution they were calibrated at (below)
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     opt->world.applyTo(world);
     VerifyJobOptions job;
     job.run.limits = config.limits;
     job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
     job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
-    if (config.calibration.sphere_distance_mm > 0) {
-      job.ball_bar = VerifyJobOptions::BallBar{config.calibration.second_sphere_diameter_mm,
-                                               config.calibration.sphere_distance_mm, config.calibration.length_mpe_mm};
+    if (const auto& bar = config.geometry.ball_bar) {
+      job.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
       world.second_sphere_sweeps = 4;
     }
     const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
@@ -92,8 +93,12 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     if (const fs::path cameras = dir / "cameras.json"; fs::exists(cameras) && !opt->no_stereo) {
       job.cameras = registration::loadCameraCalibration(cameras);
       job.stereo = {config.calibration.stereo_form_mpe_mm, config.calibration.stereo_length_mpe_mm};
-      world.image_scale = static_cast<double>(job.cameras->stereo.left.model.size.width) / sim::CameraIntrinsics{}.width;
+      if (virtual_cell)
+        config.geometry.cameras = acquisition::atResolution(
+            config.geometry.cameras,
+            static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width);
     }
+    world = worldOnCell(world, config, virtual_cell);
     job.plan = verificationStepsOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan),
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
@@ -103,11 +108,9 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       config = hosted->config();
     }
     acquisition::Cell cell(config);
-    // The cell's geometry as drawn, the sphere's certified radius with it (as `station scan` does
-    // until a real cell's file carries it).
-    job.run.session = sim::describeSession(world);
+    // The cell's geometry as drawn, the sphere's certified diameter with it.
+    job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "reference sphere";
-    applySphereCertificate(config.calibration, job.run.session);
 
     std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");

@@ -157,7 +157,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
     record.checks.push_back({"length measurement error E (digitizer, ball bar)", *result.length_error_mm,
                              o.ball_bar->mpe_mm, "mm", std::abs(*result.length_error_mm) <= o.ball_bar->mpe_mm});
   } else {
-    record.notes.push_back("no length check: the cell gives no ball bar ([calibration] sphere_distance_mm)");
+    record.notes.push_back("no length check: the cell gives no ball bar ([ball_bar] in the cell file)");
   }
   if (o.cameras && !trace.plate_left.empty()) {
     if (!o.run.session.plate) throw std::runtime_error("the cell's description gives no calibration plate to verify on");

@@ -210,51 +210,17 @@ TEST_F(StationTest, DevicesRejectsABadCellFile) {
                         "virtual digitizer's 1d50:61a5");
 }
 
-// The cell file that describes the virtual cell says what the built-in one does.
+// The cell file that describes the virtual cell is the built-in one (compiled in), key for key.
 TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
-  const CellConfig file = loadCellConfig(STAMPSCAN_VIRTUAL_CELL_FILE);
+  CellConfig file = loadCellConfig(STAMPSCAN_VIRTUAL_CELL_FILE);
   const CellConfig built_in = virtualCell();
-  EXPECT_EQ(file.name, built_in.name);
-  EXPECT_EQ(file.cmm.host, built_in.cmm.host);
-  EXPECT_EQ(file.cmm.port, built_in.cmm.port);
-  EXPECT_EQ(file.plc.host, built_in.plc.host);
-  EXPECT_EQ(file.plc.port, built_in.plc.port);
-  EXPECT_EQ(file.plc_unit_id, built_in.plc_unit_id);
-  EXPECT_EQ(file.left_camera.serial, built_in.left_camera.serial);
-  EXPECT_EQ(file.left_camera.address, built_in.left_camera.address);
-  EXPECT_EQ(file.right_camera.serial, built_in.right_camera.serial);
-  EXPECT_EQ(file.right_camera.address, built_in.right_camera.address);
-  EXPECT_EQ(file.digitizer_vendor, built_in.digitizer_vendor);
-  EXPECT_EQ(file.digitizer_product, built_in.digitizer_product);
-  EXPECT_EQ(file.digitizer_serial, built_in.digitizer_serial);
-  EXPECT_TRUE(file.digitizer_virtual);
+  file.source = built_in.source;
+  file.defaulted.clear();
+  EXPECT_EQ(acquisition::describeCellConfig(file), acquisition::describeCellConfig(built_in));
+  EXPECT_EQ(file.geometry, built_in.geometry);
   EXPECT_TRUE(built_in.digitizer_virtual);
-  EXPECT_TRUE(file.digitizer_required);
-  EXPECT_TRUE(built_in.digitizer_required);
-  EXPECT_EQ(file.cmm_device_time, built_in.cmm_device_time);
-  EXPECT_EQ(file.limits.travel_min, built_in.limits.travel_min);
-  EXPECT_EQ(file.limits.travel_max, built_in.limits.travel_max);
-  EXPECT_EQ(file.limits.min_speed, built_in.limits.min_speed);
-  EXPECT_EQ(file.limits.max_speed, built_in.limits.max_speed);
-  EXPECT_EQ(file.limits.acceleration, built_in.limits.acceleration);
-  EXPECT_NEAR(file.limits.max_tilt, built_in.limits.max_tilt, 1e-12);
-  EXPECT_NEAR(file.limits.max_turn, built_in.limits.max_turn, 1e-12);
-  EXPECT_EQ(file.calibration.dir, built_in.calibration.dir);
-  EXPECT_EQ(file.calibration.validity_days, built_in.calibration.validity_days);
-  EXPECT_EQ(file.calibration.digitizer_residual_mm, built_in.calibration.digitizer_residual_mm);
-  EXPECT_EQ(file.calibration.camera_reprojection_px, built_in.calibration.camera_reprojection_px);
-  EXPECT_EQ(file.calibration.head_mount_residual_mm, built_in.calibration.head_mount_residual_mm);
-  EXPECT_EQ(file.calibration.drift_mount_mm, built_in.calibration.drift_mount_mm);
-  EXPECT_EQ(file.calibration.drift_latency_ms, built_in.calibration.drift_latency_ms);
-  EXPECT_EQ(file.calibration.drift_baseline_mm, built_in.calibration.drift_baseline_mm);
-  EXPECT_EQ(file.calibration.sphere_diameter_mm, built_in.calibration.sphere_diameter_mm);
-  EXPECT_EQ(file.calibration.form_mpe_mm, built_in.calibration.form_mpe_mm);
-  EXPECT_EQ(file.calibration.size_mpe_mm, built_in.calibration.size_mpe_mm);
-  EXPECT_EQ(file.calibration.second_sphere_diameter_mm, built_in.calibration.second_sphere_diameter_mm);
-  EXPECT_EQ(file.calibration.sphere_distance_mm, built_in.calibration.sphere_distance_mm);
-  EXPECT_EQ(file.calibration.length_mpe_mm, built_in.calibration.length_mpe_mm);
-  EXPECT_EQ(file.calibration.stereo_form_mpe_mm, built_in.calibration.stereo_form_mpe_mm);
-  EXPECT_EQ(file.calibration.stereo_length_mpe_mm, built_in.calibration.stereo_length_mpe_mm);
+  EXPECT_TRUE(built_in.cmm_device_time);
+  ASSERT_TRUE(built_in.geometry.ball_bar.has_value());
 }
 
 // [calibration]: the rules a cell's file sets, and a bad value named with its section and key.
@@ -263,18 +229,19 @@ TEST(StationCells, CalibrationRulesAreReadAndBadOnesNamed) {
   fs::create_directories(dir);
   const fs::path file = dir / "cell.toml";
   writeFile(file, "name = \"line 3\"\n[calibration]\ndir = \"/var/cal\"\nvalidity_days = 2.5\nform_mpe_mm = 0.02\n"
-                  "sphere_diameter_mm = 30.0\n");
+                  "[sphere]\ndiameter_mm = 30.0\n");
   const CellConfig c = loadCellConfig(file);
   EXPECT_EQ(c.calibration.dir, "/var/cal");
   EXPECT_DOUBLE_EQ(c.calibration.validity_days, 2.5);
   EXPECT_DOUBLE_EQ(c.calibration.form_mpe_mm, 0.02);
-  EXPECT_DOUBLE_EQ(c.calibration.sphere_diameter_mm, 30.0);
+  EXPECT_DOUBLE_EQ(c.geometry.sphere.diameter_mm, 30.0);
   EXPECT_DOUBLE_EQ(c.calibration.size_mpe_mm, acquisition::CalibrationPolicy{}.size_mpe_mm);  // the default
   for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
-           {"[calibration]\nvalidity_days = 0\n", "validity_days must be a positive number"},
-           {"[calibration]\nform_mpe_mm = \"tight\"\n", "form_mpe_mm must be a positive number"},
-           {"[calibration]\ndir = 3\n", "dir has the wrong type"},
-           {"[calibration]\nsphere_diameter_mm = -1\n", "sphere_diameter_mm must not be negative"},
+           {"[calibration]\nvalidity_days = 0\n", "[calibration] validity_days must be a positive number"},
+           {"[calibration]\nform_mpe_mm = \"tight\"\n", "[calibration] form_mpe_mm must be a positive number"},
+           {"[calibration]\ndir = 3\n", "[calibration] dir has the wrong type"},
+           {"[sphere]\ndiameter_mm = -1\n", "[sphere] diameter_mm must be a positive number"},
+           {"[calibration]\nsphere_diameter_mm = 25.4\n", "[calibration] sphere_diameter_mm has moved: write it as [sphere] diameter_mm"},
            {"calibration = 5\n", "[calibration] must be a table"}}) {
     writeFile(file, text);
     try {

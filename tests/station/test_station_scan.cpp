@@ -308,6 +308,32 @@ TEST_F(StationTest, TheCellsMachineLimitsBoundThePlan) {
   EXPECT_NE(r.err.find("small.toml: [machine] max_speed must be a positive number"), std::string::npos) << r.err;
 }
 
+// A second cell, unlike the default in every section of its file (an indexing head, other sensors,
+// mounts and latency, the artefacts elsewhere, other ports and serials), hosted as its virtual twin:
+// the same scan measures the part to the same goals, on plans that use only the head's stops.
+TEST_F(StationTest, ASecondCellFromItsFileScansThePartToTheSameGoals) {
+  const std::string cell = quote(fs::path(STAMPSCAN_VIRTUAL_CELL_FILE).parent_path() / "virtual-indexing.toml");
+  const fs::path runs = work() / "runs";
+  RunResult r = run("scan --dry-run --cell " + cell + " --virtual");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = run("scan -q --part-id B-1 --cell " + cell + " --virtual -o " + quote(runs));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("on virtual cell B, indexing head (hosted in this process)"), std::string::npos) << r.out;
+  std::ifstream in(onlyRunFolder(runs) / "run.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_GT(j.at("measurement").at("elements").get<int>(), 250);
+  EXPECT_EQ(j.at("accuracy").at("matched"), j.at("measurement").at("elements"));
+  EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.02);
+  EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.004);
+  EXPECT_GE(j.at("accuracy").at("visible").at("found").get<double>(),
+            0.99 * j.at("accuracy").at("visible").at("elements").get<double>());
+  EXPECT_TRUE(j.at("data_loss").is_null()) << j.dump(2);
+  // The latency found on this cell's sphere is its digitizer's own (drawn at 5 ms, not the default's 3).
+  EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
+              j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);
+  EXPECT_GT(j.at("accuracy").at("true_latency_ms").get<double>(), 4.0);
+}
+
 TEST_F(StationTest, DryRunPrintsTheBuiltInPlan) {
   const RunResult r = run("scan --dry-run --part dome");
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -88,7 +88,7 @@ TEST_F(StationTest, VerifyFailsAMovedDigitizerAndPassesItsTrueCalibration) {
   const fs::path cal = work() / "calibration";
   const sim::CellTruth truth = virtualCellTruth();
   // The drawing's mount and no latency: the digitizer as if it had moved on the head since.
-  storeDigitizerCalibration(cal, sim::nominalDigitizerMount(), 0);
+  storeDigitizerCalibration(cal, sim::nominalDigitizerMount(sim::ScanParams{}), 0);
   const RunResult moved = run("verify -q -o " + quote(cal), 300);
   EXPECT_EQ(moved.exit_code, 2) << moved.out << moved.err;
   EXPECT_NE(moved.out.find("FAIL  probing form error"), std::string::npos) << moved.out;

@@ -15,12 +15,14 @@ namespace stampscan::sim {
 class VirtualCell::WorldScene final : public Scene {
  public:
   WorldScene(const FormedPart& part, const ScanParams& p)
-      : part_(part, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p.plate)) {}
+      : part_(part, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p)),
+        has_second_sphere_(p.has_second_sphere) {}
 
   std::optional<Hit> cast(const Ray& ray, double footprint_per_mm, double t_hint) const override {
     std::optional<Hit> best;
     for (const Scene* s : {static_cast<const Scene*>(&part_), static_cast<const Scene*>(&sphere_),
                            static_cast<const Scene*>(&second_sphere_), static_cast<const Scene*>(&plate_)}) {
+      if (s == &second_sphere_ && !has_second_sphere_) continue;
       std::optional<Hit> h = s->cast(ray, footprint_per_mm, t_hint);
       if (h && (!best || h->t < best->t)) best = h;
     }
@@ -31,6 +33,7 @@ class VirtualCell::WorldScene final : public Scene {
   PartScene part_;
   SphereScene sphere_, second_sphere_;
   PlateScene plate_;
+  bool has_second_sphere_;
 };
 
 VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(options)) {

@@ -1,13 +1,17 @@
-// The cell configuration: where each device of the cell is, and what its machine can do. A TOML
-// file (station/cells/virtual.toml describes the virtual cell and is the default), read with toml++;
-// errors name the file, the key and what is wrong.
+// The cell file: everything the station knows about one cell. Where each device is and how to reach
+// it, what the machine and its head can do, the sensors, artefacts and fixture as drawn
+// (cell_geometry.hpp), the calibration rules, the results database and the report's materials. A
+// TOML file (station/cells/virtual.toml describes the virtual cell and is the default), read with
+// toml++; every value is checked when read, and an error names the file, the section and the key.
 #pragma once
 
+#include "stampscan/acquisition/cell_geometry.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
 
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace stampscan::acquisition {
 
@@ -27,14 +31,10 @@ struct CalibrationPolicy {
   double drift_mount_mm = 0.05;           // the digitizer's or the cameras' mount on the head
   double drift_latency_ms = 0.2;          // the digitizer's latency
   double drift_baseline_mm = 0.05;        // the stereo pair's baseline
-  // The reference sphere: its certified diameter (0: the cell description's) and the verification's
-  // maximum permissible errors (ISO 10360-8 probing form and size).
-  double sphere_diameter_mm = 0;
+  // The verification's maximum permissible errors on the reference sphere (ISO 10360-8 probing form
+  // and size) and of the length measurement error on the ball bar (the artefacts' certificates are
+  // in the cell's geometry: [sphere], [ball_bar]).
   double form_mpe_mm = 0.100, size_mpe_mm = 0.030;
-  // The ball bar: a second sphere (its certified diameter) at a certified centre distance from the
-  // reference sphere, for the length check of `station verify`; a distance of 0 means the cell has
-  // none. The MPE of the length measurement error.
-  double second_sphere_diameter_mm = 0, sphere_distance_mm = 0;
   double length_mpe_mm = 0.050;
   // The stereo pair's MPEs on the calibration plate's dots (flat form, length between dots).
   double stereo_form_mpe_mm = 0.050, stereo_length_mpe_mm = 0.050;
@@ -48,9 +48,11 @@ struct CellConfig {
     int port = 0;
   };
   Endpoint cmm{"127.0.0.1", 1294};
-  // The machine's travel, speeds and head angles ([machine]): a plan outside them is refused
-  // before anything moves. The defaults are the virtual CMM's.
+  // The machine's travel and speeds ([machine]) and its head's angles, turning and index step
+  // ([head]): a plan outside them is refused before anything moves. The defaults are the virtual CMM's.
   MachineLimits limits;
+  // The head's kind and body, the sensors, the artefacts and the fixture as drawn.
+  CellGeometry geometry;
   // The CMM stamps its move reports with its own clock (the SS.Time() extension of
   // drivers/cmm/PROTOCOL.md): positions are then timed by the CMM, not by their arrival.
   bool cmm_device_time = false;
@@ -75,11 +77,17 @@ struct CellConfig {
   // format) whose entries are added to, or replace, the built-in ones. A path relative to the cell
   // file is taken from the cell file's folder. Empty: the built-in library alone.
   std::string materials_file;
+  // The keys the file left out, which took their default ("[digitizer] latency_ms"), for
+  // `station cell check`; empty for the built-in cell.
+  std::vector<std::string> defaulted;
 };
 
 // The built-in virtual cell (the same as station/cells/virtual.toml).
 CellConfig virtualCell();
-// Throws std::runtime_error naming the file and the key.
+// Throws std::runtime_error naming the file, the section and the key.
 CellConfig loadCellConfig(const std::filesystem::path& file);
+// The whole cell as understood, one line per value, in the cell file's sections and units; values
+// that came from defaults are marked. What `station cell check` prints.
+std::string describeCellConfig(const CellConfig& cell);
 
 }  // namespace stampscan::acquisition

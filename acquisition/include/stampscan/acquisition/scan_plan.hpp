@@ -110,6 +110,8 @@ struct MachineLimits {
   double head_acceleration = 360 * 3.14159265358979323846 / 180;  // rad/s^2
   double max_tilt = 115 * 3.14159265358979323846 / 180;  // |a|, rad
   double max_turn = 3.14159265358979323846;              // |b|, rad
+  // An indexing head stops only at multiples of its step (rad); 0: a continuous head.
+  double index_step = 0;
 };
 
 // The plan's problems against the limits, one line each ("step 3 (sweep part 2): end x = 450 mm is

@@ -5,6 +5,7 @@
 // log-time order. Deterministic for a given seed.
 #pragma once
 
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_sink.hpp"
@@ -31,6 +32,19 @@ namespace stampscan::sim {
 using trace::TraceSink;
 
 struct ScanParams {
+  // The built-in virtual cell (acquisition::virtualCell()).
+  ScanParams();
+
+  // The cell as drawn (acquisition/cell_geometry.hpp): the sensors' nominal geometry, the artefacts
+  // and the fixture. The simulated cell's true sensors are these plus the seed's deviation; its
+  // reference sphere, ball bar and plate stand where the cell puts them. Set it with setCell().
+  acquisition::CellGeometry cell;
+  // The head's index step (rad; 0: continuous): the planner uses only its stops.
+  double index_step = 0;
+  // Takes the cell's geometry and copies its drawn values into the sensor models below (the
+  // digitizer's optics, the cameras' intrinsics and bits, the stereo standoff, the artefacts).
+  void setCell(const acquisition::CellConfig& config);
+
   PartKind part = PartKind::Dome;
   DomeParams dome;          // used when part is Dome
   StampedPanParams pan;     // used when part is Pan
@@ -52,9 +66,9 @@ struct ScanParams {
   int second_sphere_sweeps = 0;
   CirclePlate plate;
   ReferenceSphere sphere;
-  // The second sphere of the ball bar, 120 mm from the reference sphere's centre (its certificate in
-  // station/cells/virtual.toml).
+  // The second sphere of the ball bar (when the cell has one).
   ReferenceSphere second_sphere{Vec3(250, -120, 40), 12.7, 0.6};
+  bool has_second_sphere = true;
   // A knock to the digitizer's true mount (mm, head frame), on top of the seed's: a sensor that moved
   // since it was calibrated, for checking that `station verify` sees it and `station calibrate`
   // recovers from it. The nominal mount (what the station is told) does not move.
@@ -104,12 +118,12 @@ using ScanProgress = std::function<void(double fraction, std::string_view stage)
 // plays it below; the ScanRunner plays the same plan on a cell.
 acquisition::ScanPlan planScan(const ScanParams& params);
 
-// The drawing's mount of the digitizer on the head (the mirror 120 mm below the reference point,
-// looking down): what plans and the session description use until calibration says better.
-Eigen::Isometry3d nominalDigitizerMount();
+// The drawing's mount of the digitizer on the head (the cell's [digitizer] mount): what plans and
+// the session description use until calibration says better.
+Eigen::Isometry3d nominalDigitizerMount(const ScanParams& params);
 
 // Where the calibration plate stands on the table (machine_from_plate).
-Eigen::Isometry3d platePose(const CirclePlate& plate);
+Eigen::Isometry3d platePose(const ScanParams& params);
 
 // The formed part the parameters describe.
 std::unique_ptr<FormedPart> makePart(const ScanParams& params);

@@ -47,10 +47,6 @@ namespace stampscan::station {
 std::filesystem::path calibrationFolder(const std::string& option, const acquisition::CalibrationPolicy& policy,
                                         const std::filesystem::path& runs = "stampscan-runs");
 
-// The reference sphere's certified radius from the cell config's certificate, when it gives one,
-// into the session description the runs record (the virtual cell's description has the simulator's).
-void applySphereCertificate(const acquisition::CalibrationPolicy& policy, trace::SessionDescription& session);
-
 // The plan's calibration scenes alone (sphere sweeps when `digitizer`, plate views when `cameras`),
 // named for calibration. Throws std::runtime_error when the plan has none of the asked-for scenes.
 acquisition::ScanPlan calibrationScenesOf(const acquisition::ScanPlan& plan, bool digitizer, bool cameras);

@@ -22,6 +22,7 @@ std::span<const CommandEntry> commandTable();
 CommandRunner addScanCommand(CLI::App& app);
 CommandRunner addFitCommand(CLI::App& app);
 CommandRunner addSampleCommand(CLI::App& app);
+CommandRunner addCellCommand(CLI::App& app);
 CommandRunner addDemoCommand(CLI::App& app);
 CommandRunner addSimCommand(CLI::App& app);
 CommandRunner addProcessCommand(CLI::App& app);

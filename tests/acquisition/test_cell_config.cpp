@@ -1,0 +1,184 @@
+// The cell file: a second cell that differs from the default in every section is read as written,
+// its listing reads back to the same cell, each kind of mistake is refused in one line naming the
+// file, the section and the key, and the simulated world and its plans follow the file.
+#include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+#include <unistd.h>
+#include <variant>
+#include <vector>
+
+namespace stampscan::acquisition {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = std::numbers::pi / 180;
+
+const fs::path kSecondCell = fs::path(STAMPSCAN_CELLS_DIR) / "virtual-indexing.toml";
+
+class CellFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("stampscan_cell_config_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path write(const std::string& name, const std::string& text) const {
+    const fs::path file = dir_ / name;
+    std::ofstream(file) << text;
+    return file;
+  }
+  fs::path dir_;
+};
+
+TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
+  const CellConfig a = virtualCell();
+  CellConfig b = loadCellConfig(kSecondCell);
+  // Only the optional places are left out (the calibration folder, the database, the materials).
+  EXPECT_EQ(b.defaulted, (std::vector<std::string>{"[calibration] dir", "[report] materials", "[results] database"}));
+  EXPECT_NE(b.name, a.name);
+  EXPECT_EQ(b.cmm.port, 11294);
+  EXPECT_EQ(b.plc.port, 11502);
+  EXPECT_EQ(b.plc_unit_id, 3);
+  EXPECT_EQ(b.left_camera.serial, "CELL-B-LEFT");
+  EXPECT_EQ(b.limits.travel_max[0], 500);
+  EXPECT_EQ(b.geometry.head.kind, HeadDescription::Kind::Indexing);
+  EXPECT_NEAR(b.limits.index_step, 7.5 * kDeg, 1e-12);
+  EXPECT_NEAR(b.limits.max_tilt, 105 * kDeg, 1e-12);
+  ASSERT_EQ(b.geometry.head.body.size(), 3u);
+  EXPECT_EQ(b.geometry.head.body[0].shape, BodySolid::Shape::Sphere);
+  EXPECT_EQ(b.geometry.cameras.width, 1600);
+  EXPECT_EQ(b.geometry.cameras.bits, 16);
+  EXPECT_EQ(b.geometry.digitizer.latency_ms, 5);
+  EXPECT_EQ(b.geometry.digitizer.mount.position_mm, (std::array<double, 3>{8, -5, -140}));
+  EXPECT_EQ(b.geometry.sphere.diameter_mm, 30);
+  ASSERT_TRUE(b.geometry.ball_bar.has_value());
+  EXPECT_EQ(b.geometry.ball_bar->distance_mm, 150);
+  EXPECT_EQ(b.geometry.plate.columns, 11);
+  EXPECT_EQ(b.geometry.fixture.name, "nest B");
+  EXPECT_EQ(b.calibration.validity_days, 3);
+  for (const auto& [section, same] : std::vector<std::pair<const char*, bool>>{
+           {"head", a.geometry.head == b.geometry.head},
+           {"digitizer", a.geometry.digitizer == b.geometry.digitizer},
+           {"cameras", a.geometry.cameras == b.geometry.cameras},
+           {"sphere", a.geometry.sphere == b.geometry.sphere},
+           {"ball_bar", a.geometry.ball_bar == b.geometry.ball_bar},
+           {"plate", a.geometry.plate == b.geometry.plate},
+           {"fixture", a.geometry.fixture == b.geometry.fixture}})
+    EXPECT_FALSE(same) << section;
+
+  // What `station cell check` prints is a cell file of the same cell.
+  const fs::path listed = write("listed.toml", describeCellConfig(b));
+  CellConfig again = loadCellConfig(listed);
+  EXPECT_TRUE(again.defaulted.empty());
+  EXPECT_EQ(again.geometry, b.geometry);
+  EXPECT_EQ(again.limits.index_step, b.limits.index_step);
+  again.source = b.source;
+  b.defaulted.clear();
+  EXPECT_EQ(describeCellConfig(again), describeCellConfig(b));
+}
+
+TEST_F(CellFileTest, KeysLeftOutAreDefaultsAndListedAsSuch) {
+  const CellConfig c = loadCellConfig(write("short.toml", "name = \"short\"\n[digitizer]\nlatency_ms = 4\n"));
+  EXPECT_EQ(c.geometry.digitizer.latency_ms, 4);
+  EXPECT_EQ(c.geometry.digitizer.standoff_mm, DigitizerDrawing{}.standoff_mm);
+  EXPECT_NE(std::find(c.defaulted.begin(), c.defaulted.end(), "[digitizer] standoff_mm"), c.defaulted.end());
+  EXPECT_EQ(std::find(c.defaulted.begin(), c.defaulted.end(), "[digitizer] latency_ms"), c.defaulted.end());
+  EXPECT_FALSE(c.geometry.ball_bar.has_value());  // a file without [ball_bar]: no ball bar
+  const std::string listing = describeCellConfig(c);
+  EXPECT_NE(listing.find("standoff_mm = 100.0"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("# default"), std::string::npos);
+  EXPECT_NE(listing.find("# no [ball_bar]"), std::string::npos);
+}
+
+TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"[digitizer]\nstandoff_mm = \"100 mm\"\n", "[digitizer] standoff_mm must be a positive number"},
+      {"[digitizer]\nstandof_mm = 100\n", "[digitizer] standof_mm is not a key of this section"},
+      {"[digitizer]\nmount_mm = [0, -120]\n", "[digitizer] mount_mm must be a list of 3 numbers"},
+      {"[digitizer]\nfan_angle_deg = 190\n", "[digitizer] fan_angle_deg must be below 170"},
+      {"[digitizer]\nmeasuring_range_mm = 400\n", "[digitizer] measuring_range_mm must be below twice standoff_mm"},
+      {"[cameras]\nbits = 12\n", "[cameras] bits is 12: expected 8 (Mono8) or 16 (Mono16)"},
+      {"[cameras]\nwidth = 20.5\n", "[cameras] width has the wrong type: expected an integer"},
+      {"[head]\nkind = \"wobbly\"\n", "[head] kind is \"wobbly\": expected continuous or indexing"},
+      {"[head]\n[[head.body]]\nname = \"ram\"\nshape = \"cylinder\"\nradius_mm = 30\n", "[head.body 1] length_mm is missing"},
+      {"[head]\n[[head.body]]\nshape = \"box\"\n", "[head.body 1] name is missing"},
+      {"[machine]\nmax_tilt_deg = 90\n", "[machine] max_tilt_deg has moved: write it as [head] a_max_deg"},
+      {"[machine]\ntravel_min = [0, 0, 0]\ntravel_max = [0, 1, 1]\n", "[machine] travel_min must be below travel_max"},
+      {"[sphere]\ncentre_mm = [250, 0, 40]\n[ball_bar]\ncentre_mm = [250, -120, 40]\ndistance_mm = 100\n",
+       "[ball_bar] distance_mm is 100.000 mm, but centre_mm puts the spheres 120.000 mm apart"},
+      {"[plate]\ncolumns = 8\n", "[plate] columns must be odd"},
+      {"[plate]\npitch_mm = 3\ndot_diameter_mm = 3\n", "[plate] dot_diameter_mm must be below pitch_mm"},
+      {"[fixture]\ndatum_rotation_deg = [0, 0]\n", "[fixture] datum_rotation_deg must be a list of 3 numbers"},
+      {"[plc]\nport = 70000\n", "[plc] port 70000 is not 1-65535"},
+      {"[plc]\nunit_id = 300\n", "[plc] unit_id is 300, not 0..255"},
+      {"[camera]\nwidth = 10\n", "[camera] is not a section of a cell file"},
+      {"name = 3\n", "name has the wrong type"},
+      {"[digitizer\n", "cell.toml:1:"},
+  };
+  for (const auto& [text, expected] : cases) {
+    const fs::path file = write("cell.toml", text);
+    try {
+      (void)loadCellConfig(file);
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind(file.string(), 0), 0u) << what;  // starts with the file
+      EXPECT_NE(what.find(expected), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;  // one line
+    }
+  }
+}
+
+TEST(CellPlans, AnIndexingHeadsPlanUsesOnlyItsStops) {
+  MachineLimits limits;
+  limits.index_step = 7.5 * kDeg;
+  ScanPlan plan;
+  plan.steps.emplace_back(StereoStep{kScenePart, 0, HeadPose{{0, 0, 300}, 15 * kDeg, -7.5 * kDeg}, 0.4});
+  EXPECT_TRUE(checkPlan(plan, limits).empty());
+  plan.steps.emplace_back(StereoStep{kScenePart, 1, HeadPose{{0, 0, 300}, 2 * kDeg, 0}, 0.4});
+  const auto problems = checkPlan(plan, limits);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("head tilt 2 deg is not a stop of the indexing head (every 7.5 deg)"), std::string::npos)
+      << problems[0];
+}
+
+// The simulated world is the cell file's: its planner uses the head's stops and the sensors as
+// drawn, and a session of it is described as the file describes the cell.
+TEST(CellPlans, TheSimulatedWorldAndItsPlansFollowTheCellFile) {
+  const CellConfig b = loadCellConfig(kSecondCell);
+  for (const sim::PartKind part : {sim::PartKind::Dome, sim::PartKind::Pan}) {
+    sim::ScanParams world;
+    world.part = part;
+    world.second_sphere_sweeps = 4;
+    world.setCell(b);
+    const ScanPlan plan = sim::planScan(world);
+    const auto problems = checkPlan(plan, b.limits);
+    EXPECT_TRUE(problems.empty()) << problems.front();
+    EXPECT_GT(plan.sweepCount(kScenePart), 0u);
+    EXPECT_GT(plan.sweepCount(kSceneSecondSphere), 0u);
+    trace::SessionDescription expected = describeSession(b.geometry, plan);
+    expected.plan.clear();
+    EXPECT_EQ(sim::describeSession(world), expected);
+  }
+  // The true sensors are the drawn ones plus the seed's deviation: near the drawing, not on it.
+  sim::ScanParams world;
+  world.setCell(b);
+  const sim::CellTruth truth = sim::drawCellTruth(world);
+  const Eigen::Vector3d drawn(8, -5, -140);
+  EXPECT_LT((truth.head_from_digitizer.translation() - drawn).norm(), 5.0);
+  EXPECT_GT((truth.head_from_digitizer.translation() - drawn).norm(), 1e-6);
+  EXPECT_NEAR(static_cast<double>(truth.digitizer_latency_ns) * 1e-6, 5.0, 1.0);
+  EXPECT_EQ(truth.left.width, 1600);
+  EXPECT_NEAR(truth.left.fx, 12 / 4.5e-3, 0.02 * 12 / 4.5e-3);
+}
+
+}  // namespace
+}  // namespace stampscan::acquisition
