@@ -316,8 +316,10 @@ CellTruth drawTruth(const ScanParams& p) {
     *c = nominal;
     c->fx *= 1 + 0.004 * g(rng);
     c->fy = c->fx * (1 + 0.0005 * g(rng));
-    c->cx += 8 * p.image_scale * g(rng);
-    c->cy += 8 * p.image_scale * g(rng);
+    // The principal point off its drawing by about 28 um on the sensor: 8 px of 3.45 um pixels.
+    const double pixel_um = p.cell.cameras.pixel_size_um / p.image_scale;
+    c->cx += 8 * (3.45 / pixel_um) * g(rng);
+    c->cy += 8 * (3.45 / pixel_um) * g(rng);
     c->k1 += 0.01 * g(rng);
     c->k2 += 0.02 * g(rng);
     c->p1 = 2e-4 * g(rng);
