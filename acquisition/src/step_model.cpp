@@ -12,6 +12,8 @@
 #include <Geom_BSplineSurface.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <Interface_Static.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
 #include <Poly_Triangulation.hxx>
 #include <Precision.hxx>
 #include <STEPControl_Reader.hxx>
@@ -51,6 +53,20 @@ void useMillimetres() {
   Interface_Static::SetCVal("write.step.unit", "MM");
 }
 
+// Open CASCADE reports its translations (statistics, the STEP parser's complaints) on the standard
+// output through its default messenger. A command's output is its own, and what went wrong reaches
+// the caller as a ModelError: the messenger's printers are held back while a file is translated.
+class QuietTranslation {
+ public:
+  QuietTranslation() : saved_(Message::DefaultMessenger()->Printers()) { Message::DefaultMessenger()->ChangePrinters().Clear(); }
+  ~QuietTranslation() { Message::DefaultMessenger()->ChangePrinters() = saved_; }
+  QuietTranslation(const QuietTranslation&) = delete;
+  QuietTranslation& operator=(const QuietTranslation&) = delete;
+
+ private:
+  Message_SequenceOfPrinters saved_;
+};
+
 }  // namespace
 
 NominalModel loadStep(const std::filesystem::path& file, const StepTessellation& tessellation) {
@@ -60,6 +76,7 @@ NominalModel loadStep(const std::filesystem::path& file, const StepTessellation&
   model.source = name;
   std::size_t faces = 0, untessellated = 0;
   try {
+    const QuietTranslation quiet;
     useMillimetres();
     STEPControl_Reader reader;
     if (reader.ReadFile(name.c_str()) != IFSelect_RetDone) throw ModelError(name + ": not a readable STEP file");
@@ -113,6 +130,7 @@ void writeStepSurface(const HeightGrid& grid, const std::filesystem::path& file,
     if (!std::isfinite(h)) throw ModelError(name + ": the height grid has a height that is not a finite number");
   fitting::AtomicFile out(file);
   try {
+    const QuietTranslation quiet;
     // Rows of the array run along x (GeomAPI_PointsToBSplineSurface's convention for height grids).
     TColStd_Array2OfReal z(1, static_cast<Standard_Integer>(grid.columns), 1, static_cast<Standard_Integer>(grid.rows));
     for (std::size_t j = 0; j < grid.rows; ++j)
