@@ -6,10 +6,10 @@
 // Errors throw ModelError (a std::runtime_error) whose message starts with the file and says what
 // is wrong: "parts/pan-4711/model.stl: binary STL truncated: 1200 triangles announced, 1199 present".
 //
-// Thread safety: the functions are reentrant on distinct models. Open CASCADE's STEP translation
+// Thread safety: the STL functions are reentrant on distinct models. Open CASCADE's STEP translation
 // keeps process-wide settings (units, schema), which these functions set to the same values on every
-// call: reading or writing STEP from two threads at once is not guaranteed by Open CASCADE; do it
-// from one thread.
+// call, and reports through a process-wide messenger, whose printers they hold back while a file is
+// translated (so nothing is printed): read or write STEP from one thread at a time.
 #pragma once
 
 #include <array>
