@@ -37,7 +37,10 @@ CommandRunner addSimPartSubcommand(CLI::App* sim) {
   return [opt]() {
     const sim::PartKind kind = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     const std::filesystem::path dir(opt->output);
-    const acquisition::PartProgram p = sim::writeSimulatedProgram(kind, sim::gridKindFromString(opt->grid), dir);
+    sim::writeSimulatedProgram(kind, sim::gridKindFromString(opt->grid), dir);
+    // Read back as the cell will read it: what is printed is what the folder holds (the STEP
+    // model's own tessellation, not the samples its surface was fitted to).
+    const acquisition::PartProgram p = acquisition::loadPartProgram(dir);
     const acquisition::Box3 box = p.model.bounds();
     std::printf("station sim part: %s, the simulated %s with a %s grid\n", p.name.c_str(), opt->part.c_str(), opt->grid.c_str());
     std::printf("  program     %s\n", (dir / acquisition::kProgramFile).string().c_str());
