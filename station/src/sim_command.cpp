@@ -106,7 +106,9 @@ CommandRunner addSimCommand(CLI::App& app) {
   gen->add_option("--compression", opt->compression, "Chunk compression: zstd, lz4 or none")
       ->check(CLI::IsMember({"zstd", "lz4", "none"}));
   const CommandRunner serve = addServeSubcommand(sim_cmd);
-  return [opt, serve, gen]() {
+  const CommandRunner write_part = addSimPartSubcommand(sim_cmd);
+  return [opt, serve, write_part, gen, sim_cmd]() {
+    if (sim_cmd->got_subcommand("part")) return write_part();
     if (!gen->parsed()) return serve();
     namespace fs = std::filesystem;
     const sim::ScanParams params = paramsFrom(*opt);

@@ -10,6 +10,8 @@ namespace stampscan::fuzz {
 
 int fuzzPly(const std::uint8_t* data, std::size_t size);
 int fuzzText(const std::uint8_t* data, std::size_t size);
+// The STL reader of part programs' nominal models (a ModelError is the clean rejection).
+int fuzzStl(const std::uint8_t* data, std::size_t size);
 // The MCAP trace reader never throws on content; 0 always (failures throw std::logic_error).
 int fuzzMcap(const std::uint8_t* data, std::size_t size);
 // I++ DME lines: a client's bytes through the virtual CMM's session (every answer a well-formed line

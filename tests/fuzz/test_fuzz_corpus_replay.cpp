@@ -85,6 +85,16 @@ TEST(FuzzCorpusReplay, TextReader) {
   RecordProperty("cases", static_cast<int>(cases));
 }
 
+TEST(FuzzCorpusReplay, StlReader) {
+  const std::vector<std::string> seeds = loadSeeds("stl");
+  ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/stl";
+  std::vector<std::string> donors = seeds;
+  for (const std::string& ply : loadSeeds("ply")) donors.push_back(ply);
+  const std::size_t cases = replay(&fuzzStl, seeds, donors, 2000, 20240508);
+  EXPECT_GT(cases, 8000u);
+  RecordProperty("cases", static_cast<int>(cases));
+}
+
 TEST(FuzzCorpusReplay, McapReader) {
   const std::vector<std::string> seeds = loadSeeds("mcap");
   ASSERT_FALSE(seeds.empty()) << "no seeds in " << STAMPSCAN_FUZZ_CORPUS_DIR << "/mcap";

@@ -2,6 +2,7 @@
 // it; the Cloud4D it writes is checked against the truth, and the calibration it saves is reused.
 #include "station_test_support.hpp"
 
+#include "stampscan/acquisition/part_program.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 
 #include <algorithm>
@@ -25,6 +26,21 @@ TEST_F(StationTest, SimGenerateWritesATraceAndItsTruth) {
   const fs::path again = work() / "again.mcap";
   ASSERT_EQ(run("sim generate --quick --part pan --grid square --seed 4 -o " + quote(again)).exit_code, 0);
   EXPECT_EQ(readFile(trace), readFile(again));
+}
+
+TEST_F(StationTest, SimPartWritesAProgramFolder) {
+  const fs::path dir = work() / "programs" / "sim-pan";
+  const RunResult r = run("sim part pan --grid square -o " + quote(dir));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("sim-pan-square"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("model.stl"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("laser sweeps"), std::string::npos) << r.out;
+  const acquisition::PartProgram p = acquisition::loadPartProgram(dir);
+  EXPECT_EQ(p.simulated_part, "pan");
+  EXPECT_EQ(p.grid.kind, "square");
+  EXPECT_EQ(acquisition::findProgram(work() / "programs", "sim-pan-square"), dir);
+  EXPECT_NE(run("sim part cube -o " + quote(work() / "cube")).exit_code, 0);
+  EXPECT_FALSE(fs::exists(work() / "cube"));
 }
 
 TEST_F(StationTest, SimGenerateRefusesBadOptionsAndLeavesNothing) {

@@ -38,5 +38,7 @@ CommandRunner addCalibrationCommand(CLI::App& app);
 CommandRunner addHmiCommand(CLI::App& app);
 // `sim serve`, under the `sim` command.
 CommandRunner addServeSubcommand(CLI::App* sim);
+// `sim part`, under the `sim` command.
+CommandRunner addSimPartSubcommand(CLI::App* sim);
 
 }  // namespace stampscan::station

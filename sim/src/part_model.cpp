@@ -1,0 +1,84 @@
+#include "stampscan/sim/part_model.hpp"
+
+#include "stampscan/fitting/atomic_file.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace stampscan::sim {
+
+namespace fs = std::filesystem;
+
+acquisition::HeightGrid sampleHeights(const FormedPart& part, double spacing_mm) {
+  if (!(spacing_mm > 0)) throw std::invalid_argument("sampleHeights: the spacing must be positive");
+  const BlankRect box = part.footprint();
+  const Vec2 size = box.max - box.min;
+  acquisition::HeightGrid grid;
+  grid.columns = static_cast<std::size_t>(std::ceil(size.x() / spacing_mm)) + 1;
+  grid.rows = static_cast<std::size_t>(std::ceil(size.y() / spacing_mm)) + 1;
+  grid.x0 = box.min.x();
+  grid.y0 = box.min.y();
+  grid.dx = size.x() / static_cast<double>(grid.columns - 1);
+  grid.dy = size.y() / static_cast<double>(grid.rows - 1);
+  grid.heights.resize(grid.columns * grid.rows);
+  for (std::size_t j = 0; j < grid.rows; ++j)
+    for (std::size_t i = 0; i < grid.columns; ++i)
+      grid.heights[j * grid.columns + i] =
+          part.height(grid.x0 + static_cast<double>(i) * grid.dx, grid.y0 + static_cast<double>(j) * grid.dy);
+  return grid;
+}
+
+acquisition::NominalModel partModel(const FormedPart& part, double spacing_mm) {
+  acquisition::NominalModel model = acquisition::meshHeightGrid(sampleHeights(part, spacing_mm));
+  model.source = "simulated " + part.name();
+  return model;
+}
+
+acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, const fs::path& dir,
+                                               const SimulatedProgramOptions& options) {
+  ScanParams params;
+  params.part = kind;
+  params.grid.kind = grid;
+  params.calibration = false;
+  params.laser = params.stereo = true;
+  const std::unique_ptr<FormedPart> part = makePart(params);
+
+  acquisition::PartProgram program;
+  program.name = "sim-" + part->name() + "-" + toString(grid);
+  program.folder = dir;
+  program.simulated_part = part->name();
+  program.grid = {toString(grid), params.grid.pitch, params.grid.circle_diameter, params.grid.line_width};
+  program.material = options.material;
+  program.sheet_thickness_mm = options.sheet_thickness_mm;
+  program.plan_file = "plan.toml";
+  program.plan = planScan(params);
+  if (kind == PartKind::Dome) {
+    program.description = "The simulator's punch-stretched dome (" + toString(grid) + " grid), nominal model a STEP B-spline surface";
+    const double r = params.dome.die_radius / 4;
+    program.regions.push_back({"pole", {-r, -r}, {r, r}});
+  } else {
+    program.description = "The simulator's stamped pan (" + toString(grid) + " grid), nominal model a binary STL mesh";
+    program.regions.push_back({"pocket", {-params.pan.pocket_a, -params.pan.pocket_b}, {params.pan.pocket_a, params.pan.pocket_b}});
+  }
+
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(dir.string() + ": cannot create the program folder: " + ec.message());
+  fitting::writeFileAtomically(dir / program.plan_file, acquisition::toToml(program.plan));
+  if (kind == PartKind::Dome) {
+    program.model_file = "model.step";
+    const acquisition::HeightGrid heights = sampleHeights(*part, options.step_spacing_mm);
+    acquisition::writeStepSurface(heights, dir / program.model_file, {options.step_tolerance_mm});
+    program.model = acquisition::meshHeightGrid(heights);
+  } else {
+    program.model_file = "model.stl";
+    program.model = partModel(*part, options.mesh_spacing_mm);
+    acquisition::writeStl(program.model, dir / program.model_file, true);
+  }
+  program.model.source = (dir / program.model_file).string();
+  acquisition::writePartProgram(program, dir);  // last: the folder is a program only once it is whole
+  return program;
+}
+
+}  // namespace stampscan::sim
