@@ -46,6 +46,7 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
                        "length_mpe_mm", "stereo_form_mpe_mm", "stereo_length_mpe_mm"}},
       {"results", {"database"}},
       {"report", {"materials"}},
+      {"programs", {"library"}},
   };
   return keys;
 }
@@ -398,6 +399,9 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   c.materials_file = sectionNamed("report").text("materials", "");
   if (!c.materials_file.empty() && std::filesystem::path(c.materials_file).is_relative())
     c.materials_file = (folder / c.materials_file).string();
+  c.program_library = sectionNamed("programs").text("library", "");
+  if (!c.program_library.empty() && std::filesystem::path(c.program_library).is_relative())
+    c.program_library = (folder / c.program_library).string();
   std::sort(c.defaulted.begin(), c.defaulted.end());
   c.defaulted.erase(std::unique(c.defaulted.begin(), c.defaulted.end()), c.defaulted.end());
   return c;
@@ -604,6 +608,8 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("database", c.results_database);
   l.section("report");
   l.text("materials", c.materials_file);
+  l.section("programs");
+  l.text("library", c.program_library);
   return l.str();
 }
 

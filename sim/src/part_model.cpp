@@ -38,6 +38,7 @@ acquisition::NominalModel partModel(const FormedPart& part, double spacing_mm) {
 acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, const fs::path& dir,
                                                const SimulatedProgramOptions& options) {
   ScanParams params;
+  if (options.cell != nullptr) params.setCell(*options.cell);
   params.part = kind;
   params.grid.kind = grid;
   params.calibration = false;

@@ -11,12 +11,14 @@
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
+#include "program_library.hpp"
 #include "scan_terminal.hpp"
 #include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
 #include <cstdio>
+#include <optional>
 
 namespace stampscan::station {
 
@@ -25,7 +27,7 @@ namespace {
 struct ScanOptions {
   CellChoice cell;
   std::string plan, part = "pan", grid = "circle", part_id = "sample", runs = "stampscan-runs", replay;
-  std::string material, program, calibration_dir;
+  std::string material, press_program, part_program, calibration_dir;
   bool dry_run = false, whole_part = false, laser_only = false, quiet = false, accept_damaged = false, calibrated = false;
   VirtualWorldOptions world;
 };
@@ -46,9 +48,14 @@ CommandRunner addScanCommand(CLI::App& app) {
   cmd->add_option("-o,--runs", opt->runs, "Folder of run folders (created when missing)");
   cmd->add_option("--material", opt->material, "The sheet's material, for the forming-limit report (see `station report "
                                                "--list-materials`; default DC04)");
-  cmd->add_option("--program", opt->program, "The press program the part comes from, for the report and the history");
+  cmd->add_option("--program", opt->part_program,
+                  "The part program to scan: its name in the cell's program library ([programs] library; on a virtual "
+                  "cell RUNS_DIR/programs, where it writes its own sim-dome-circle, sim-pan-square, ...), or its folder. "
+                  "Its plan, grid and material; --part and --grid do not apply");
+  cmd->add_option("--press-program", opt->press_program,
+                  "The press program the part comes from, for the report and the history (default: the part program's)");
   cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
-  cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the built-in plan");
+  cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the plan (built-in or the program's)");
   cmd->add_flag("--calibrated", opt->calibrated,
                 "Leave the calibration scenes out of the built-in plan and measure with the calibration in use (from "
                 "`station calibrate`; refused when it is missing, failed, expired or not this cell's)");
@@ -69,11 +76,30 @@ CommandRunner addScanCommand(CLI::App& app) {
     const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
     if (!opt->material.empty()) (void)materials.find(opt->material);
 
+    // The part program, when one is asked for: its plan, grid and material.
+    std::optional<acquisition::PartProgram> program;
+    if (!opt->part_program.empty()) {
+      program = programToScan(opt->part_program, config, virtual_cell, opt->runs);
+      if (virtual_cell && program->simulated_part.empty())
+        throw std::runtime_error(program->folder.string() + ": the virtual cell simulates only its own parts, and this "
+                                 "program gives none ([simulation] part)");
+      if (opt->material.empty()) opt->material = program->material;
+      if (opt->press_program.empty()) opt->press_program = program->press_program;
+      if (!opt->material.empty()) (void)materials.find(opt->material);
+    }
+
     // The virtual world, and the built-in plan for its part (or the plan file).
-    sim::ScanParams world = worldOnCell(opt->whole_part ? sim::ScanParams{} : sim::ScanParams::quick(), config,
-                                        virtual_cell);
+    const bool whole_part = opt->whole_part || program.has_value();
+    sim::ScanParams world = worldOnCell(whole_part ? sim::ScanParams{} : sim::ScanParams::quick(), config, virtual_cell);
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
+    if (program) {
+      world.part = program->simulated_part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+      world.grid.kind = sim::gridKindFromString(program->grid.kind);
+      world.grid.pitch = program->grid.pitch_mm;
+      world.grid.circle_diameter = program->grid.circle_diameter_mm;
+      world.grid.line_width = program->grid.line_width_mm;
+    }
     opt->world.applyTo(world);
     world.calibration = !opt->calibrated;
     ScanJobOptions job;
@@ -92,13 +118,15 @@ CommandRunner addScanCommand(CLI::App& app) {
       if (opt->part_id == "sample" && !prepared.session.part_id.empty()) opt->part_id = prepared.session.part_id;
       replay = std::move(prepared.replay);
       job.replayed_trace = opt->replay;
+    } else if (program && opt->plan.empty()) {
+      job.plan = programPlan(*program, world, !opt->calibrated);
     } else {
       job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
     }
     if (opt->plan.empty() && !replay) {
       if (opt->laser_only)
         std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
-      job.plan.name = job.plan.part.kind + (opt->laser_only ? ", laser" : ", laser and stereo") +
+      job.plan.name = (program ? program->name : job.plan.part.kind) + (opt->laser_only ? ", laser" : ", laser and stereo") +
                       (opt->calibrated ? ", on the calibration in use" : ", with calibration scenes");
     }
     if (opt->dry_run) {
@@ -127,7 +155,8 @@ CommandRunner addScanCommand(CLI::App& app) {
     job.results_database = config.results_database;
     job.material = opt->material;
     job.materials = &materials;
-    job.program = opt->program;
+    job.program = opt->press_program;
+    if (program) job.part_program = PartProgramRef{program->name, program->folder.string()};
     // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
     // recording's).
     if (!replay) job.run.session = acquisition::describeSession(config.geometry, job.plan);
@@ -135,6 +164,10 @@ CommandRunner addScanCommand(CLI::App& app) {
 
     std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 hosted ? " (hosted in this process)" : "");
+    if (program)
+      std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
+                  program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),
+                  program->sheet_thickness_mm, program->model.triangles.size());
     TerminalObserver observer(opt->quiet);
     ScanJob scan(cell, &observer);
     ScanJobResult r;

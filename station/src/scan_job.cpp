@@ -443,6 +443,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
   if (!o.material.empty()) record["material"] = o.material;
   if (!o.program.empty()) record["program"] = o.program;
+  if (o.part_program) record["part_program"] = {{"name", o.part_program->name}, {"folder", o.part_program->folder}};
   writeJsonAtomically(result.run_dir / "run.json", record);
   // The report of what was measured: the verdict, the maps, the FLD, the PDF. A report that fails
   // leaves the measured run as it is and says why.

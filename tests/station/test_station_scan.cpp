@@ -334,6 +334,36 @@ TEST_F(StationTest, ASecondCellFromItsFileScansThePartToTheSameGoals) {
   EXPECT_GT(j.at("accuracy").at("true_latency_ms").get<double>(), 4.0);
 }
 
+// A part program scanned by name: the virtual cell writes its own program of the simulated dome into
+// its library the first time, scans it with the program's plan after the calibration scenes, and the
+// run and the report name the program. A name that is not in the library is refused with the list.
+TEST_F(StationTest, APartProgramIsScannedByNameAndNamedInTheRun) {
+  const fs::path runs = work() / "runs";
+  RunResult r = run("scan -q --program sim-dome-circle --laser-only --part-id D-7 -o " + quote(runs));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("program     sim-dome-circle ("), std::string::npos) << r.out;
+  const fs::path program = runs / "programs" / "sim-dome-circle";
+  EXPECT_TRUE(fs::exists(program / "program.toml"));
+  EXPECT_TRUE(fs::exists(program / "model.step"));
+  const fs::path dir = onlyRunFolder(runs);
+  std::ifstream in(dir / "run.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("part_program").at("name"), "sim-dome-circle");
+  EXPECT_EQ(j.at("material"), "DC04");  // the program's
+  EXPECT_EQ(j.at("accuracy").at("matched"), j.at("measurement").at("elements"));
+  EXPECT_GT(j.at("measurement").at("elements").get<int>(), 2000);  // the whole dome
+  EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.02);
+  EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.002);
+  EXPECT_TRUE(j.at("data_loss").is_null()) << j.dump(2);
+  std::ifstream report_in(dir / "report.json");
+  EXPECT_EQ(nlohmann::json::parse(report_in).at("part_program"), "sim-dome-circle");
+
+  r = run("scan --dry-run --program no-such-part -o " + quote(runs));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no-such-part"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sim-dome-circle"), std::string::npos) << r.err;  // what the library has
+}
+
 TEST_F(StationTest, DryRunPrintsTheBuiltInPlan) {
   const RunResult r = run("scan --dry-run --part dome");
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -215,7 +215,8 @@ std::vector<std::pair<std::string, std::string>> runFacts(const ReportContent& c
   std::snprintf(elements, sizeof elements, "%zu grid elements, pitch %.2f mm", a.elements.size(), a.grid_pitch_mm);
   std::vector<std::pair<std::string, std::string>> facts = {
       {"Part id", orNotRecorded(c.run->part_id)},
-      {"Program", c.program.empty() ? "not given" : c.program},
+      {"Part program", c.run->part_program.empty() ? "none (a plan of its own)" : c.run->part_program},
+      {"Press program", c.program.empty() ? "not given" : c.program},
       {"Material", std::string(material) + (c.material_note.empty() ? "" : "; " + c.material_note)},
       {"Scanned", orNotRecorded(c.run->date)},
       {"Cell", orNotRecorded(c.run->cell)},

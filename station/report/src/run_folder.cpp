@@ -91,6 +91,7 @@ RunInfo readRunInfo(const std::filesystem::path& run_dir) {
     if (const std::string id = textOf(run, "part_id"); !id.empty()) info.part_id = id;
     if (const std::string date = textOf(run, "date"); !date.empty()) info.date = date;
     info.program = textOf(run, "program");
+    if (run.contains("part_program") && run["part_program"].is_object()) info.part_program = textOf(run["part_program"], "name");
     info.plan = textOf(run, "plan");
     info.cell = textOf(run, "cell");
     info.material = textOf(run, "material");

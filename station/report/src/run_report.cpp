@@ -126,6 +126,7 @@ std::string elementsCsv(const StrainAnalysis& a) {
 std::string reportJson(const ReportSummary& s, const StrainAnalysis& a, const Material& m) {
   nlohmann::json j = {{"part_id", s.run.part_id},
                       {"program", s.run.program},
+                      {"part_program", s.run.part_program},
                       {"material", m.name},
                       {"material_source", toString(s.material_source)},
                       {"flc", m.flc.describe()},

@@ -77,6 +77,9 @@ struct CellConfig {
   // format) whose entries are added to, or replace, the built-in ones. A path relative to the cell
   // file is taken from the cell file's folder. Empty: the built-in library alone.
   std::string materials_file;
+  // The cell's program library ([programs] library): a folder of part programs (part_program.hpp),
+  // one folder each. A path relative to the cell file is taken from its folder. Empty: none given.
+  std::string program_library;
   // The keys the file left out, which took their default ("[digitizer] latency_ms"), for
   // `station cell check`; empty for the built-in cell.
   std::vector<std::string> defaulted;

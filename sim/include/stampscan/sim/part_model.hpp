@@ -28,6 +28,8 @@ struct SimulatedProgramOptions {
   double step_tolerance_mm = 0.005;
   std::string material = "DC04";
   double sheet_thickness_mm = 0.8;
+  // The cell the plan is made for (its sensors, head and artefacts); null: the built-in virtual cell.
+  const acquisition::CellConfig* cell = nullptr;
 };
 
 // Writes a complete program folder for a built-in part: plan.toml, the simulator's whole-part plan

@@ -43,6 +43,12 @@ struct SimulationTruth {
   std::vector<std::uint8_t> visible{};
 };
 
+// The part program a scan runs (acquisition/part_program.hpp): its name (the part number) and folder.
+struct PartProgramRef {
+  std::string name;
+  std::string folder;
+};
+
 struct ScanJobOptions {
   acquisition::ScanPlan plan;
   acquisition::ScanRunParams run;  // the session description's cell geometry, limits
@@ -55,6 +61,8 @@ struct ScanJobOptions {
   // For the report written at the end (station/report): the sheet's material (empty: the report's
   // default) and the press program; both also go into run.json.
   std::string material, program;
+  // The part program scanned, when the plan is a program's; recorded in run.json.
+  std::optional<PartProgramRef> part_program;
   // The material library of the report: null for the built-in one (borrowed for run()).
   const report::MaterialLibrary* materials = nullptr;
   // The cell's calibration folder (digitizer.json and cameras.json in use, put there by `station

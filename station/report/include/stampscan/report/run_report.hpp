@@ -37,6 +37,7 @@ struct ReportOptions {
 // What run.json says about the run (every field optional; "" when absent).
 struct RunInfo {
   std::string part_id, program, plan, cell, date, calibration, material;
+  std::string part_program;  // the part program scanned (its name, the part number); empty: none
   std::string accuracy;  // on the virtual cell: the accuracy against the simulated part
   std::string data_loss;  // what the scan lacks (run.json data_loss); empty when it measured all it should
 };

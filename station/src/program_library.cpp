@@ -1,0 +1,56 @@
+#include "program_library.hpp"
+
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/part_model.hpp"
+
+#include <cstdio>
+#include <stdexcept>
+
+namespace stampscan::station {
+
+namespace fs = std::filesystem;
+
+fs::path programLibrary(const acquisition::CellConfig& cell, bool virtual_cell, const fs::path& runs) {
+  if (!cell.program_library.empty()) return cell.program_library;
+  if (virtual_cell) return runs / "programs";
+  throw std::runtime_error(cell.source + ": the cell has no program library ([programs] library): give the "
+                           "program's folder, or name the library in the cell file");
+}
+
+acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
+                                       bool virtual_cell, const fs::path& runs) {
+  std::error_code ec;
+  const bool folder = fs::is_directory(name_or_dir, ec) || fs::path(name_or_dir).filename() == acquisition::kProgramFile;
+  if (folder) return acquisition::loadPartProgram(name_or_dir);
+  const fs::path library = programLibrary(cell, virtual_cell, runs);
+  // The virtual cell's own parts: sim-<part>-<grid>.
+  if (virtual_cell && !fs::exists(library / name_or_dir / acquisition::kProgramFile, ec)) {
+    for (const char* part : {"dome", "pan"})
+      for (const char* grid : {"circle", "square"})
+        if (name_or_dir == std::string("sim-") + part + "-" + grid) {
+          sim::SimulatedProgramOptions options;
+          options.cell = &cell;
+          const fs::path dir = library / name_or_dir;
+          std::printf("  program     writing the virtual cell's %s with a %s grid into %s\n", part, grid, dir.c_str());
+          sim::writeSimulatedProgram(std::string(part) == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
+                                     sim::gridKindFromString(grid), dir, options);
+        }
+  }
+  return acquisition::loadPartProgram(acquisition::findProgram(library, name_or_dir));
+}
+
+acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const sim::ScanParams& world,
+                                  bool calibration_scenes) {
+  acquisition::ScanPlan plan = program.plan;
+  if (calibration_scenes) {
+    sim::ScanParams scenes = world;
+    scenes.laser = scenes.stereo = false;
+    scenes.calibration = true;
+    acquisition::ScanPlan calibration = sim::planScan(scenes);
+    calibration.steps.insert(calibration.steps.end(), plan.steps.begin(), plan.steps.end());
+    plan.steps = std::move(calibration.steps);
+  }
+  return plan;
+}
+
+}  // namespace stampscan::station

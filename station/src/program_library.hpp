@@ -1,0 +1,30 @@
+// The part programs a command scans: the cell's program library, a program found in it (or given by
+// its folder), and the plan a scan of it runs. On a virtual cell the library also holds the
+// simulator's own parts as programs, written there the first time they are asked for.
+#pragma once
+
+#include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/acquisition/part_program.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
+
+#include <filesystem>
+#include <string>
+
+namespace stampscan::station {
+
+// The cell file's [programs] library; for a virtual cell without one, RUNS/programs.
+std::filesystem::path programLibrary(const acquisition::CellConfig& cell, bool virtual_cell,
+                                     const std::filesystem::path& runs);
+
+// The program `name_or_dir` names (a folder, or a name in the library), read and checked. On a
+// virtual cell a simulated part's program (sim-dome-circle, sim-pan-square, ...) missing from the
+// library is first written there, its plan made for this cell. Throws naming what is wrong.
+acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
+                                       bool virtual_cell, const std::filesystem::path& runs);
+
+// The plan a scan of the program runs: its own, after the cell's calibration scenes (the reference
+// sphere's sweeps and the plate's views, planned for the cell's artefacts) when asked for.
+acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const sim::ScanParams& world,
+                                  bool calibration_scenes);
+
+}  // namespace stampscan::station
