@@ -16,6 +16,7 @@ Cell::Cell(const CellConfig& config, CellUse use) : config_(config) {
   plc.host = config.plc.host;
   plc.port = config.plc.port;
   plc.unit_id = config.plc_unit_id;
+  plc.registers = config.plc_registers;
   plc.watchdog = !check;
   plc_ = std::make_unique<drivers::plc::ModbusPlc>(plc);
   drivers::digitizer::UsbDigitizerOptions digitizer;

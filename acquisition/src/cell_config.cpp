@@ -31,7 +31,7 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
       {"cmm", {"host", "port", "device_time"}},
       {"machine", {"travel_min", "travel_max", "min_speed", "max_speed", "acceleration"}},
       {"head", {"kind", "index_step_deg", "a_max_deg", "b_max_deg", "rate_deg_s", "acceleration_deg_s2", "body"}},
-      {"plc", {"host", "port", "unit_id"}},
+      {"plc", {"host", "port", "unit_id", "registers"}},
       {"cameras", {"left_serial", "left_address", "right_serial", "right_address", "width", "height", "pixel_size_um",
                    "focal_length_mm", "k1", "k2", "bits", "exposure_us", "baseline_mm", "drop_mm", "convergence_mm"}},
       {"digitizer", {"vendor_id", "product_id", "serial", "virtual", "required", "points_per_profile", "profile_rate_hz",
@@ -172,6 +172,27 @@ SectionReader section(const toml::table& t, const std::string& name, const std::
 
 void checkPort(const SectionReader& s, int port) {
   if (port < 1 || port > 65535) s.fail("port", std::to_string(port) + " is not 1-65535");
+}
+
+// [plc.registers]: where the cell's PLC program puts each signal, by the signal's name in the register
+// table (drivers/plc/REGISTER_MAP.md); the name implies the kind. A signal left out keeps its
+// standard address.
+drivers::plc::RegisterMap readPlcRegisters(const toml::table& t, const SectionReader& plc, const std::string& file,
+                                           std::vector<std::string>* defaulted) {
+  using drivers::plc::registerTable;
+  const toml::node* n = t["plc"]["registers"].node();
+  if (n != nullptr && !n->is_table()) plc.fail("registers", "must be a table ([plc.registers]: signal name = address)");
+  const SectionReader registers(n == nullptr ? nullptr : n->as_table(), file, "plc.registers", defaulted);
+  std::set<std::string> names;
+  for (const drivers::plc::RegisterInfo& signal : registerTable()) names.emplace(signal.name);
+  registers.refuseUnknown(names);
+  drivers::plc::RegisterMap map;
+  for (std::size_t row = 0; row < registerTable().size(); ++row) {
+    const std::string name(registerTable()[row].name);
+    map.addresses[row] = static_cast<std::uint16_t>(registers.integer(name.c_str(), map.addresses[row], 0, 65535));
+  }
+  if (const std::string problem = map.problem(); !problem.empty()) registers.fail("", problem);
+  return map;
 }
 
 void readMachine(const SectionReader& m, const SectionReader& h, MachineLimits& l) {
@@ -363,6 +384,7 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   c.plc.port = static_cast<int>(plc.integer("port", c.plc.port, INT32_MIN, INT32_MAX));
   checkPort(plc, c.plc.port);
   c.plc_unit_id = static_cast<int>(plc.integer("unit_id", c.plc_unit_id, 0, 255));
+  c.plc_registers = readPlcRegisters(t, plc, file, defaulted);
 
   const SectionReader cameras = sectionNamed("cameras");
   c.left_camera.serial = cameras.text("left_serial", c.left_camera.serial);
@@ -536,6 +558,9 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("host", c.plc.host);
   l.integer("port", c.plc.port);
   l.integer("unit_id", c.plc_unit_id);
+  l.section("plc.registers");
+  for (std::size_t row = 0; row < drivers::plc::registerTable().size(); ++row)
+    l.integer(std::string(drivers::plc::registerTable()[row].name), c.plc_registers.addresses[row]);
   l.section("cameras");
   l.text("left_serial", c.left_camera.serial);
   l.text("left_address", c.left_camera.address);

@@ -61,6 +61,8 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     world.cmm_port = static_cast<std::uint16_t>(cell.cmm.port);
     world.plc_address = cell.plc.host;
     world.plc_port = cell.plc.port;
+    world.plc_unit_id = static_cast<std::uint8_t>(cell.plc_unit_id);
+    world.plc_registers = cell.plc_registers;
     world.cameras = true;
     world.left_address = cell.left_camera.address;
     world.left_serial = cell.left_camera.serial;
@@ -72,8 +74,11 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
                 opt->replay.empty() ? "" : (", replaying " + opt->replay).c_str());
     std::printf("  cmm         I++ DME on %s:%d   (try: printf '00001 StartSession()\\r\\n' | nc %s %d)\n",
                 cell.cmm.host.c_str(), cmm_port, cell.cmm.host.c_str(), cmm_port);
-    std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a 1 -t 1 -r 1 -c 6 -1 -p %d %s)\n",
-                cell.plc.host.c_str(), plc_port, plc_port, cell.plc.host.c_str());
+    // The discrete inputs where the cell file's map puts them (mbpoll numbers references from 1).
+    const drivers::plc::AddressSpan inputs = cell.plc_registers.span(drivers::plc::RegisterKind::DiscreteInput);
+    std::printf("  plc         Modbus TCP on %s:%d   (try: mbpoll -m tcp -a %d -t 1 -r %d -c %d -1 -p %d %s)\n",
+                cell.plc.host.c_str(), plc_port, cell.plc_unit_id, inputs.first + 1, inputs.count, plc_port,
+                cell.plc.host.c_str());
     std::printf("  cameras     GigE Vision %s on %s, %s on %s   (try: arv-tool-0.8)\n",
                 cell.left_camera.serial.c_str(), cell.left_camera.address.c_str(), cell.right_camera.serial.c_str(),
                 cell.right_camera.address.c_str());

@@ -143,6 +143,8 @@ HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisi
   o.cmm_port = 0;  // free ports: a served cell or another scan may hold the configured ones
   o.plc_address = base.plc.host;
   o.plc_port = 0;
+  o.plc_unit_id = static_cast<std::uint8_t>(base.plc_unit_id);
+  o.plc_registers = base.plc_registers;
   o.cameras = cameras;
   o.left_address = base.left_camera.address;
   o.left_serial = base.left_camera.serial;

@@ -47,6 +47,12 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   EXPECT_EQ(b.cmm.port, 11294);
   EXPECT_EQ(b.plc.port, 11502);
   EXPECT_EQ(b.plc_unit_id, 3);
+  // Every PLC signal elsewhere than in the standard map (the built-in cell's).
+  EXPECT_EQ(a.plc_registers, drivers::plc::RegisterMap::standard());
+  for (std::size_t row = 0; row < drivers::plc::kSignalCount; ++row)
+    EXPECT_NE(b.plc_registers.addresses[row], a.plc_registers.addresses[row]) << drivers::plc::registerTable()[row].name;
+  EXPECT_EQ(b.plc_registers.address(drivers::plc::DiscreteInput::DoorClosed), 104);
+  EXPECT_EQ(b.plc_registers.address(drivers::plc::Coil::LaserShutterOpenRequest), 200);
   EXPECT_EQ(b.left_camera.serial, "CELL-B-LEFT");
   EXPECT_EQ(b.limits.travel_max[0], 500);
   EXPECT_EQ(b.geometry.head.kind, HeadDescription::Kind::Indexing);
@@ -80,6 +86,7 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   EXPECT_TRUE(again.defaulted.empty());
   EXPECT_EQ(again.geometry, b.geometry);
   EXPECT_EQ(again.limits.index_step, b.limits.index_step);
+  EXPECT_EQ(again.plc_registers, b.plc_registers);
   again.source = b.source;
   b.defaulted.clear();
   EXPECT_EQ(describeCellConfig(again), describeCellConfig(b));
@@ -96,6 +103,28 @@ TEST_F(CellFileTest, KeysLeftOutAreDefaultsAndListedAsSuch) {
   EXPECT_NE(listing.find("standoff_mm = 100.0"), std::string::npos) << listing;
   EXPECT_NE(listing.find("# default"), std::string::npos);
   EXPECT_NE(listing.find("# no [ball_bar]"), std::string::npos);
+}
+
+// [plc.registers] moves a signal by its name in drivers/plc/REGISTER_MAP.md; the others keep their
+// standard addresses, listed as defaults.
+TEST_F(CellFileTest, PlcSignalsLeftOutKeepTheirStandardAddresses) {
+  using drivers::plc::Coil;
+  using drivers::plc::RegisterMap;
+  const CellConfig c = loadCellConfig(write("moved.toml", "[plc]\nunit_id = 2\n[plc.registers]\nstack_light_green = 20\n"
+                                                          "door_closed = 10\n"));
+  RegisterMap expected;
+  expected.setAddress(Coil::StackLightGreen, 20);
+  expected.setAddress(drivers::plc::DiscreteInput::DoorClosed, 10);
+  EXPECT_EQ(c.plc_registers, expected);
+  EXPECT_EQ(c.plc_registers.address(Coil::StackLightAmber), RegisterMap::standard().address(Coil::StackLightAmber));
+  EXPECT_NE(std::find(c.defaulted.begin(), c.defaulted.end(), "[plc.registers] stack_light_amber"), c.defaulted.end());
+  EXPECT_EQ(std::find(c.defaulted.begin(), c.defaulted.end(), "[plc.registers] stack_light_green"), c.defaulted.end());
+  const std::string listing = describeCellConfig(c);
+  EXPECT_NE(listing.find("[plc.registers]\ndoor_closed = 10\n"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("\nstack_light_green = 20\n"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("\nstack_light_amber = 1"), std::string::npos) << listing;
+  // A file without [plc.registers]: the standard map.
+  EXPECT_EQ(loadCellConfig(write("plain.toml", "[plc]\nport = 1503\n")).plc_registers, RegisterMap::standard());
 }
 
 TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
@@ -119,6 +148,17 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
       {"[fixture]\ndatum_rotation_deg = [0, 0]\n", "[fixture] datum_rotation_deg must be a list of 3 numbers"},
       {"[plc]\nport = 70000\n", "[plc] port 70000 is not 1-65535"},
       {"[plc]\nunit_id = 300\n", "[plc] unit_id is 300, not 0..255"},
+      {"[plc]\nregisters = 5\n", "[plc] registers must be a table"},
+      {"[plc.registers]\ndoor_closd = 10\n", "[plc.registers] door_closd is not a key of this section (known: "},
+      {"[plc.registers]\ndoor_closed = -1\n", "[plc.registers] door_closed is -1, not 0..65535"},
+      {"[plc.registers]\nstack_light_red = 65536\n", "[plc.registers] stack_light_red is 65536, not 0..65535"},
+      {"[plc.registers]\nfault_word = 4.5\n", "[plc.registers] fault_word has the wrong type: expected an integer"},
+      {"[plc.registers]\nfault_word = \"4\"\n", "[plc.registers] fault_word has the wrong type: expected an integer"},
+      {"[plc.registers]\npart_clamped = 0\n", "[plc.registers] door_closed and part_clamped are both discrete-input 0"},
+      {"[plc.registers]\nclamp_request = 30\nmotion_enable = 30\n",
+       "[plc.registers] clamp_request and motion_enable are both coil 30"},
+      {"[plc.registers]\nfault_word = 200\n",
+       "[plc.registers] input-register addresses from plc_heartbeat (0) to fault_word (200) span 201, more than the 100"},
       {"[camera]\nwidth = 10\n", "[camera] is not a section of a cell file"},
       {"name = 3\n", "name has the wrong type"},
       {"[digitizer\n", "cell.toml:1:"},

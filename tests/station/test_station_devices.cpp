@@ -144,8 +144,8 @@ TEST_F(StationTest, MbpollReadsTheServedPlc) {
     if (std::sscanf(line.c_str(), "[%d]: %ld", &reference, &value) == 2) values[reference] = value;
   }
   ASSERT_EQ(values.size(), 6U) << poll.output;
-  EXPECT_EQ(values.at(drivers::plc::address(drivers::plc::InputRegister::FirmwareMajor)), 1) << poll.output;
-  EXPECT_EQ(values.at(drivers::plc::address(drivers::plc::InputRegister::FirmwareMinor)), 0) << poll.output;
+  EXPECT_EQ(values.at(drivers::plc::RegisterMap::standard().address(drivers::plc::InputRegister::FirmwareMajor)), 1) << poll.output;
+  EXPECT_EQ(values.at(drivers::plc::RegisterMap::standard().address(drivers::plc::InputRegister::FirmwareMinor)), 0) << poll.output;
 }
 
 TEST_F(StationTest, RawTcpClientDrivesTheServedCmm) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <utility>
+#include <vector>
 #include <condition_variable>
 #include <mutex>
 #include <stdexcept>
@@ -58,13 +60,17 @@ struct ModbusPlc::Impl {
 
 namespace {
 
-PlcInputs readInputsFrom(detail::ModbusClient& client) {
-  std::array<std::uint8_t, kDiscreteInputCount> bits{};
-  std::array<std::uint16_t, kInputRegisterCount> regs{};
-  client.readInputBits(0, kDiscreteInputCount, bits.data());
-  client.readInputRegisters(0, kInputRegisterCount, regs.data());
-  const auto bit = [&](DiscreteInput input) { return bits[address(input)] != 0; };
-  const auto reg = [&](InputRegister r) { return regs[address(r)]; };
+// Reads the whole input state in two requests: the span of the map's discrete inputs and of its
+// input registers (an address in a gap is read and ignored).
+PlcInputs readInputsFrom(detail::ModbusClient& client, const RegisterMap& map) {
+  const AddressSpan bit_span = map.span(RegisterKind::DiscreteInput);
+  const AddressSpan reg_span = map.span(RegisterKind::InputRegister);
+  std::array<std::uint8_t, kMaxAddressSpan> bits{};
+  std::array<std::uint16_t, kMaxAddressSpan> regs{};
+  client.readInputBits(bit_span.first, bit_span.count, bits.data());
+  client.readInputRegisters(reg_span.first, reg_span.count, regs.data());
+  const auto bit = [&](DiscreteInput input) { return bits[map.address(input) - bit_span.first] != 0; };
+  const auto reg = [&](InputRegister r) { return regs[map.address(r) - reg_span.first]; };
   PlcInputs in;
   in.door_closed = bit(DiscreteInput::DoorClosed);
   in.e_stop_chain_ok = bit(DiscreteInput::EStopChainOk);
@@ -83,25 +89,39 @@ PlcInputs readInputsFrom(detail::ModbusClient& client) {
   return in;
 }
 
-std::array<std::uint8_t, kCoilCount> encode(const PlcOutputs& out) {
-  std::array<std::uint8_t, kCoilCount> bits{};
-  bits[address(Coil::StackLightGreen)] = out.stack_light_green;
-  bits[address(Coil::StackLightAmber)] = out.stack_light_amber;
-  bits[address(Coil::StackLightRed)] = out.stack_light_red;
-  bits[address(Coil::LaserShutterOpenRequest)] = out.laser_shutter_open_request;
-  bits[address(Coil::ClampRequest)] = out.clamp_request;
-  bits[address(Coil::MotionEnable)] = out.motion_enable;
-  return bits;
+// Which field of PlcOutputs each coil is.
+constexpr std::array<std::pair<Coil, bool PlcOutputs::*>, kCoilCount> kOutputFields{{
+    {Coil::StackLightGreen, &PlcOutputs::stack_light_green},
+    {Coil::StackLightAmber, &PlcOutputs::stack_light_amber},
+    {Coil::StackLightRed, &PlcOutputs::stack_light_red},
+    {Coil::LaserShutterOpenRequest, &PlcOutputs::laser_shutter_open_request},
+    {Coil::ClampRequest, &PlcOutputs::clamp_request},
+    {Coil::MotionEnable, &PlcOutputs::motion_enable},
+}};
+
+// Coils at consecutive addresses, written in one request.
+struct CoilRun {
+  std::uint16_t first = 0;
+  std::vector<std::uint8_t> values;
+};
+
+std::vector<CoilRun> coilRuns(const PlcOutputs& out, const RegisterMap& map) {
+  std::array<std::pair<std::uint16_t, bool>, kCoilCount> coils{};
+  for (std::size_t i = 0; i < kCoilCount; ++i)
+    coils[i] = {map.address(kOutputFields[i].first), out.*kOutputFields[i].second};
+  std::sort(coils.begin(), coils.end());
+  std::vector<CoilRun> runs;
+  for (const auto& [address, on] : coils) {
+    if (runs.empty() || runs.back().first + runs.back().values.size() != address) runs.push_back({address, {}});
+    runs.back().values.push_back(on ? 1 : 0);
+  }
+  return runs;
 }
 
-PlcOutputs decode(const std::array<std::uint8_t, kCoilCount>& bits) {
+// The coils from a read of the map's coil span.
+PlcOutputs decode(const std::uint8_t* span_bits, AddressSpan span, const RegisterMap& map) {
   PlcOutputs out;
-  out.stack_light_green = bits[address(Coil::StackLightGreen)] != 0;
-  out.stack_light_amber = bits[address(Coil::StackLightAmber)] != 0;
-  out.stack_light_red = bits[address(Coil::StackLightRed)] != 0;
-  out.laser_shutter_open_request = bits[address(Coil::LaserShutterOpenRequest)] != 0;
-  out.clamp_request = bits[address(Coil::ClampRequest)] != 0;
-  out.motion_enable = bits[address(Coil::MotionEnable)] != 0;
+  for (const auto& [coil, field] : kOutputFields) out.*field = span_bits[map.address(coil) - span.first] != 0;
   return out;
 }
 
@@ -128,6 +148,7 @@ const ModbusPlcOptions& validated(const ModbusPlcOptions& options, const std::st
   if (options.connect_timeout < milliseconds(1)) refuse("connect_timeout below 1 ms");
   if (options.poll_period < milliseconds(1)) refuse("poll_period below 1 ms");
   if (options.silence_limit < milliseconds(1)) refuse("silence_limit below 1 ms");
+  if (const std::string problem = options.registers.problem(); !problem.empty()) refuse("register map: " + problem);
   return options;
 }
 
@@ -185,33 +206,37 @@ void ModbusPlc::request(const char* what,
 
 PlcInputs ModbusPlc::readInputs() {
   PlcInputs inputs;
-  request("read inputs", [&](detail::ModbusClient& client) { inputs = readInputsFrom(client); });
+  request("read inputs", [&](detail::ModbusClient& client) { inputs = readInputsFrom(client, options_.registers); });
   return inputs;
 }
 
 PlcOutputs ModbusPlc::readOutputs() {
-  std::array<std::uint8_t, kCoilCount> bits{};
+  const AddressSpan span = options_.registers.span(RegisterKind::Coil);
+  std::array<std::uint8_t, kMaxAddressSpan> bits{};
   request("read outputs", [&](detail::ModbusClient& client) {
-    client.readBits(0, kCoilCount, bits.data());
+    client.readBits(span.first, span.count, bits.data());
   });
-  return decode(bits);
+  return decode(bits.data(), span, options_.registers);
 }
 
 void ModbusPlc::writeOutputs(const PlcOutputs& outputs) {
-  const auto bits = encode(outputs);
+  const std::vector<CoilRun> runs = coilRuns(outputs, options_.registers);
   request("write outputs", [&](detail::ModbusClient& client) {
-    client.writeBits(0, kCoilCount, bits.data());
+    for (const CoilRun& run : runs)
+      client.writeBits(run.first, static_cast<std::uint16_t>(run.values.size()), run.values.data());
   });
 }
 
 void ModbusPlc::setOutput(Coil coil, bool on) {
-  request("write output", [&](detail::ModbusClient& client) { client.writeBit(address(coil), on); });
+  request("write output", [&](detail::ModbusClient& client) {
+    client.writeBit(options_.registers.address(coil), on);
+  });
 }
 
 std::uint16_t ModbusPlc::writeHeartbeat() {
   const std::uint16_t value = impl_->nextHeartbeat();
   request("write heartbeat", [&](detail::ModbusClient& client) {
-    client.writeRegister(address(HoldingRegister::StationHeartbeat), value);
+    client.writeRegister(options_.registers.address(HoldingRegister::StationHeartbeat), value);
   });
   return value;
 }
@@ -222,7 +247,7 @@ void ModbusPlc::setPlcWatchdogTimeout(milliseconds timeout) {
                       "PLC watchdog timeout " + std::to_string(timeout.count()) +
                           " ms is outside 0..65535 ms");
   request("write watchdog timeout", [&](detail::ModbusClient& client) {
-    client.writeRegister(address(HoldingRegister::WatchdogTimeoutMs),
+    client.writeRegister(options_.registers.address(HoldingRegister::WatchdogTimeoutMs),
                          static_cast<std::uint16_t>(timeout.count()));
   });
 }
@@ -395,8 +420,8 @@ void ModbusPlc::watchdogLoop() {
         pending.push_back(recordEvent(PlcEventKind::Reconnected,
                                       "watchdog reconnected to " + endpoint()));
       }
-      client.writeRegister(address(HoldingRegister::StationHeartbeat), impl_->nextHeartbeat());
-      const PlcInputs inputs = readInputsFrom(client);
+      client.writeRegister(options_.registers.address(HoldingRegister::StationHeartbeat), impl_->nextHeartbeat());
+      const PlcInputs inputs = readInputsFrom(client, options_.registers);
       answered = true;
       last_answer = Clock::now();
       if (silent) {

@@ -54,6 +54,8 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
   VirtualPlcOptions plc;
   plc.address = options_.plc_address;
   plc.port = options_.plc_port;
+  plc.unit_id = options_.plc_unit_id;
+  plc.registers = options_.plc_registers;
   plc_ = std::make_unique<VirtualPlc>(plc);
   if (options_.cameras) {
     for (int c = 0; c < 2; ++c) {

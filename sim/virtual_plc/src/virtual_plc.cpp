@@ -43,11 +43,9 @@ struct Connection {
 }  // namespace
 
 struct VirtualPlc::Impl {
-  explicit Impl(const VirtualPlcOptions& options)
-      : image(modbus_mapping_new_start_address(0, kCoilCount, 0, kDiscreteInputCount, 0,
-                                               kHoldingRegisterCount, 0, kInputRegisterCount)) {
+  explicit Impl(const VirtualPlcOptions& options) : image(detail::RegisterImage::allocate(options.registers)) {
     if (image == nullptr) throw std::runtime_error("virtual PLC: cannot allocate the register image");
-    logic.emplace(*image, options, Clock::now());
+    logic.emplace(detail::RegisterImage(*image, options.registers), options, Clock::now());
   }
   ~Impl() { modbus_mapping_free(image); }
 
@@ -81,10 +79,11 @@ struct VirtualPlc::Impl {
     return stop_wake.wait_for(lock, duration, [&] { return stopping; });
   }
 
-  template <class Operation>
-  auto withImage(Operation&& operation) const {
+  // One signal's value, as a client would read it.
+  template <class Signal>
+  auto read(Signal signal) const {
     std::lock_guard lock(image_mutex);
-    return operation(*image);
+    return logic->image().at(signal);
   }
 
   void acceptLoop(const VirtualPlcOptions& options);
@@ -287,8 +286,16 @@ void VirtualPlc::Impl::reapFinished() {
   for (std::thread& thread : done) thread.join();
 }
 
+namespace {
+const VirtualPlcOptions& validated(const VirtualPlcOptions& options) {
+  if (const std::string problem = options.registers.problem(); !problem.empty())
+    throw std::invalid_argument("virtual PLC: register map: " + problem);
+  return options;
+}
+}  // namespace
+
 VirtualPlc::VirtualPlc(VirtualPlcOptions options)
-    : options_(std::move(options)), impl_(std::make_unique<Impl>(options_)) {}
+    : options_(validated(options)), impl_(std::make_unique<Impl>(options_)) {}
 
 VirtualPlc::~VirtualPlc() { stop(); }
 
@@ -363,31 +370,18 @@ int VirtualPlc::port() const {
 }
 
 void VirtualPlc::setInput(DiscreteInput input, bool on) {
-  impl_->withImage([&](modbus_mapping_t& image) {
-    image.tab_input_bits[address(input)] = on ? 1 : 0;
-    impl_->logic->evaluate(Clock::now());
-  });
+  std::lock_guard lock(impl_->image_mutex);
+  impl_->logic->image().at(input) = on ? 1 : 0;
+  impl_->logic->evaluate(Clock::now());
 }
 
-bool VirtualPlc::input(DiscreteInput input) const {
-  return impl_->withImage(
-      [&](const modbus_mapping_t& image) { return image.tab_input_bits[address(input)] != 0; });
-}
+bool VirtualPlc::input(DiscreteInput input) const { return impl_->read(input) != 0; }
 
-bool VirtualPlc::coil(Coil coil) const {
-  return impl_->withImage(
-      [&](const modbus_mapping_t& image) { return image.tab_bits[address(coil)] != 0; });
-}
+bool VirtualPlc::coil(Coil coil) const { return impl_->read(coil) != 0; }
 
-std::uint16_t VirtualPlc::holdingRegister(HoldingRegister reg) const {
-  return impl_->withImage(
-      [&](const modbus_mapping_t& image) { return image.tab_registers[address(reg)]; });
-}
+std::uint16_t VirtualPlc::holdingRegister(HoldingRegister reg) const { return impl_->read(reg); }
 
-std::uint16_t VirtualPlc::inputRegister(InputRegister reg) const {
-  return impl_->withImage(
-      [&](const modbus_mapping_t& image) { return image.tab_input_registers[address(reg)]; });
-}
+std::uint16_t VirtualPlc::inputRegister(InputRegister reg) const { return impl_->read(reg); }
 
 bool VirtualPlc::interlockTripped() const {
   return inputRegister(InputRegister::InterlockState) != 0;

@@ -1,5 +1,5 @@
-// A third-party Modbus client (mbpoll) against the virtual PLC: the registers are where the map
-// says, for any Modbus tool, not just for our own driver. Skipped with a reason without mbpoll.
+// A third-party Modbus client (mbpoll) against the virtual PLC: the registers are where the standard
+// map says, for any Modbus tool, not just for our own driver. Skipped with a reason without mbpoll.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -14,7 +14,6 @@
 namespace stampscan::plc_test {
 namespace {
 
-using drivers::plc::address;
 using drivers::plc::Coil;
 using drivers::plc::DiscreteInput;
 using drivers::plc::HoldingRegister;
@@ -76,6 +75,12 @@ class PlcMbpollTest : public PlcFixture {
 
   std::string mbpoll_;
 };
+
+// The standard map's address of a signal.
+template <class Signal>
+int address(Signal signal) {
+  return drivers::plc::RegisterMap::standard().address(signal);
+}
 
 TEST_F(PlcMbpollTest, ReadsTheMappedRegisters) {
   const MbpollResult inputs = run("-t 3 -r 0 -c 6 127.0.0.1");

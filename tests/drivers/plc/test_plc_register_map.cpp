@@ -50,12 +50,12 @@ std::vector<Row> tableAfter(const std::vector<Row>& rows, const Row& header) {
   return table;
 }
 
-TEST(PlcRegisterMap, AddressesAreUniqueAndContiguousPerKind) {
+TEST(PlcRegisterMap, StandardAddressesAreUniqueAndContiguousPerKind) {
   std::map<RegisterKind, std::set<int>> addresses;
   std::set<std::string_view> names;
-  for (const RegisterInfo& reg : registerMap()) {
-    EXPECT_TRUE(addresses[reg.kind].insert(reg.address).second)
-        << reg.name << " overlaps another " << toString(reg.kind) << " at " << reg.address;
+  for (const RegisterInfo& reg : registerTable()) {
+    EXPECT_TRUE(addresses[reg.kind].insert(reg.standard_address).second)
+        << reg.name << " overlaps another " << toString(reg.kind) << " at " << reg.standard_address;
     EXPECT_TRUE(names.insert(reg.name).second) << "two registers named " << reg.name;
     EXPECT_FALSE(reg.meaning.empty()) << reg.name;
     EXPECT_EQ(reg.meaning.find('|'), std::string_view::npos) << reg.name << " would break the table";
@@ -104,10 +104,10 @@ TEST(PlcRegisterMap, DocumentHasTheSameTables) {
   const std::vector<Row> rows = tableRows(file);
 
   const std::vector<Row> registers = tableAfter(rows, {"name", "kind", "address", "unit", "meaning"});
-  ASSERT_EQ(registers.size(), registerMap().size()) << "register rows in the document";
+  ASSERT_EQ(registers.size(), registerTable().size()) << "register rows in the document";
   for (std::size_t i = 0; i < registers.size(); ++i) {
-    const RegisterInfo& reg = registerMap()[i];
-    const Row expected{std::string(reg.name), toString(reg.kind), std::to_string(reg.address),
+    const RegisterInfo& reg = registerTable()[i];
+    const Row expected{std::string(reg.name), toString(reg.kind), std::to_string(reg.standard_address),
                        std::string(reg.unit), std::string(reg.meaning)};
     EXPECT_EQ(registers[i], expected) << "document row " << i + 1 << " differs from the code";
   }

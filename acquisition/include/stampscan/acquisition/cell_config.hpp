@@ -7,6 +7,7 @@
 
 #include "stampscan/acquisition/cell_geometry.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/drivers/plc/plc_register_map.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -58,6 +59,10 @@ struct CellConfig {
   bool cmm_device_time = false;
   Endpoint plc{"127.0.0.1", 1502};
   int plc_unit_id = 1;
+  // Where the PLC program puts each signal ([plc.registers], by the names of
+  // drivers/plc/REGISTER_MAP.md): the driver reads and writes there, and the cell's virtual twin
+  // serves there. Default: the standard map.
+  drivers::plc::RegisterMap plc_registers;
   struct Camera {
     std::string serial, address;
   };

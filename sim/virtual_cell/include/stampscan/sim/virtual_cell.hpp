@@ -53,6 +53,10 @@ struct VirtualCellOptions {
   std::uint16_t cmm_port = 1294;  // 0: any free port (read it from cmm().port())
   std::string plc_address = "127.0.0.1";
   int plc_port = 1502;            // 0: any free port
+  // The PLC as the cell file describes it ([plc] unit_id, [plc.registers]): the unit id it answers
+  // and where it serves each signal.
+  std::uint8_t plc_unit_id = 1;
+  drivers::plc::RegisterMap plc_registers;
   // The stereo pair: Aravis fake GigE Vision cameras (GVCP on UDP 3956 of each address, so one
   // cell per machine at a time), rendering the world at the world's image scale.
   bool cameras = false;

@@ -1,5 +1,5 @@
-// The virtual cell PLC: a libmodbus TCP server serving the register map of
-// drivers/plc/plc_register_map.hpp, with the PLC's interlock logic running in the server. The station
+// The virtual cell PLC: a libmodbus TCP server serving the signals of
+// drivers/plc/plc_register_map.hpp at the addresses of its options' register map, with the PLC's interlock logic running in the server. The station
 // reaches it through the same ModbusPlc driver as the real PLC; tests and the simulator drive its
 // inputs (door, e-stop, light curtain, clamp, air) and inject faults (silence, slow replies, dropped
 // connections) through this class.
@@ -55,6 +55,11 @@ struct VirtualPlcOptions {
   // Open connections at most; one more is accepted and closed at once, so that its client fails
   // fast instead of waiting in the listen queue. The station uses two.
   std::size_t max_connections = 16;
+  // Where each signal is served (the cell file's [plc.registers]; default: the standard map). The
+  // image covers each kind's span of the map; addresses outside it get exception 0x02. The
+  // constructor refuses a map with a clash or a span wider than kMaxAddressSpan
+  // (std::invalid_argument naming the signals).
+  drivers::plc::RegisterMap registers;
 };
 
 class VirtualPlc {

@@ -1,6 +1,7 @@
 // The cell PLC over Modbus TCP (libmodbus). The same driver talks to the real PLC and to the virtual
 // PLC of sim/virtual_plc; only the address differs. What each bit and register means is in
-// plc_register_map.hpp (and REGISTER_MAP.md).
+// plc_register_map.hpp (and REGISTER_MAP.md); where each one is, in the options' register map (the
+// cell file's [plc.registers]).
 //
 // Thread safety: every public method may be called from any thread. libmodbus contexts are not
 // thread-safe, so each context has exactly one user at a time:
@@ -45,9 +46,14 @@ struct ModbusPlcOptions {
   std::chrono::milliseconds silence_limit{1000};
   // Written to the PLC's watchdog_timeout_ms at connect when set (the PLC keeps its own otherwise).
   std::optional<std::uint16_t> plc_watchdog_timeout_ms;
+  // Where the PLC program puts each signal (default: the standard map of REGISTER_MAP.md). Every
+  // signal is read and written at its address here; a map with a clash or a span wider than
+  // kMaxAddressSpan is refused.
+  RegisterMap registers;
 };
 
-// The whole input state: discrete inputs and input registers, read in two requests.
+// The whole input state: discrete inputs and input registers, read in two requests (each kind's span
+// of the register map, gaps included).
 struct PlcInputs {
   bool door_closed = false;
   bool e_stop_chain_ok = false;
@@ -110,7 +116,9 @@ class ModbusPlc : public Device {
   // connects and two attempts of its requests, each within its timeout.
   PlcInputs readInputs();
   PlcOutputs readOutputs();
-  void writeOutputs(const PlcOutputs& outputs);  // all coils in one request
+  // All coils: one request per run of consecutive coil addresses (one for the standard map); an
+  // address between the map's coils is never written (on a real PLC it may be another signal).
+  void writeOutputs(const PlcOutputs& outputs);
   void setOutput(Coil coil, bool on);
   // Writes the next station heartbeat value and returns it (the watchdog thread also does this).
   std::uint16_t writeHeartbeat();

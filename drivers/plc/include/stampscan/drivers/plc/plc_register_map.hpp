@@ -1,13 +1,29 @@
-// The cell PLC's Modbus register map: written once, used by the driver (drivers/plc) and by the
-// virtual PLC (sim/virtual_plc) alike. As with GenICam in Aravis, the wire carries raw bits and
-// registers; what they mean comes from this one description. drivers/plc/REGISTER_MAP.md is the same
-// content for people (registerMapMarkdown() prints the tables; a test checks the two agree).
+// The cell PLC's Modbus registers: written once, used by the driver (drivers/plc) and by the virtual
+// PLC (sim/virtual_plc) alike. As with GenICam in Aravis, the wire carries raw bits and registers;
+// what they mean comes from this one description. drivers/plc/REGISTER_MAP.md is the same content
+// for people (registerMapMarkdown() prints the tables; a test checks the two agree).
 //
-// Addresses are 0-based Modbus PDU addresses. Each kind is its own address space, numbered from 0
-// without gaps, so the whole input state is two requests (discrete inputs, input registers).
+// Words used here:
+// - a signal is one named bit or register (door_closed, stack_light_green, ...), one row of the
+//   register table, one value of the enums DiscreteInput, Coil, HoldingRegister, InputRegister;
+// - the register table (registerTable()) names each signal, its kind, unit and meaning, and its
+//   address in the standard map;
+// - a register map (RegisterMap) says at which address each signal is. A real cell's PLC program
+//   puts its signals where it likes, so the map is a value, read from the cell file's
+//   [plc.registers]; the standard map (a default-constructed RegisterMap) is the table's.
+//
+// Addresses are 0-based Modbus PDU addresses. Each kind is its own address space. In the standard
+// map each kind is numbered from 0 without gaps; any map keeps the addresses of one kind within
+// kMaxAddressSpan, so that the whole input state is still two requests (discrete inputs, input
+// registers).
+//
+// This header is the whole register map (no library to link): the cell file's reader uses it too.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -20,8 +36,22 @@ enum class RegisterKind : std::uint8_t {
   HoldingRegister,  // read/write 16-bit, functions 03/06/16: written by the station
   InputRegister,    // read-only 16-bit, function 04: the PLC's own state
 };
+inline constexpr std::array<RegisterKind, 4> kRegisterKinds{RegisterKind::DiscreteInput, RegisterKind::Coil,
+                                                            RegisterKind::HoldingRegister,
+                                                            RegisterKind::InputRegister};
 // "discrete-input", "coil", "holding-register", "input-register": the spelling of the document.
-const char* toString(RegisterKind kind);
+constexpr const char* toString(RegisterKind kind) {
+  switch (kind) {
+    case RegisterKind::DiscreteInput: return "discrete-input";
+    case RegisterKind::Coil: return "coil";
+    case RegisterKind::HoldingRegister: return "holding-register";
+    case RegisterKind::InputRegister: return "input-register";
+  }
+  return "unknown";
+}
+
+// The enum values number the signals of each kind from 0; each is also the signal's address in the
+// standard map (and only there: the driver and the virtual PLC ask a RegisterMap).
 
 // Read-only bits from the cell's sensors. "true" is always the safe or healthy state, so a broken
 // wire (reads 0) shows as the unsafe state.
@@ -63,7 +93,11 @@ enum class InputRegister : std::uint16_t {
 };
 inline constexpr std::uint16_t kInputRegisterCount = 6;
 
-// Bits of the fault word (bit number = enum value).
+inline constexpr std::size_t kSignalCount =
+    kDiscreteInputCount + kCoilCount + kHoldingRegisterCount + kInputRegisterCount;
+
+// Bits of the fault word (bit number = enum value). Bits of one register, not addresses: no map
+// moves them.
 enum class FaultBit : std::uint16_t {
   DoorOpen = 0,
   EStopBroken = 1,
@@ -78,10 +112,6 @@ enum class InterlockState : std::uint16_t {
   Tripped = 1,  // a trip condition holds: shutter held closed, motion enable held off
 };
 
-constexpr std::uint16_t address(DiscreteInput input) { return static_cast<std::uint16_t>(input); }
-constexpr std::uint16_t address(Coil coil) { return static_cast<std::uint16_t>(coil); }
-constexpr std::uint16_t address(HoldingRegister reg) { return static_cast<std::uint16_t>(reg); }
-constexpr std::uint16_t address(InputRegister reg) { return static_cast<std::uint16_t>(reg); }
 constexpr std::uint16_t mask(FaultBit bit) {
   return static_cast<std::uint16_t>(1U << static_cast<unsigned>(bit));
 }
@@ -99,9 +129,9 @@ inline constexpr std::uint16_t kDefaultWatchdogTimeoutMs = 1000;
 inline constexpr int kDefaultTcpPort = 1502;  // the virtual cell's contract (ARCHITECTURE.md)
 
 struct RegisterInfo {
-  std::string_view name;  // snake_case, as in the document
+  std::string_view name;  // snake_case, as in the document and the cell file's [plc.registers]
   RegisterKind kind;
-  std::uint16_t address;
+  std::uint16_t standard_address;  // in the standard map
   std::string_view unit;  // "bool", "count", "ms", "bits", "enum", "version"
   std::string_view meaning;
 };
@@ -112,16 +142,148 @@ struct FaultBitInfo {
   std::string_view meaning;
 };
 
-// Every register, in the order of the document: discrete inputs, coils, holding, input registers.
-std::span<const RegisterInfo> registerMap();
+namespace detail {
+using K = RegisterKind;
+// The one description of the signals. Order: kind, then standard address; the document lists the
+// same rows.
+inline constexpr std::array<RegisterInfo, kSignalCount> kRegisterTable{{
+    {"door_closed", K::DiscreteInput, 0, "bool", "1 when the cell door is closed"},
+    {"e_stop_chain_ok", K::DiscreteInput, 1, "bool", "1 when the emergency-stop chain is closed (no e-stop pressed)"},
+    {"light_curtain_clear", K::DiscreteInput, 2, "bool", "1 when nothing interrupts the light curtain"},
+    {"part_clamped", K::DiscreteInput, 3, "bool", "1 when the clamp holds the part"},
+    {"laser_shutter_closed", K::DiscreteInput, 4, "bool", "1 when the laser shutter is closed (feedback from the shutter, not the request)"},
+    {"air_pressure_ok", K::DiscreteInput, 5, "bool", "1 when the clamp's air supply is above its minimum"},
+    {"stack_light_green", K::Coil, 0, "bool", "green stack light: cell ready or scanning"},
+    {"stack_light_amber", K::Coil, 1, "bool", "amber stack light: operator action needed"},
+    {"stack_light_red", K::Coil, 2, "bool", "red stack light: fault"},
+    {"laser_shutter_open_request", K::Coil, 3, "bool", "1 asks the PLC to open the laser shutter; forced to 0 while the interlock is tripped"},
+    {"clamp_request", K::Coil, 4, "bool", "1 asks the PLC to clamp the part, 0 to release it"},
+    {"motion_enable", K::Coil, 5, "bool", "1 asks the PLC to enable CMM motion; forced to 0 while the interlock is tripped"},
+    {"station_heartbeat", K::HoldingRegister, 0, "count", "written by the station; must change at least once per watchdog timeout"},
+    {"watchdog_timeout_ms", K::HoldingRegister, 1, "ms", "how long the station heartbeat may stay unchanged before the PLC trips; 0 turns the watchdog off; default 1000"},
+    {"plc_heartbeat", K::InputRegister, 0, "count", "PLC logic cycles, wrapping at 65535; changes while the PLC program runs"},
+    {"station_heartbeat_echo", K::InputRegister, 1, "count", "the last station_heartbeat value the PLC saw"},
+    {"firmware_major", K::InputRegister, 2, "version", "PLC program version, major"},
+    {"firmware_minor", K::InputRegister, 3, "version", "PLC program version, minor"},
+    {"fault_word", K::InputRegister, 4, "bits", "one bit per present fault (table below)"},
+    {"interlock_state", K::InputRegister, 5, "enum", "0 clear, 1 tripped (shutter held closed, motion enable held off)"},
+}};
+}  // namespace detail
+
+// Every signal, in the order of the document: discrete inputs, coils, holding, input registers.
+constexpr std::span<const RegisterInfo, kSignalCount> registerTable() { return detail::kRegisterTable; }
+
+// A signal's row in registerTable().
+constexpr std::size_t tableRow(DiscreteInput input) { return static_cast<std::size_t>(input); }
+constexpr std::size_t tableRow(Coil coil) { return kDiscreteInputCount + static_cast<std::size_t>(coil); }
+constexpr std::size_t tableRow(HoldingRegister reg) {
+  return kDiscreteInputCount + kCoilCount + static_cast<std::size_t>(reg);
+}
+constexpr std::size_t tableRow(InputRegister reg) {
+  return kDiscreteInputCount + kCoilCount + kHoldingRegisterCount + static_cast<std::size_t>(reg);
+}
+// The row of the signal named `name` ("door_closed"), if there is one.
+constexpr std::optional<std::size_t> findSignal(std::string_view name) {
+  for (std::size_t row = 0; row < kSignalCount; ++row)
+    if (registerTable()[row].name == name) return row;
+  return std::nullopt;
+}
+
+constexpr const RegisterInfo& describe(DiscreteInput input) { return registerTable()[tableRow(input)]; }
+constexpr const RegisterInfo& describe(Coil coil) { return registerTable()[tableRow(coil)]; }
+constexpr const RegisterInfo& describe(HoldingRegister reg) { return registerTable()[tableRow(reg)]; }
+constexpr const RegisterInfo& describe(InputRegister reg) { return registerTable()[tableRow(reg)]; }
+
+namespace detail {
+// The enums and the table must agree: each kind's rows in enum order, at standard addresses
+// 0..count-1. Checked at compile time so that neither can drift.
+constexpr bool tableMatchesEnums() {
+  const std::array<std::uint16_t, 4> counts{kDiscreteInputCount, kCoilCount, kHoldingRegisterCount,
+                                            kInputRegisterCount};
+  std::size_t row = 0;
+  for (std::size_t k = 0; k < kRegisterKinds.size(); ++k)
+    for (std::uint16_t a = 0; a < counts[k]; ++a, ++row)
+      if (kRegisterTable[row].kind != kRegisterKinds[k] || kRegisterTable[row].standard_address != a) return false;
+  return row == kSignalCount && tableRow(InputRegister::InterlockState) == kSignalCount - 1;
+}
+static_assert(tableMatchesEnums(), "register table out of step with the enums");
+}  // namespace detail
+
+// The addresses of one kind that a map uses lie in [first, first + count): one request reads them.
+struct AddressSpan {
+  std::uint16_t first = 0;
+  std::uint16_t count = 0;
+  bool operator==(const AddressSpan&) const = default;
+};
+
+// At most this many addresses from the lowest to the highest of one kind: the driver reads each
+// kind's span in one request (Modbus reads at most 125 registers or 2000 bits at once).
+inline constexpr std::uint16_t kMaxAddressSpan = 100;
+
+// Where each signal is. Default-constructed: the standard map (the table's addresses), the map of
+// REGISTER_MAP.md. A value: copy it freely; every method is const and thread-safe except setAddress.
+struct RegisterMap {
+  // addresses[row]: the address of registerTable()[row].
+  std::array<std::uint16_t, kSignalCount> addresses = [] {
+    std::array<std::uint16_t, kSignalCount> standard{};
+    for (std::size_t row = 0; row < kSignalCount; ++row) standard[row] = registerTable()[row].standard_address;
+    return standard;
+  }();
+
+  static constexpr RegisterMap standard() { return {}; }
+
+  // Signal: DiscreteInput, Coil, HoldingRegister or InputRegister.
+  template <class Signal>
+  constexpr std::uint16_t address(Signal signal) const { return addresses[tableRow(signal)]; }
+  template <class Signal>
+  constexpr void setAddress(Signal signal, std::uint16_t address) { addresses[tableRow(signal)] = address; }
+
+  // The addresses of `kind`, lowest to highest.
+  constexpr AddressSpan span(RegisterKind kind) const {
+    std::optional<std::uint16_t> low, high;
+    for (std::size_t row = 0; row < kSignalCount; ++row) {
+      if (registerTable()[row].kind != kind) continue;
+      if (!low || addresses[row] < *low) low = addresses[row];
+      if (!high || addresses[row] > *high) high = addresses[row];
+    }
+    if (!low) return {};
+    return {*low, static_cast<std::uint16_t>(*high - *low + 1)};
+  }
+
+  // Why the map cannot serve, naming the signals by their table names; empty when it can. Two
+  // signals of one kind at one address ("door_closed and part_clamped are both discrete-input 10"),
+  // or one kind's addresses spread over more than kMaxAddressSpan.
+  std::string problem() const {
+    const auto& table = registerTable();
+    for (std::size_t a = 0; a < kSignalCount; ++a)
+      for (std::size_t b = a + 1; b < kSignalCount; ++b)
+        if (table[a].kind == table[b].kind && addresses[a] == addresses[b])
+          return std::string(table[a].name) + " and " + std::string(table[b].name) + " are both " +
+                 toString(table[a].kind) + " " + std::to_string(addresses[a]);
+    for (const RegisterKind kind : kRegisterKinds) {
+      const AddressSpan s = span(kind);
+      if (s.count <= kMaxAddressSpan) continue;
+      std::string low, high;
+      for (std::size_t row = 0; row < kSignalCount; ++row) {
+        if (table[row].kind != kind) continue;
+        if (addresses[row] == s.first) low = table[row].name;
+        if (addresses[row] == s.first + s.count - 1) high = table[row].name;
+      }
+      return std::string(toString(kind)) + " addresses from " + low + " (" + std::to_string(s.first) + ") to " +
+             high + " (" + std::to_string(s.first + s.count - 1) + ") span " + std::to_string(s.count) +
+             ", more than the " + std::to_string(kMaxAddressSpan) + " one request reads";
+    }
+    return {};
+  }
+
+  bool operator==(const RegisterMap&) const = default;
+};
+
 std::span<const FaultBitInfo> faultBits();
-const RegisterInfo& describe(DiscreteInput input);
-const RegisterInfo& describe(Coil coil);
-const RegisterInfo& describe(HoldingRegister reg);
-const RegisterInfo& describe(InputRegister reg);
 const FaultBitInfo& describe(FaultBit bit);
 
-// The register table and the fault-bit table as Markdown, exactly as in REGISTER_MAP.md.
+// The register table (standard map) and the fault-bit table as Markdown, exactly as in
+// REGISTER_MAP.md.
 std::string registerMapMarkdown();
 // "door_open, e_stop_broken" for a fault word; "none" when it is 0.
 std::string describeFaultWord(std::uint16_t fault_word);
