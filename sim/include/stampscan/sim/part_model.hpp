@@ -3,6 +3,7 @@
 // virtual cell's parts are described the way a real part number is (acquisition/part_program.hpp).
 #pragma once
 
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/nominal_model.hpp"
 #include "stampscan/acquisition/part_program.hpp"
 #include "stampscan/sim/formed_part.hpp"
