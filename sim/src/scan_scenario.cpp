@@ -1,5 +1,6 @@
 #include "stampscan/sim/scan_scenario.hpp"
 
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 
@@ -129,7 +130,7 @@ constexpr double kLoadSeconds = 1.0, kUnloadSeconds = 0.6;  // part loading and 
 class Planner {
  public:
   explicit Planner(const ScanParams& p)
-      : p_(p), part_(makePart(p)), rng_(p.seed * 0x2545F4914F6CDD1Dull + 0x9Aull), mount_(nominalDigitizerMount(p)),
+      : p_(p), part_(makePart(p)), mount_(nominalDigitizerMount(p)),
         rig_drop_(p.cell.cameras.drop_mm) {}
 
   acquisition::ScanPlan plan() {
@@ -141,11 +142,15 @@ class Planner {
     plan_.part.line_width = p_.grid.line_width;
     plan_.travel_speed = 200;
     plan_.park = {{0, 0, 450}, 0, 0};
-    if (p_.calibration) {
-      planPlate();
-      planSphere(p_.sphere, acquisition::kSceneSphere, p_.sphere_sweeps);
-    }
-    if (p_.second_sphere_sweeps > 0 && p_.has_second_sphere) planSphere(p_.second_sphere, acquisition::kSceneSecondSphere, p_.second_sphere_sweeps);
+    // The calibration scenes, planned from the cell as the station plans them for a real cell.
+    acquisition::CalibrationScenes scenes;
+    scenes.plate_views = p_.calibration ? p_.plate_poses : 0;
+    scenes.sphere_sweeps = p_.calibration ? p_.sphere_sweeps : 0;
+    scenes.second_sphere_sweeps = p_.has_second_sphere ? p_.second_sphere_sweeps : 0;
+    scenes.seed = p_.seed;
+    acquisition::MachineLimits limits;
+    limits.index_step = p_.index_step;
+    acquisition::appendCalibrationScenes(p_.cell, limits, scenes, plan_);
     if (p_.laser) planLaserStrips();
     if (p_.stereo) planStereo();
     return std::move(plan_);
@@ -190,51 +195,6 @@ class Planner {
     v.pose = pose(head, a, b);
     v.settle_s = 0.4;
     plan_.steps.emplace_back(v);
-  }
-
-  void planPlate() {
-    // The head looks at the fixed plate from many directions and distances. That gives the view
-    // diversity intrinsic calibration needs, and, with the plate fixed, the head-to-camera
-    // (hand-eye) transform is observable too.
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const CirclePlate& plate = p_.plate;
-    const Vec3 centre_on_plate((plate.columns - 1) * plate.pitch / 2, (plate.rows - 1) * plate.pitch / 2, 0);
-    const Eigen::Isometry3d plate_pose = platePose(p_);
-    for (int k = 0; k < p_.plate_poses; ++k) {
-      // Turns within +-30 degrees: the plate then stays within +-45 degrees of upright in the image,
-      // where its dots are numbered unambiguously. An indexing head takes its nearest stops; a head
-      // with a coarse step may give views that turn alike.
-      const double a = stop(0.4 * u(rng_)), b = stop(0.5 * u(rng_));
-      const Vec3 target = plate_pose * (centre_on_plate + Vec3(8 * u(rng_), 8 * u(rng_), 0));
-      const HeadState h{Vec3::Zero(), a, b, 0};
-      const Vec3 head = target + h.pose().linear() * Vec3(0, 0, rig_drop_ + p_.stereo_standoff * (1 + 0.1 * u(rng_)));
-      view(acquisition::kScenePlate, static_cast<std::uint32_t>(k), head, a, b);
-    }
-  }
-
-  void planSphere(const ReferenceSphere& s, const char* scene, int count) {
-    // Sweeps that look different from the sensor: the ball passes through the left, middle and right
-    // of the fan and near and far in the measuring range (otherwise a turn of the mount could not be
-    // told from a shift); the head turns and tilts between sweeps (otherwise the mount's offset could
-    // not be told from the ball's position); speeds and directions vary (the latency shifts points
-    // along the sweep by speed x latency).
-    struct SweepPlan {
-      double b, a, speed, direction, lateral, depth;
-    };
-    const double quarter = std::numbers::pi / 2;
-    const SweepPlan plans[] = {{0, 0, 10, 1, -12, 0},           {quarter, 0.3, 40, -1, 12, 8},
-                               {0, -0.3, 40, 1, 0, 15},         {quarter, 0, 10, -1, 0, -15},
-                               {0, 0.3, 10, -1, 8, -8},         {quarter, -0.3, 40, 1, -8, 0},
-                               {0, 0, 40, -1, 4, 12},           {quarter, 0.3, 10, 1, -4, -12}};
-    for (int k = 0; k < count; ++k) {
-      const SweepPlan& plan = plans[k % 8];
-      const double a = stop(plan.a), b = stop(plan.b);
-      const Eigen::Matrix3d R = sensorAxes(a, b);
-      // The mirror above the ball, offset across the fan and along the view.
-      const Vec3 centre = s.centre + (p_.digitizer.standoff + plan.depth) * R.col(2) - plan.lateral * R.col(0);
-      const Vec3 along = plan.direction * (s.radius + 8) * R.col(1);
-      sweep(scene, static_cast<std::uint32_t>(k), centre - along, centre + along, a, b, plan.speed);
-    }
   }
 
   BlankRect region() const {
@@ -298,7 +258,6 @@ class Planner {
 
   const ScanParams& p_;
   std::unique_ptr<FormedPart> part_;
-  std::mt19937_64 rng_;
   Eigen::Isometry3d mount_;  // the digitizer's nominal mount
   double rig_drop_;          // mm: the stereo pair below the head's reference point
   acquisition::ScanPlan plan_;

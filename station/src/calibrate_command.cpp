@@ -92,7 +92,8 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     opt->world.applyTo(world);
     CalibrateJobOptions job;
-    job.plan = calibrationScenesOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan),
+    job.plan = calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenesOf(world))
+                                                   : acquisition::loadScanPlan(opt->plan),
                                    digitizer, cameras);
     job.run.limits = config.limits;
     job.policy = config.calibration;

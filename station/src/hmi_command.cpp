@@ -119,7 +119,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
       verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
       sphere_world.second_sphere_sweeps = 4;
     }
-    verify.plan = verificationStepsOf(sim::planScan(sphere_world));
+    verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, scenesOf(sphere_world)));
     verify.run.limits = config.limits;
     verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
     verify.run.session.part_id = "reference sphere";
@@ -131,7 +131,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
     calibration_world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     calibration_world.plate_poses = sim::ScanParams{}.plate_poses;
     CalibrateJobOptions calibrate;
-    calibrate.plan = calibrationScenesOf(sim::planScan(calibration_world), true, true);
+    calibrate.plan = calibrationScenesOf(acquisition::calibrationPlan(config, scenesOf(calibration_world)), true, true);
     calibrate.run.limits = config.limits;
     calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
     calibrate.run.session.part_id = "calibration";

@@ -39,14 +39,11 @@ acquisition::PartProgram programToScan(const std::string& name_or_dir, const acq
   return acquisition::loadPartProgram(acquisition::findProgram(library, name_or_dir));
 }
 
-acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const sim::ScanParams& world,
-                                  bool calibration_scenes) {
+acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
+                                  const acquisition::CalibrationScenes& scenes, bool calibration_scenes) {
   acquisition::ScanPlan plan = program.plan;
   if (calibration_scenes) {
-    sim::ScanParams scenes = world;
-    scenes.laser = scenes.stereo = false;
-    scenes.calibration = true;
-    acquisition::ScanPlan calibration = sim::planScan(scenes);
+    acquisition::ScanPlan calibration = acquisition::calibrationPlan(cell, scenes);
     calibration.steps.insert(calibration.steps.end(), plan.steps.begin(), plan.steps.end());
     plan.steps = std::move(calibration.steps);
   }

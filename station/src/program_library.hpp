@@ -3,9 +3,9 @@
 // simulator's own parts as programs, written there the first time they are asked for.
 #pragma once
 
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_program.hpp"
-#include "stampscan/sim/scan_scenario.hpp"
 
 #include <filesystem>
 #include <string>
@@ -24,7 +24,7 @@ acquisition::PartProgram programToScan(const std::string& name_or_dir, const acq
 
 // The plan a scan of the program runs: its own, after the cell's calibration scenes (the reference
 // sphere's sweeps and the plate's views, planned for the cell's artefacts) when asked for.
-acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const sim::ScanParams& world,
-                                  bool calibration_scenes);
+acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
+                                  const acquisition::CalibrationScenes& scenes, bool calibration_scenes);
 
 }  // namespace stampscan::station

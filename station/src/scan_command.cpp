@@ -119,7 +119,7 @@ CommandRunner addScanCommand(CLI::App& app) {
       replay = std::move(prepared.replay);
       job.replayed_trace = opt->replay;
     } else if (program && opt->plan.empty()) {
-      job.plan = programPlan(*program, world, !opt->calibrated);
+      job.plan = programPlan(*program, config, scenesOf(world), !opt->calibrated);
     } else {
       job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
     }

@@ -16,6 +16,7 @@ struct PartOptions {
   std::string part;
   std::string grid = "circle";
   std::string output;
+  std::string cell;
 };
 
 std::string kilobytes(const std::filesystem::path& file) {
@@ -34,10 +35,15 @@ CommandRunner addSimPartSubcommand(CLI::App* sim) {
   cmd->add_option("part", opt->part, "The simulated part: dome or pan")->required()->check(CLI::IsMember({"dome", "pan"}));
   cmd->add_option("--grid", opt->grid, "Printed grid: circle or square (2.54 mm)")->check(CLI::IsMember({"circle", "square"}));
   cmd->add_option("-o,--output", opt->output, "The program's folder (created if missing)")->required();
+  cmd->add_option("--cell", opt->cell, "The cell the plan is made for (its sensors, head and artefacts); default: the "
+                                       "built-in virtual cell");
   return [opt]() {
     const sim::PartKind kind = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     const std::filesystem::path dir(opt->output);
-    sim::writeSimulatedProgram(kind, sim::gridKindFromString(opt->grid), dir);
+    const acquisition::CellConfig cell = opt->cell.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
+    sim::SimulatedProgramOptions options;
+    options.cell = &cell;
+    sim::writeSimulatedProgram(kind, sim::gridKindFromString(opt->grid), dir, options);
     // Read back as the cell will read it: what is printed is what the folder holds (the STEP
     // model's own tessellation, not the samples its surface was fitted to).
     const acquisition::PartProgram p = acquisition::loadPartProgram(dir);

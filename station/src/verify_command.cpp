@@ -99,7 +99,8 @@ CommandRunner addVerifyCommand(CLI::App& app) {
             static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width);
     }
     world = worldOnCell(world, config, virtual_cell);
-    job.plan = verificationStepsOf(opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan),
+    job.plan = verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenesOf(world))
+                                                   : acquisition::loadScanPlan(opt->plan),
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
     std::unique_ptr<HostedVirtualCell> hosted;

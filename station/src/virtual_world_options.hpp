@@ -3,6 +3,7 @@
 // mount. One declaration, so the three commands take them alike.
 #pragma once
 
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
@@ -63,6 +64,12 @@ inline sim::ScanParams worldOnCell(sim::ScanParams world, acquisition::CellConfi
   }
   world.setCell(config);
   return world;
+}
+
+// The calibration scenes a command's world asks for: its plate views, sphere sweeps and ball-bar
+// sweeps, the plate views drawn from its seed.
+inline acquisition::CalibrationScenes scenesOf(const sim::ScanParams& world) {
+  return {world.plate_poses, world.sphere_sweeps, world.second_sphere_sweeps, world.seed};
 }
 
 }  // namespace stampscan::station

@@ -1,9 +1,11 @@
 // The cell file: a second cell that differs from the default in every section is read as written,
 // its listing reads back to the same cell, each kind of mistake is refused in one line naming the
 // file, the section and the key, and the simulated world and its plans follow the file.
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -42,7 +44,8 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   const CellConfig a = virtualCell();
   CellConfig b = loadCellConfig(kSecondCell);
   // Only the optional places are left out (the calibration folder, the database, the materials).
-  EXPECT_EQ(b.defaulted, (std::vector<std::string>{"[calibration] dir", "[report] materials", "[results] database"}));
+  EXPECT_EQ(b.defaulted, (std::vector<std::string>{"[calibration] dir", "[programs] library", "[report] materials",
+                                                   "[results] database"}));
   EXPECT_NE(b.name, a.name);
   EXPECT_EQ(b.cmm.port, 11294);
   EXPECT_EQ(b.plc.port, 11502);
@@ -218,6 +221,33 @@ TEST(CellPlans, TheSimulatedWorldAndItsPlansFollowTheCellFile) {
   EXPECT_NEAR(static_cast<double>(truth.digitizer_latency_ns) * 1e-6, 5.0, 1.0);
   EXPECT_EQ(truth.left.width, 1600);
   EXPECT_NEAR(truth.left.fx, 12 / 4.5e-3, 0.02 * 12 / 4.5e-3);
+}
+
+// The calibration scenes come from the cell file alone: on the second cell its plate views look at
+// its plate, its sphere sweeps pass its sphere at its digitizer's standoff, all at the head's stops.
+TEST(CellPlans, CalibrationScenesArePlannedFromTheCellFile) {
+  const CellConfig b = loadCellConfig(kSecondCell);
+  const ScanPlan plan = calibrationPlan(b, {12, 8, 4, 3});
+  EXPECT_EQ(plan.stereoCount(kScenePlate), 12u);
+  EXPECT_EQ(plan.sweepCount(kSceneSphere), 8u);
+  EXPECT_EQ(plan.sweepCount(kSceneSecondSphere), 4u);
+  const auto problems = checkPlan(plan, b.limits);
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  const Eigen::Vector3d mount(8, -5, -140);
+  for (const PlanStep& step : plan.steps) {
+    const auto* sweep = std::get_if<SweepStep>(&step);
+    if (sweep == nullptr) continue;
+    const auto& p = sweep->start;
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(p.b, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(p.a, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(2 * kDeg, Eigen::Vector3d::UnitZ()))
+                                  .toRotationMatrix();
+    const Eigen::Vector3d mirror = Eigen::Vector3d(p.position[0], p.position[1], p.position[2]) +
+                                   (Eigen::AngleAxisd(p.b, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(p.a, Eigen::Vector3d::UnitX())) * mount;
+    const auto& c = sweep->scene == kSceneSphere ? b.geometry.sphere.centre_mm : b.geometry.ball_bar->centre_mm;
+    // Along the sensor's view (its z), the ball lies within the measuring range of the standoff.
+    const double depth = (mirror - Eigen::Vector3d(c[0], c[1], c[2])).dot(R.col(2));
+    EXPECT_NEAR(depth, 110, 0.5 * 70) << sweep->scene << " " << sweep->index;
+  }
 }
 
 }  // namespace

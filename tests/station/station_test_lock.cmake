@@ -15,5 +15,7 @@ set(_served_cell_tests
   StationTest.TheLiveTraceOpensInTheReferenceReader StationTest.ScanRefusesAPlanBeforeAnythingMoves
   # `station calibrate` of the cameras
   StationTest.CalibrateRecoversTheVirtualCellsSensorsAndPutsThemInUse
-  StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted StationTest.CalibrateLeavesOutTheViewsThatSpoilAFit)
+  StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted StationTest.CalibrateLeavesOutTheViewsThatSpoilAFit
+  # the second cell's virtual twin, with its cameras
+  StationTest.ASecondCellFromItsFileScansThePartToTheSameGoals)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

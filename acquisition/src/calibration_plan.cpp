@@ -1,0 +1,132 @@
+#include "stampscan/acquisition/calibration_plan.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace stampscan::acquisition {
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+Vec3 vec(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
+
+Eigen::Isometry3d isometry(const trace::RigidPose& p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = p.rotation[static_cast<std::size_t>(3 * r + c)];
+    T.translation()(r) = p.translation[static_cast<std::size_t>(r)];
+  }
+  return T;
+}
+
+// The articulating head's rotation at tilt a (about x) and turn b (about z): R = Rz(b) Rx(a).
+Eigen::Matrix3d headRotation(double a, double b) {
+  return (Eigen::AngleAxisd(b, Vec3::UnitZ()) * Eigen::AngleAxisd(a, Vec3::UnitX())).toRotationMatrix();
+}
+
+class ScenePlanner {
+ public:
+  ScenePlanner(const CellGeometry& cell, const MachineLimits& limits, ScanPlan& plan)
+      : cell_(cell), limits_(limits), plan_(plan), mount_(isometry(toRigidPose(cell.digitizer.mount))) {}
+
+  void plateViews(int count, std::uint64_t seed) {
+    std::mt19937_64 rng(seed * 0x2545F4914F6CDD1Dull + 0x9Aull);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const PlateArtefact& plate = cell_.plate;
+    const Vec3 centre_on_plate(0.5 * (plate.columns - 1) * plate.pitch_mm, 0.5 * (plate.rows - 1) * plate.pitch_mm, 0);
+    const Eigen::Isometry3d plate_pose = isometry(machineFromPlate(plate));
+    const double drop = cell_.cameras.drop_mm, distance = cell_.cameras.convergence_mm;
+    // The head turns with the plate's own turn on the table, so that the plate looks upright to the
+    // cameras whatever its placement.
+    const double plate_turn = std::atan2(plate_pose.linear()(1, 0), plate_pose.linear()(0, 0));
+    for (int k = 0; k < count; ++k) {
+      // Turns within +-30 degrees of it: the plate then stays within +-45 degrees of upright in the
+      // image, where its dots are numbered unambiguously. An indexing head takes its nearest stops.
+      const double a = stop(0.4 * u(rng)), b = stop(plate_turn + 0.5 * u(rng));
+      const Vec3 target = plate_pose * (centre_on_plate + Vec3(8 * u(rng), 8 * u(rng), 0));
+      const Vec3 head = target + headRotation(a, b) * Vec3(0, 0, drop + distance * (1 + 0.1 * u(rng)));
+      StereoStep v;
+      v.scene = kScenePlate;
+      v.index = static_cast<std::uint32_t>(k);
+      v.pose = {{head.x(), head.y(), head.z()}, a, b};
+      v.settle_s = 0.4;
+      plan_.steps.emplace_back(v);
+    }
+  }
+
+  void sphereSweeps(const Vec3& centre_of_ball, double radius, const char* scene, int count) {
+    struct Sweep {
+      double b, a, speed, direction, lateral, depth;
+    };
+    const double quarter = std::numbers::pi / 2;
+    const Sweep sweeps[] = {{0, 0, 10, 1, -12, 0},    {quarter, 0.3, 40, -1, 12, 8}, {0, -0.3, 40, 1, 0, 15},
+                            {quarter, 0, 10, -1, 0, -15}, {0, 0.3, 10, -1, 8, -8},   {quarter, -0.3, 40, 1, -8, 0},
+                            {0, 0, 40, -1, 4, 12},      {quarter, 0.3, 10, 1, -4, -12}};
+    // The fan positions and depths above are for the drawn fan and range; a narrower sensor gets
+    // them scaled to its own.
+    const double half_fan = cell_.digitizer.standoff_mm * std::tan(0.5 * cell_.digitizer.fan_angle_deg * std::numbers::pi / 180);
+    const double lateral_scale = std::min(1.0, 0.8 * half_fan / 12.0);
+    const double depth_scale = std::min(1.0, 0.4 * cell_.digitizer.measuring_range_mm / 15.0);
+    for (int k = 0; k < count; ++k) {
+      const Sweep& s = sweeps[k % 8];
+      const double a = stop(s.a), b = stop(s.b);
+      const Eigen::Matrix3d R = headRotation(a, b) * mount_.linear();  // the sensor's axes, machine frame
+      // The mirror above the ball, offset across the fan and along the view.
+      const Vec3 centre = centre_of_ball + (cell_.digitizer.standoff_mm + depth_scale * s.depth) * R.col(2) -
+                          lateral_scale * s.lateral * R.col(0);
+      const Vec3 along = s.direction * (radius + 8) * R.col(1);
+      SweepStep w;
+      w.scene = scene;
+      w.index = static_cast<std::uint32_t>(k);
+      w.start = headAt(centre - along, a, b);
+      w.end = headAt(centre + along, a, b);
+      w.speed = s.speed;
+      plan_.steps.emplace_back(w);
+    }
+  }
+
+ private:
+  double stop(double angle) const {
+    if (limits_.index_step <= 0) return angle;
+    return std::round(angle / limits_.index_step) * limits_.index_step;
+  }
+  // The head pose that puts the digitizer's mirror at `sensor` (its drawn mount).
+  HeadPose headAt(const Vec3& sensor, double a, double b) const {
+    const Vec3 head = sensor - headRotation(a, b) * mount_.translation();
+    return {{head.x(), head.y(), head.z()}, a, b};
+  }
+
+  const CellGeometry& cell_;
+  const MachineLimits& limits_;
+  ScanPlan& plan_;
+  Eigen::Isometry3d mount_;
+};
+
+}  // namespace
+
+void appendCalibrationScenes(const CellGeometry& cell, const MachineLimits& limits, const CalibrationScenes& scenes,
+                             ScanPlan& plan) {
+  ScenePlanner planner(cell, limits, plan);
+  if (scenes.plate_views > 0) planner.plateViews(scenes.plate_views, scenes.seed);
+  if (scenes.sphere_sweeps > 0)
+    planner.sphereSweeps(vec(cell.sphere.centre_mm), 0.5 * cell.sphere.diameter_mm, kSceneSphere, scenes.sphere_sweeps);
+  if (scenes.second_sphere_sweeps > 0 && cell.ball_bar)
+    planner.sphereSweeps(vec(cell.ball_bar->centre_mm), 0.5 * cell.ball_bar->diameter_mm, kSceneSecondSphere,
+                         scenes.second_sphere_sweeps);
+}
+
+ScanPlan calibrationPlan(const CellConfig& cell, const CalibrationScenes& scenes) {
+  ScanPlan plan;
+  plan.name = "calibration scenes";
+  plan.part.kind = "none";
+  plan.travel_speed = 200;
+  plan.park = {{0, 0, 450}, 0, 0};
+  appendCalibrationScenes(cell.geometry, cell.limits, scenes, plan);
+  return plan;
+}
+
+}  // namespace stampscan::acquisition
