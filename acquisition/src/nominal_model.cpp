@@ -288,13 +288,12 @@ NominalModel loadStl(const std::filesystem::path& file) {
   return parseStl(bytes, file.string());
 }
 
-void writeStl(const NominalModel& model, const std::filesystem::path& file, bool binary) {
-  model.check(file.string());
-  std::string out;
-  if (binary) {
-    if (model.triangles.size() > std::numeric_limits<std::uint32_t>::max())
-      throw ModelError(file.string() + ": too many triangles for a binary STL");
-    out.assign(kBinaryHeader + kBinaryFacet * model.triangles.size(), '\0');
+std::string binaryStl(const NominalModel& model) {
+  model.check(model.source);
+  if (model.triangles.size() > std::numeric_limits<std::uint32_t>::max())
+    throw ModelError(model.source + ": too many triangles for a binary STL");
+  std::string out(kBinaryHeader + kBinaryFacet * model.triangles.size(), '\0');
+  {
     // Not "solid...": a reader that goes by the first word would take the file for ASCII.
     static constexpr char kHeader[] = "binary STL, mm, nominal part model";
     std::memcpy(out.data(), kHeader, sizeof kHeader - 1);
@@ -309,6 +308,15 @@ void writeStl(const NominalModel& model, const std::filesystem::path& file, bool
         for (std::size_t i = 0; i < 3; ++i) f[3 + 3 * v + i] = static_cast<float>(model.vertices[t[v]][i]);
       std::memcpy(out.data() + kBinaryHeader + kBinaryFacet * k, f.data(), sizeof f);  // attribute bytes stay 0
     }
+  }
+  return out;
+}
+
+void writeStl(const NominalModel& model, const std::filesystem::path& file, bool binary) {
+  model.check(file.string());
+  std::string out;
+  if (binary) {
+    out = binaryStl(model);
   } else {
     std::ostringstream o;
     o << "solid nominal\n";

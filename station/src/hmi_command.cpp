@@ -4,10 +4,12 @@
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/verify_job.hpp"
+#include "program_library.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
@@ -18,11 +20,105 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
 #include <thread>
 
 namespace stampscan::station {
 
 namespace {
+
+namespace fs = std::filesystem;
+
+// The cell's part programs for the panel: its library's, and on a virtual cell its own simulated
+// parts (written on first use). A scan of a program puts its simulated part on the virtual fixture
+// (`hosted`, when the cell is hosted; its truth scores the scan); a scan of the panel's own plan puts
+// the world's part back.
+hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs,
+                                const sim::ScanParams& world, const std::unique_ptr<HostedVirtualCell>* hosted) {
+  hmi::CellPrograms p;
+  p.list = [=] {
+    std::vector<hmi::ProgramSummary> out;
+    std::set<std::string> names;
+    fs::path library;
+    try {
+      library = programLibrary(config, virtual_cell, runs);
+    } catch (const std::exception&) {
+      return out;  // the cell has no library
+    }
+    std::error_code ec;
+    const std::vector<fs::path> dirs = fs::is_directory(library, ec) ? acquisition::listPrograms(library)
+                                                                      : std::vector<fs::path>{};  // none written yet
+    for (const fs::path& dir : dirs) {
+      std::ifstream in(dir / acquisition::kProgramFile, std::ios::binary);
+      std::ostringstream text;
+      text << in.rdbuf();
+      try {
+        const acquisition::PartProgram program = acquisition::parseProgramFile(text.str(), (dir / acquisition::kProgramFile).string());
+        names.insert(program.name);
+        out.push_back({program.name, program.description, program.grid.kind, program.material, program.grid.pitch_mm,
+                       program.sheet_thickness_mm, ""});
+      } catch (const std::exception& e) {
+        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what()});
+      }
+    }
+    if (virtual_cell)
+      for (const std::string& name : simulatedProgramNames())
+        if (names.count(name) == 0)
+          out.push_back({name, "the virtual cell's simulated " + name.substr(4), name.substr(name.rfind('-') + 1), "DC04",
+                         2.54, 0.8, "written into the library on first use"});
+    return out;
+  };
+  p.prepare = [=](const std::string& name) {
+    const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
+    hmi::ProgramScan scan;
+    scan.plan = programPlan(program, config, scenesOf(world), true);
+    scan.plan.name = program.name + ", laser and stereo, with calibration scenes";
+    scan.material = program.material;
+    scan.press_program = program.press_program;
+    scan.program = {program.name, program.folder.string()};
+    if (hosted != nullptr && *hosted) {
+      if (program.simulated_part.empty())
+        throw std::runtime_error(program.folder.string() + ": the virtual cell simulates only its own parts, and this "
+                                 "program gives none ([simulation] part)");
+      sim::ScanParams part_world = world;
+      part_world.part = program.simulated_part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+      part_world.grid.kind = sim::gridKindFromString(program.grid.kind);
+      part_world.grid.pitch = program.grid.pitch_mm;
+      part_world.grid.circle_diameter = program.grid.circle_diameter_mm;
+      part_world.grid.line_width = program.grid.line_width_mm;
+      HostedVirtualCell& cell = **hosted;
+      cell.cell().loadPart(part_world.part, part_world.grid);
+      scan.truth = SimulationTruth{sim::groundTruth(cell.cell().part(), part_world.grid), cell.cell().truth().digitizer_latency_ns};
+      const sim::ElementVisibility visibility = sim::visibleElements(part_world, scan.plan, scan.truth->elements);
+      scan.truth->visible = visibility.visibleOr();
+      sim::predictElements(scan.plan, visibility);
+    }
+    return scan;
+  };
+  // Models read once (a STEP model is tessellated on reading).
+  struct ModelCache {
+    std::mutex mutex;
+    std::map<std::string, std::string> stl;
+  };
+  auto cache = std::make_shared<ModelCache>();
+  p.model_stl = [=](const std::string& name) {
+    {
+      std::lock_guard lock(cache->mutex);
+      if (const auto it = cache->stl.find(name); it != cache->stl.end()) return it->second;
+    }
+    std::string bytes = acquisition::binaryStl(programFromLibrary(name, config, virtual_cell, runs).model);
+    std::lock_guard lock(cache->mutex);
+    return cache->stl.emplace(name, std::move(bytes)).first->second;
+  };
+  if (hosted != nullptr)
+    p.restore = [=] {
+      if (*hosted) (*hosted)->cell().loadPart(world.part, world.grid);
+    };
+  return p;
+}
 
 struct HmiCommandOptions {
   CellChoice cell;
@@ -148,6 +244,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
       setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
                                          hosted->cell().truth().digitizer_latency_ns};
     }
+    setup.programs = panelPrograms(config, virtual_cell, opt->runs, world, virtual_cell ? &hosted : nullptr);
     acquisition::Cell cell(config);
     setup.cell = &cell;
     hmi::HmiServer server(std::move(setup), options);

@@ -17,11 +17,24 @@ fs::path programLibrary(const acquisition::CellConfig& cell, bool virtual_cell, 
                            "program's folder, or name the library in the cell file");
 }
 
+std::vector<std::string> simulatedProgramNames() {
+  return {"sim-dome-circle", "sim-dome-square", "sim-pan-circle", "sim-pan-square"};
+}
+
 acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
                                        bool virtual_cell, const fs::path& runs) {
   std::error_code ec;
   const bool folder = fs::is_directory(name_or_dir, ec) || fs::path(name_or_dir).filename() == acquisition::kProgramFile;
   if (folder) return acquisition::loadPartProgram(name_or_dir);
+  return programFromLibrary(name_or_dir, cell, virtual_cell, runs);
+}
+
+acquisition::PartProgram programFromLibrary(const std::string& name, const acquisition::CellConfig& cell,
+                                            bool virtual_cell, const fs::path& runs) {
+  if (name.empty() || name.find('/') != std::string::npos || name.front() == '.')
+    throw std::runtime_error("'" + name + "' is not a program's name");
+  std::error_code ec;
+  const std::string& name_or_dir = name;
   const fs::path library = programLibrary(cell, virtual_cell, runs);
   // The virtual cell's own parts: sim-<part>-<grid>.
   if (virtual_cell && !fs::exists(library / name_or_dir / acquisition::kProgramFile, ec)) {
@@ -36,7 +49,9 @@ acquisition::PartProgram programToScan(const std::string& name_or_dir, const acq
                                      sim::gridKindFromString(grid), dir, options);
         }
   }
-  return acquisition::loadPartProgram(acquisition::findProgram(library, name_or_dir));
+  const fs::path dir = library / name;
+  if (fs::exists(dir / acquisition::kProgramFile, ec)) return acquisition::loadPartProgram(dir);
+  return acquisition::loadPartProgram(acquisition::findProgram(library, name));  // its error lists the library
 }
 
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,

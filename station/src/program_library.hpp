@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace stampscan::station {
 
@@ -21,6 +22,14 @@ std::filesystem::path programLibrary(const acquisition::CellConfig& cell, bool v
 // library is first written there, its plan made for this cell. Throws naming what is wrong.
 acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
                                        bool virtual_cell, const std::filesystem::path& runs);
+
+// A program of the library by its name alone (never a path: the panel's requests); on a virtual cell
+// its own simulated parts' programs are written on first use, as above.
+acquisition::PartProgram programFromLibrary(const std::string& name, const acquisition::CellConfig& cell,
+                                            bool virtual_cell, const std::filesystem::path& runs);
+
+// The names of the virtual cell's own simulated parts' programs (sim-dome-circle, ...).
+std::vector<std::string> simulatedProgramNames();
 
 // The plan a scan of the program runs: its own, after the cell's calibration scenes (the reference
 // sphere's sweeps and the plate's views, planned for the cell's artefacts) when asked for.

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 
 namespace stampscan::hmi::test {
@@ -169,6 +170,46 @@ TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
   EXPECT_NE(actions.find("\"scan start\""), std::string::npos);
   EXPECT_NE(actions.find("\"scan refused\""), std::string::npos);
   EXPECT_NE(actions.find("\"abort\""), std::string::npos);
+}
+
+// The cell's part programs on the panel: listed (the virtual cell's own parts among them), a
+// program's nominal model served as binary STL for the 3D view, and a scan of a program started with
+// its plan; a name that is not a program's is refused.
+TEST_F(HmiTest, ThePanelListsThePartProgramsShowsAModelAndScansOne) {
+  startPanel();
+  const json list = body(client_->Get("/api/programs"));
+  std::vector<std::string> names;
+  for (const json& p : list["programs"]) names.push_back(p["name"]);
+  for (const char* name : {"sim-dome-circle", "sim-dome-square", "sim-pan-circle", "sim-pan-square"})
+    EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << list.dump(2);
+
+  auto model = client_->Get("/api/programs/sim-pan-square/model.stl");
+  ASSERT_TRUE(model);
+  ASSERT_EQ(model->status, 200) << model->body;
+  ASSERT_GT(model->body.size(), 84u);
+  std::uint32_t triangles = 0;
+  std::memcpy(&triangles, model->body.data() + 80, 4);
+  EXPECT_GT(triangles, 1000u);
+  EXPECT_EQ(model->body.size(), 84u + 50u * triangles);  // a whole binary STL
+  EXPECT_EQ(client_->Get("/api/programs/no-such/model.stl")->status, 404);
+  // Written into the library on first use, and listed as such from then on.
+  EXPECT_TRUE(fs::exists(root_ / "runs" / "programs" / "sim-pan-square" / "program.toml"));
+
+  EventReader events(station_->port());
+  ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
+  const std::string token = csrf();
+  EXPECT_EQ(post("/api/scan/start", R"({"part_id": "p-1", "part_program": "../etc"})", token)->status, 400);
+  auto started = post("/api/scan/start", R"({"part_id": "p-2", "part_program": "sim-pan-square"})", token);
+  ASSERT_TRUE(started);
+  ASSERT_EQ(started->status, 202) << started->body;
+  ASSERT_TRUE(events.waitFor("progress", std::chrono::seconds(60))) << events.text();
+  EXPECT_EQ(events.events("started").front()["part_program"], "sim-pan-square");
+  // The program's whole-part plan: many more steps than the sample region's.
+  EXPECT_GT(events.events("progress").front()["steps"].get<int>(), 20) << events.events("progress").front().dump();
+  EXPECT_EQ(post("/api/scan/abort", "{}", token)->status, 202);
+  ASSERT_TRUE(events.waitFor("finished", std::chrono::seconds(60))) << events.text();
+  const std::string actions = readText(root_ / "runs" / "hmi-actions.jsonl");
+  EXPECT_NE(actions.find("\"part_program\":\"sim-pan-square\""), std::string::npos) << actions;
 }
 
 TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {

@@ -5,6 +5,7 @@
 #include "stampscan/sim/scene.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <stdexcept>
 
@@ -14,8 +15,9 @@ namespace stampscan::sim {
 // the plate.
 class VirtualCell::WorldScene final : public Scene {
  public:
-  WorldScene(const FormedPart& part, const ScanParams& p)
-      : part_(part, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p)),
+  // Owns its part: a part loaded later replaces the whole scene.
+  WorldScene(std::unique_ptr<FormedPart> part, const ScanParams& p)
+      : formed_(std::move(part)), part_(*formed_, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p)),
         has_second_sphere_(p.has_second_sphere) {}
 
   std::optional<Hit> cast(const Ray& ray, double footprint_per_mm, double t_hint) const override {
@@ -29,7 +31,10 @@ class VirtualCell::WorldScene final : public Scene {
     return best;
   }
 
+  const FormedPart& formed() const { return *formed_; }
+
  private:
+  std::unique_ptr<FormedPart> formed_;
   PartScene part_;
   SphereScene sphere_, second_sphere_;
   PlateScene plate_;
@@ -37,8 +42,7 @@ class VirtualCell::WorldScene final : public Scene {
 };
 
 VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(options)) {
-  part_ = makePart(options_.world);
-  scene_ = std::make_unique<WorldScene>(*part_, options_.world);
+  scene_.store(std::make_shared<const WorldScene>(makePart(options_.world), options_.world));
   truth_ = drawCellTruth(options_.world);
 
   VirtualCmmConfig cmm;
@@ -74,7 +78,7 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
 std::vector<float> VirtualCell::radianceAt(int camera, const HeadKey& key, const std::function<bool()>& cancelled) const {
   const HeadState head{Vec3(key.position[0], key.position[1], key.position[2]), key.a, key.b, 0};
   const Eigen::Isometry3d machine_from_camera = head.pose() * (camera == 0 ? truth_.head_from_left : truth_.head_from_right);
-  return renderers_[camera]->radiance(*scene_, options_.world.camera_sensor, machine_from_camera, cancelled);
+  return renderers_[camera]->radiance(*scene_.load(), options_.world.camera_sensor, machine_from_camera, cancelled);
 }
 
 bool VirtualCell::laserSweeping() const {
@@ -167,6 +171,24 @@ bool VirtualCell::replayFrame(int camera, const FrameRequest& request, std::span
 
 VirtualCell::~VirtualCell() { stop(); }
 
+const FormedPart& VirtualCell::part() const { return scene_.load()->formed(); }
+
+std::shared_ptr<const FormedPart> VirtualCell::loadPart(PartKind part, const GridSpec& grid) {
+  ScanParams world = options_.world;
+  world.part = part;
+  world.grid = grid;
+  auto scene = std::make_shared<const WorldScene>(makePart(world), world);
+  scene_.store(scene);
+  {
+    // The light rendered ahead was of the part that went.
+    std::lock_guard lock(ahead_mutex_);
+    ahead_.ready = false;
+    ahead_.head = HeadKey{{std::nan(""), 0, 0}, 0, 0};
+  }
+  ahead_changed_.notify_all();
+  return {scene, &scene->formed()};
+}
+
 void VirtualCell::start() {
   if (options_.serve_cmm) cmm_->start();
   if (options_.serve_plc) plc_->start();
@@ -230,7 +252,7 @@ VirtualDigitizer::TimedProfileSource VirtualCell::profileSource() {
     spec.points_per_profile = config.points_per_profile;
     // Each profile's noise from its own stream: the same world for any timing.
     std::mt19937_64 rng(options_.world.seed * 0x9E3779B97F4A7C15ull + 0xD161ull + sequence);
-    ProfileMeasurement m = measureProfile(*scene_, spec, head.pose() * truth_.head_from_digitizer, rng);
+    ProfileMeasurement m = measureProfile(*scene_.load(), spec, head.pose() * truth_.head_from_digitizer, rng);
     profile.range = std::move(m.range);
     profile.intensity = std::move(m.intensity);
     if (m.glare) profile.status |= 1u;  // overexposed (drivers/digitizer/PROTOCOL.md)

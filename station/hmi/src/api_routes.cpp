@@ -43,18 +43,22 @@ void startScan(HmiServer::Impl& impl, const httplib::Request& req, httplib::Resp
   const auto part_id = textField(body, "part_id", 64, error);
   const auto program = part_id ? textField(body, "program", 64, error) : std::nullopt;
   const auto material = program ? textField(body, "material", 32, error) : std::nullopt;
-  if (!material) return sendError(res, 400, error);
+  const auto part_program = material ? textField(body, "part_program", 64, error) : std::nullopt;
+  if (!part_program) return sendError(res, 400, error);
+  if (!part_program->empty() && !isPartId(*part_program))
+    return sendError(res, 400, "'part_program' is a program's name in the cell's library: letters, digits, '-', '_' and '.'");
   if (!isPartId(*part_id))
     return sendError(res, 400, "'part_id' is required: letters, digits, '-', '_' and '.' (it names the run folder)");
   if (!material->empty() && !report::builtInMaterials().contains(*material))
     return sendError(res, 400, "unknown material '" + *material + "' (known: " + report::builtInMaterials().names() + ")");
   const Session who = *impl.sessionOf(req);
-  const ScanRequest request{*part_id, *program, *material};
+  const ScanRequest request{*part_id, *program, *material, *part_program};
   if (const auto refused = impl.jobs.startScan(request, who.user)) {
     impl.recordAction(who, "scan refused", {{"part_id", *part_id}, {"reason", *refused}}, req);
     return sendError(res, 409, *refused);
   }
-  impl.recordAction(who, "scan start", {{"part_id", *part_id}, {"program", *program}, {"material", *material}}, req);
+  impl.recordAction(who, "scan start",
+                    {{"part_id", *part_id}, {"program", *program}, {"material", *material}, {"part_program", *part_program}}, req);
   sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
 }
 
@@ -83,6 +87,30 @@ void addApiRoutes(HmiServer::Impl& impl) {
                    {"xyz", c.points.xyz}, {"thickness", c.points.thickness}});
   });
   s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
+  // The cell's part programs, and a program's nominal model (binary STL) for the 3D view.
+  s.Get("/api/programs", [&impl](const httplib::Request&, httplib::Response& res) {
+    const CellPrograms& programs = impl.jobs.setup().programs;
+    json list = json::array();
+    try {
+      if (programs.list)
+        for (const ProgramSummary& p : programs.list())
+          list.push_back({{"name", p.name}, {"description", p.description}, {"grid", p.grid}, {"pitch_mm", p.pitch_mm},
+                          {"material", p.material}, {"sheet_thickness_mm", p.sheet_thickness_mm}, {"note", p.note}});
+    } catch (const std::exception& e) {
+      return sendError(res, 500, std::string("the program library cannot be read: ") + e.what());
+    }
+    sendJson(res, {{"programs", list}});
+  });
+  s.Get(R"(/api/programs/([A-Za-z0-9._-]+)/model\.stl)", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const CellPrograms& programs = impl.jobs.setup().programs;
+    const std::string name = req.matches[1];
+    if (!programs.model_stl || !isPartId(name)) return sendError(res, 404, "no such program");
+    try {
+      res.set_content(programs.model_stl(name), "model/stl");
+    } catch (const std::exception& e) {
+      return sendError(res, 404, e.what());
+    }
+  });
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {
     const Session who = *impl.sessionOf(req);
     const auto refused = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");

@@ -159,7 +159,7 @@ std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const
   if (auto refused = begin("scan", user, request.part_id)) return refused;
   live_cloud_.reset();
   hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"part_id", request.part_id},
-                               {"program", request.program}}.dump());
+                               {"program", request.program}, {"part_program", request.part_program}}.dump());
   worker_ = std::thread(&CellJobs::runScan, this, request, user);
   return std::nullopt;
 }
@@ -245,6 +245,22 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     options.part_id = request.part_id;
     options.program = request.program;
     options.material = request.material;
+    if (request.part_program.empty() && setup_.programs.restore) setup_.programs.restore();
+    if (!request.part_program.empty()) {
+      if (!setup_.programs.prepare) throw std::runtime_error("this cell offers no part programs");
+      ProgramScan scan = setup_.programs.prepare(request.part_program);
+      options.plan = std::move(scan.plan);
+      options.part_program = scan.program;
+      options.truth = std::move(scan.truth);
+      if (options.material.empty()) options.material = scan.material;
+      if (options.program.empty()) options.program = scan.press_program;
+      options.run.session.part = options.plan.part.kind;
+      options.run.session.plan = options.plan.name;
+      options.run.session.grid = options.plan.part.grid;
+      options.run.session.grid_pitch_mm = options.plan.part.pitch;
+      options.run.session.grid_circle_diameter_mm = options.plan.part.circle_diameter;
+      options.run.session.grid_line_width_mm = options.plan.part.line_width;
+    }
     options.run.session.part_id = request.part_id;
     HubObserver observer(
         hub_, *setup_.cell, "scan",

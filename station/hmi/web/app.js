@@ -139,7 +139,8 @@ $('start').addEventListener('click', async () => {
   $('fault').classList.add('hidden');
   $('log').innerHTML = '';
   delete document.body.dataset.finished;
-  const r = await api('/api/scan/start', { body: { part_id: $('part-id').value.trim(), program: $('program').value.trim(), material: $('material').value } });
+  const r = await api('/api/scan/start', { body: { part_id: $('part-id').value.trim(), program: $('program').value.trim(),
+    material: $('material').value, part_program: $('part-program').value } });
   if (!r.ok) { showFault(r.body.error || `refused (${r.status})`, r.body.advice); return; }
   setBusy(true, r.body.job);
 });

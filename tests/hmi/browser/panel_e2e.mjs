@@ -87,8 +87,15 @@ try {
   await waitFor(page, 'the cell view showing the PLC', () => document.getElementById('interlocks').innerText.includes('Door'), 20000);
   await shot(page, '1-cell.png');
 
-  // The scan of the sample part.
+  // A part program chosen on the scan page shows its nominal model in 3D; back to the sample region.
   await page.click('button[data-tab="scan"]');
+  await waitFor(page, 'the part programs listed', () => document.getElementById('part-program').options.length > 1, 20000);
+  await page.select('#part-program', 'sim-dome-circle');
+  await waitFor(page, 'the program\'s model in 3D', () => document.body.dataset.programShown === 'sim-dome-circle', 60000);
+  await shot(page, '2-program.png');
+  await page.select('#part-program', '');
+
+  // The scan of the sample part.
   await page.$eval('#part-id', (el) => { el.value = ''; });
   await page.type('#part-id', 'sample-e2e');
   await page.click('#start');

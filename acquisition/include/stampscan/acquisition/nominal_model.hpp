@@ -56,6 +56,8 @@ NominalModel loadStl(const std::filesystem::path& file);
 // Writes atomically (a temporary beside the file, renamed when complete). Facet normals are the
 // triangles' own.
 void writeStl(const NominalModel& model, const std::filesystem::path& file, bool binary = true);
+// The model as the bytes of a binary STL (what writeStl writes): e.g. for a browser's 3D view.
+std::string binaryStl(const NominalModel& model);
 
 // STEP: every face of the file's shapes, tessellated by BRepMesh_IncrementalMesh with these limits,
 // each face's placement and orientation applied.

@@ -35,6 +35,7 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <atomic>
 #include <condition_variable>
 #include <functional>
 #include <memory>
@@ -103,7 +104,11 @@ class VirtualCell {
   const VirtualCellOptions& options() const { return options_; }
   // What the station must find out by calibrating: tests compare with it.
   const CellTruth& truth() const { return truth_; }
-  const FormedPart& part() const { return *part_; }
+  // The part on the fixture (as loaded last).
+  const FormedPart& part() const;
+  // Puts another part on the fixture, as an operator loads the next part: the digitizer and the
+  // cameras see it from now on. Between scans. The part stays alive as long as the returned pointer.
+  std::shared_ptr<const FormedPart> loadPart(PartKind part, const GridSpec& grid);
 
  private:
   class WorldScene;
@@ -134,8 +139,9 @@ class VirtualCell {
 
   VirtualCellOptions options_;
   CellTruth truth_;
-  std::unique_ptr<FormedPart> part_;
-  std::unique_ptr<WorldScene> scene_;
+  // The world the sensors see; replaced whole when a part is loaded (read by the digitizer's and the
+  // cameras' threads).
+  std::atomic<std::shared_ptr<const WorldScene>> scene_;
   std::unique_ptr<VirtualCmm> cmm_;
   std::unique_ptr<VirtualPlc> plc_;
   std::vector<std::unique_ptr<VirtualCamera>> cameras_;

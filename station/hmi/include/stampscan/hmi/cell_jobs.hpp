@@ -25,6 +25,36 @@
 
 namespace stampscan::hmi {
 
+// A part program the panel offers (acquisition/part_program.hpp).
+struct ProgramSummary {
+  std::string name, description, grid, material;
+  double pitch_mm = 0, sheet_thickness_mm = 0;
+  std::string note;  // e.g. "written on first use" for a virtual cell's own part not yet in the library
+};
+
+// What a scan of a program runs, prepared by the command that serves the cell: the program's plan
+// (after the calibration scenes), its material and press program, and, on a virtual cell, the truth
+// of the part it has put on the fixture.
+struct ProgramScan {
+  acquisition::ScanPlan plan;
+  std::string material, press_program;
+  station::PartProgramRef program;
+  std::optional<station::SimulationTruth> truth;
+};
+
+// The cell's part programs, as the command serving the cell reads them from its library. Empty
+// functions: the panel offers none, and scans the setup's plan only.
+struct CellPrograms {
+  std::function<std::vector<ProgramSummary>()> list;
+  // Throws naming what is wrong (an unknown name, a program that does not read).
+  std::function<ProgramScan(const std::string& name)> prepare;
+  // The program's nominal model as binary STL bytes, for the 3D view; throws like prepare.
+  std::function<std::string(const std::string& name)> model_stl;
+  // Before a scan of the setup's own plan: a virtual cell puts its own part back on the fixture
+  // (after a program's). May be empty.
+  std::function<void()> restore;
+};
+
 // What the command prepares once for the cell it serves (the jobs fill in the rest per start).
 struct CellSetup {
   acquisition::Cell* cell = nullptr;  // borrowed; alive while the jobs exist
@@ -37,10 +67,12 @@ struct CellSetup {
   std::optional<station::CalibrateJobOptions> calibrate;
   // digitizer.json in use and history/ of calibration records.
   std::filesystem::path calibration_dir = "stampscan-runs/calibration";
+  CellPrograms programs;
 };
 
 struct ScanRequest {
   std::string part_id, program, material;
+  std::string part_program;  // a program of the cell's library; empty: the setup's own plan
 };
 
 struct JobStatus {
