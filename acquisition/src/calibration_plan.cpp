@@ -1,10 +1,14 @@
 #include "stampscan/acquisition/calibration_plan.hpp"
 
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
+
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 
 namespace stampscan::acquisition {
 
@@ -14,31 +18,20 @@ using Vec3 = Eigen::Vector3d;
 
 Vec3 vec(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
 
-Eigen::Isometry3d isometry(const trace::RigidPose& p) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) T.linear()(r, c) = p.rotation[static_cast<std::size_t>(3 * r + c)];
-    T.translation()(r) = p.translation[static_cast<std::size_t>(r)];
-  }
-  return T;
-}
-
-// The articulating head's rotation at tilt a (about x) and turn b (about z): R = Rz(b) Rx(a).
-Eigen::Matrix3d headRotation(double a, double b) {
-  return (Eigen::AngleAxisd(b, Vec3::UnitZ()) * Eigen::AngleAxisd(a, Vec3::UnitX())).toRotationMatrix();
-}
+// The articulating head's rotation at tilt a and turn b (the trace's convention).
+Eigen::Matrix3d headRotation(double a, double b) { return trace::headPose(Vec3::Zero(), a, b).linear(); }
 
 class ScenePlanner {
  public:
   ScenePlanner(const CellGeometry& cell, const MachineLimits& limits, ScanPlan& plan)
-      : cell_(cell), limits_(limits), plan_(plan), mount_(isometry(toRigidPose(cell.digitizer.mount))) {}
+      : cell_(cell), limits_(limits), plan_(plan), mount_(trace::toIsometry(toRigidPose(cell.digitizer.mount))) {}
 
   void plateViews(int count, std::uint64_t seed) {
     std::mt19937_64 rng(seed * 0x2545F4914F6CDD1Dull + 0x9Aull);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     const PlateArtefact& plate = cell_.plate;
     const Vec3 centre_on_plate(0.5 * (plate.columns - 1) * plate.pitch_mm, 0.5 * (plate.rows - 1) * plate.pitch_mm, 0);
-    const Eigen::Isometry3d plate_pose = isometry(machineFromPlate(plate));
+    const Eigen::Isometry3d plate_pose = trace::toIsometry(machineFromPlate(plate));
     const double drop = cell_.cameras.drop_mm, distance = cell_.cameras.convergence_mm;
     // The head turns with the plate's own turn on the table, so that the plate looks upright to the
     // cameras whatever its placement.
@@ -72,12 +65,16 @@ class ScenePlanner {
     const double lateral_scale = std::min(1.0, 0.8 * half_fan / 12.0);
     const double depth_scale = std::min(1.0, 0.4 * cell_.digitizer.measuring_range_mm / 15.0);
     for (int k = 0; k < count; ++k) {
+      // Beyond the eight patterns, each further round turns the head on by an eighth of a turn and
+      // crosses the fan on the other side: new sweeps, not repeats of the first ones.
       const Sweep& s = sweeps[k % 8];
-      const double a = stop(s.a), b = stop(s.b);
+      const int round = k / 8;
+      const double a = stop(s.a), b = stop(std::remainder(s.b + round * std::numbers::pi / 4, 2 * std::numbers::pi));
+      const double lateral = (round % 2 == 0 ? 1 : -1) * s.lateral;
       const Eigen::Matrix3d R = headRotation(a, b) * mount_.linear();  // the sensor's axes, machine frame
       // The mirror above the ball, offset across the fan and along the view.
       const Vec3 centre = centre_of_ball + (cell_.digitizer.standoff_mm + depth_scale * s.depth) * R.col(2) -
-                          lateral_scale * s.lateral * R.col(0);
+                          lateral_scale * lateral * R.col(0);
       const Vec3 along = s.direction * (radius + 8) * R.col(1);
       SweepStep w;
       w.scene = scene;
@@ -119,12 +116,22 @@ void appendCalibrationScenes(const CellGeometry& cell, const MachineLimits& limi
                          scenes.second_sphere_sweeps);
 }
 
+CalibrationScenes calibrationScenes(const CalibrationPolicy& policy, double share, std::uint64_t seed) {
+  if (!(share > 0 && share <= 1)) throw std::invalid_argument("calibration scenes: the share must be in (0, 1]");
+  const auto part = [share](int count) { return std::max(std::min(count, 4), static_cast<int>(std::lround(share * count))); };
+  CalibrationScenes scenes;
+  scenes.plate_views = part(policy.plate_views);
+  scenes.sphere_sweeps = part(policy.sphere_sweeps);
+  scenes.seed = seed;
+  return scenes;
+}
+
 ScanPlan calibrationPlan(const CellConfig& cell, const CalibrationScenes& scenes) {
   ScanPlan plan;
   plan.name = "calibration scenes";
   plan.part.kind = "none";
   plan.travel_speed = 200;
-  plan.park = {{0, 0, 450}, 0, 0};
+  plan.park = parkingPose(cell.limits);
   appendCalibrationScenes(cell.geometry, cell.limits, scenes, plan);
   return plan;
 }

@@ -43,7 +43,8 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
       {"fixture", {"name", "datum_mm", "datum_rotation_deg"}},
       {"calibration", {"dir", "validity_days", "digitizer_residual_mm", "camera_reprojection_px", "head_mount_residual_mm",
                        "drift_mount_mm", "drift_latency_ms", "drift_baseline_mm", "form_mpe_mm", "size_mpe_mm",
-                       "length_mpe_mm", "stereo_form_mpe_mm", "stereo_length_mpe_mm"}},
+                       "length_mpe_mm", "stereo_form_mpe_mm", "stereo_length_mpe_mm", "plate_views", "sphere_sweeps",
+                       "ball_bar_sweeps"}},
       {"results", {"database"}},
       {"report", {"materials"}},
       {"programs", {"library"}},
@@ -337,6 +338,11 @@ void readCalibrationPolicy(const SectionReader& s, CalibrationPolicy& p) {
   p.length_mpe_mm = s.number("length_mpe_mm", p.length_mpe_mm, Sign::Positive);
   p.stereo_form_mpe_mm = s.number("stereo_form_mpe_mm", p.stereo_form_mpe_mm, Sign::Positive);
   p.stereo_length_mpe_mm = s.number("stereo_length_mpe_mm", p.stereo_length_mpe_mm, Sign::Positive);
+  // Fewer plate views than this leave the cameras' intrinsics underdetermined; fewer sphere sweeps
+  // cannot tell the mount's turn from its shift and the latency (calibration_plan.hpp).
+  p.plate_views = static_cast<int>(s.integer("plate_views", p.plate_views, 4, 200));
+  p.sphere_sweeps = static_cast<int>(s.integer("sphere_sweeps", p.sphere_sweeps, 4, 200));
+  p.ball_bar_sweeps = static_cast<int>(s.integer("ball_bar_sweeps", p.ball_bar_sweeps, 1, 200));
 }
 
 }  // namespace
@@ -629,6 +635,9 @@ std::string describeCellConfig(const CellConfig& c) {
   l.number("length_mpe_mm", p.length_mpe_mm);
   l.number("stereo_form_mpe_mm", p.stereo_form_mpe_mm);
   l.number("stereo_length_mpe_mm", p.stereo_length_mpe_mm);
+  l.integer("plate_views", p.plate_views);
+  l.integer("sphere_sweeps", p.sphere_sweeps);
+  l.integer("ball_bar_sweeps", p.ball_bar_sweeps);
   l.section("results");
   l.text("database", c.results_database);
   l.section("report");

@@ -1,5 +1,7 @@
 #include "stampscan/acquisition/cell_geometry.hpp"
 
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
+
 #include <Eigen/Geometry>
 
 #include <cmath>
@@ -21,18 +23,9 @@ Eigen::Isometry3d isometry(const Placement& p) {
   return T;
 }
 
-trace::RigidPose rigid(const Eigen::Isometry3d& T) {
-  trace::RigidPose p;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) p.rotation[static_cast<std::size_t>(3 * r + c)] = T.linear()(r, c);
-    p.translation[static_cast<std::size_t>(r)] = T.translation()(r);
-  }
-  return p;
-}
-
 }  // namespace
 
-trace::RigidPose toRigidPose(const Placement& placement) { return rigid(isometry(placement)); }
+trace::RigidPose toRigidPose(const Placement& placement) { return trace::toRigidPose(isometry(placement)); }
 
 const char* toString(BodySolid::Shape shape) {
   switch (shape) {
@@ -79,7 +72,7 @@ trace::RigidPose nominalCameraMount(const CameraDrawing& c, int which) {
   T.linear().col(1) = z.cross(x);
   T.linear().col(2) = z;
   T.translation() = position;
-  return rigid(T);
+  return trace::toRigidPose(T);
 }
 
 trace::RigidPose machineFromPlate(const PlateArtefact& plate) {
@@ -87,7 +80,7 @@ trace::RigidPose machineFromPlate(const PlateArtefact& plate) {
   const Eigen::Vector3d centre_on_plate(0.5 * (plate.columns - 1) * plate.pitch_mm, 0.5 * (plate.rows - 1) * plate.pitch_mm, 0);
   Eigen::Isometry3d T = isometry(plate.placement);
   T.translate(-centre_on_plate);
-  return rigid(T);
+  return trace::toRigidPose(T);
 }
 
 trace::SessionDescription describeCell(const CellGeometry& cell) {

@@ -139,6 +139,13 @@ std::size_t ScanPlan::stereoCount(const std::string& scene) const {
   return n;
 }
 
+HeadPose parkingPose(const MachineLimits& limits) {
+  const auto& lo = limits.travel_min;
+  const auto& hi = limits.travel_max;
+  const double z = hi[2] - lo[2] >= 300 ? hi[2] - 150 : 0.5 * (lo[2] + hi[2]);
+  return {{0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), z}, 0, 0};
+}
+
 std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& limits) {
   std::vector<std::string> problems;
   const char* axes = "xyz";

@@ -84,4 +84,49 @@ double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample
   return field ? field->value : std::numeric_limits<double>::quiet_NaN();
 }
 
+std::optional<LocalPolynomial> fitTangentPolynomial(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples,
+                                                    int degree, double scale) {
+  if (degree != 1 && degree != 2) throw std::invalid_argument("tangent polynomial: degree 1 or 2");
+  if (!(scale > 0)) throw std::invalid_argument("tangent polynomial: the scale must be positive");
+  using Row = Eigen::Matrix<double, 6, 1>;
+  const int terms = degree == 1 ? 3 : 6;
+  const Eigen::Matrix3d frame = frameAround(n);
+  const auto row = [&](const Vec3& p) {
+    const Vec3 d = (p - x) / scale;
+    const double u = d.dot(frame.col(0)), v = d.dot(frame.col(1));
+    Row a;
+    a << 1.0, u, v, u * u, u * v, v * v;
+    return a;
+  };
+  Eigen::Matrix<double, 6, 6> M = Eigen::Matrix<double, 6, 6>::Zero();
+  double sum_w = 0;
+  std::size_t used = 0;
+  for (const ScalarSample& s : samples) {
+    if (!(s.weight > 0)) continue;
+    const Row a = row(s.position);
+    M.noalias() += s.weight * a * a.transpose();
+    sum_w += s.weight;
+    ++used;
+  }
+  if (used < static_cast<std::size_t>(terms) || !(sum_w > 0)) return std::nullopt;
+  // At most 6 x 6: on the stack, not the heap (a fit per surface point and model).
+  using Normal = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+  const Normal normal = M.topLeftCorner(terms, terms) / sum_w;
+  const Eigen::LDLT<Normal> solver(normal);
+  // Pivoted LDLT: a near-zero pivot against the largest means a direction the samples do not span.
+  const Vector pivots = solver.vectorD();
+  if (solver.info() != Eigen::Success || !(pivots.minCoeff() > 1e-8 * pivots.maxCoeff())) return std::nullopt;
+  const Vector z = solver.solve(Vector::Unit(terms, 0));
+  LocalPolynomial fit{0.0, 0.0};
+  for (const ScalarSample& s : samples) {
+    if (!(s.weight > 0)) continue;
+    const double l = s.weight / sum_w * row(s.position).head(terms).dot(z);
+    fit.value += l * s.value;
+    fit.amplification += std::abs(l);
+  }
+  if (!std::isfinite(fit.value) || !std::isfinite(fit.amplification)) return std::nullopt;
+  return fit;
+}
+
 }  // namespace stampscan::fitting

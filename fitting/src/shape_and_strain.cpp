@@ -58,20 +58,48 @@ std::vector<Vec3> cubeMeans(const std::vector<Vec3>& points, double size) {
   return means;
 }
 
-// The carriers' strain as a smooth field over the shape (scalar_field.hpp: linear in the tangent
-// plane, Gaussian weights, Eq. (3)) with a bandwidth of its own. The carriers' shape fit would lend
-// it the shape's bandwidth, which stops only at a count of carriers (some 16 mm on a 2.54 mm grid)
-// and flattens the strain peaks, the very spots a forming analysis is about.
+// The carriers' strain as a smooth field over the shape (scalar_field.hpp: a polynomial in the
+// tangent plane, Gaussian weights, Eq. (3)) with a bandwidth of its own. The carriers' shape fit
+// would lend it the shape's bandwidth, which stops only at a count of carriers (some 16 mm on a
+// 2.54 mm grid) and flattens the strain peaks, the very spots a forming analysis is about.
 //
-// The bandwidth is chosen by cross-validation, leaving one element out: at each carrier, the field
-// fitted to the others (its twins, within a quarter pitch, left out too: the same element found in
-// two strips) predicts its strain, at bandwidths from half a pitch to seven; each carrier takes the
-// bandwidth whose predictions were best over its neighbourhood. A prediction error is what a point
-// between elements sees: the noise, the bias of too wide a support and the variance of too narrow
-// a one, together. (Lepski's rule, which serves the shape, starts at the eight nearest carriers,
-// already wider than a strain peak between elements allows; cross-validation needs no start.) A
-// point between carriers takes the harmonic mean of its neighbours' bandwidths.
+// The bandwidth, and whether the local field is a plane (Eq. (17)'s hyperplane) or a quadric, are
+// chosen by cross-validation, leaving one element out: at each carrier, the field fitted to the
+// others (its twins, within a quarter pitch, left out too: the same element found in two strips)
+// predicts its strain, for bandwidths from half a pitch to seven and both degrees; each carrier
+// takes the model whose predictions were best over its neighbourhood. A prediction error is what a
+// point between elements sees: the noise, the bias of too wide a support or too low a degree, and
+// the variance of too narrow a one, together. Across a die radius the strain bends within a pitch
+// or two: a plane through the elements either side misses the band between them by a hundredth,
+// a quadric follows it. (Lepski's rule, which serves the shape, starts at the eight nearest
+// carriers, already wider than a strain peak between elements allows; cross-validation needs no
+// start.) A point between carriers takes the harmonic mean of its neighbours' bandwidths and their
+// share of quadrics, blending the two fits.
+//
+// At a carrier the smooth field still mixes its neighbours into its value; a correction there
+// restores the carrier's best estimate of its own strain (its measurement and its neighbours'
+// prediction, by their inverse variances); between elements the corrections are interpolated.
 class CarrierStrain {
+  // Candidate bandwidths: half a pitch times 1.4^k, up to seven pitches; each with both degrees.
+  static constexpr int kBandwidths = 9;
+  static constexpr double kBandwidthStep = 1.4;
+  static constexpr int kModels = 2 * kBandwidths;  // model m: bandwidth m / 2, degree 1 + m % 2
+  using PerModel = std::array<double, kModels>;
+  static constexpr std::size_t kPitchRank = 4;
+  // The most a field value may amplify the carriers' noise (1: an average of them), per degree: an
+  // interpolation within a grid cell stays near it, an extrapolation beyond the last carriers
+  // exceeds it. A quadric's coefficients are larger within the cell too.
+  static constexpr double kMostAmplification[2] = {1.5, 2.5};
+  static constexpr int kWidenings = 3;  // the chosen bandwidth and two steps wider
+  // A carrier's neighbourhood for the choice (and for its tangent plane): a few pitches across.
+  static constexpr std::size_t kPoolSize = 16;
+  // The width of the corrections' interpolation, in pitches, and the least sum of weights their mean
+  // is divided by: one carrier's weight at half a pitch.
+  static constexpr double kBumpWidth = 0.4;
+  static constexpr double kCorrectionWeightFloor = 0.2096;  // exp(-(0.5 / 0.4)^2)
+  // The least variance granted the neighbours' prediction, as a share of the carriers' own.
+  static constexpr double kLeastPredictionVariance = 0.1;
+
  public:
   struct Scratch {
     std::vector<Neighbor> near;
@@ -80,12 +108,12 @@ class CarrierStrain {
   CarrierStrain(const Cloud& carriers, const ShapeAndStrainParams& params)
       : positions_(carriers.positions), strain_(carriers.strain), tree_(positions_) {
     const std::size_t n = positions_.size();
-    const std::vector<double>& strain = strain_;
     // Each carrier's weight relative to a typical one: the inverse variance of its strain when the
     // carriers state it (a merged element measured by several sweeps and views counts for more than
     // one seen once, a laser element more than a noisier stereo one), scaled so that the median
     // carrier weighs one (the Gaussian's scale stays that of the bandwidth).
     certainty_.assign(n, 1.0);
+    std::vector<double> variance(n, std::numeric_limits<double>::quiet_NaN());  // the stated one, squared
     if (const auto u = carriers.scalars.find(kStrainUncertainty); u != carriers.scalars.end() && u->second.size() == n) {
       std::vector<double> finite;
       for (double s : u->second)
@@ -94,7 +122,9 @@ class CarrierStrain {
         const double typical = summarize(finite).median;
         for (std::size_t i = 0; i < n; ++i) {
           const double s = u->second[i];
-          certainty_[i] = std::isfinite(s) && s > 0 ? std::pow(typical / s, 2) : 1.0;
+          if (!(std::isfinite(s) && s > 0)) continue;
+          certainty_[i] = std::pow(typical / s, 2);
+          variance[i] = s * s;
         }
       }
     }
@@ -116,135 +146,213 @@ class CarrierStrain {
     });
     spacing_ = summarize(fourth).median;
     reach_ = params.strain_reach * spacing_;
-    std::array<double, kCandidates> candidates{};
-    for (int k = 0; k < kCandidates; ++k) candidates[static_cast<std::size_t>(k)] = 0.5 * spacing_ * std::pow(kCandidateStep, k);
+    // Carriers all at one place (or a single one): no grid, no field.
+    if (!(spacing_ > 0)) return;
+    for (int k = 0; k < kBandwidths; ++k)
+      candidates_[static_cast<std::size_t>(k)] = 0.5 * spacing_ * std::pow(kBandwidthStep, k);
 
-    // Leave-one-element-out squared errors, per carrier and candidate (NaN: too few others).
-    std::vector<std::array<double, kCandidates>> error(n);
+    // Leave-one-element-out predictions and their squared errors, per carrier and model (NaN: the
+    // others do not determine it).
+    std::vector<PerModel> error(n), prediction(n);
     const double twin_sq = 0.0625 * spacing_ * spacing_;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
       std::vector<Neighbor> near;
       std::vector<ScalarSample> samples;
       for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        for (int k = 0; k < kCandidates; ++k) {
-          const double h = candidates[static_cast<std::size_t>(k)];
-          double& e = error[i][static_cast<std::size_t>(k)];
-          e = std::numeric_limits<double>::quiet_NaN();
-          if (!std::isfinite(strain[i])) continue;
+        error[i].fill(std::numeric_limits<double>::quiet_NaN());
+        prediction[i].fill(std::numeric_limits<double>::quiet_NaN());
+        if (!std::isfinite(strain_[i])) continue;
+        for (int k = 0; k < kBandwidths; ++k) {
+          const double h = candidates_[static_cast<std::size_t>(k)];
           tree_.radius(positions_[i], detail::kSupport * h, near);
           samples.clear();
           for (const Neighbor& nb : near)
-            if (nb.distance_sq > twin_sq && std::isfinite(strain[nb.index]))
-              samples.push_back({positions_[nb.index], strain[nb.index], weight(nb, h)});
-          if (samples.size() < 3) continue;
-          if (const auto field = fitTangentLinear(positions_[i], normals[i], samples)) {
-            const double r = field->value - strain[i];
-            e = r * r;
+            if (nb.distance_sq > twin_sq && std::isfinite(strain_[nb.index]))
+              samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
+          for (int degree = 1; degree <= 2; ++degree) {
+            const auto field = fitTangentPolynomial(positions_[i], normals[i], samples, degree, h);
+            if (!field) continue;
+            const auto m = static_cast<std::size_t>(2 * k + degree - 1);
+            prediction[i][m] = field->value;
+            error[i][m] = std::pow(field->value - strain_[i], 2);
           }
         }
       }
     });
-    std::vector<double> h(n, candidates.back());
+    std::vector<double> h(n, candidates_.back());
+    quadric_.assign(n, 0.0);
+    // Each carrier's best estimate of its own strain (NaN: keep the smooth field's).
+    std::vector<double> estimate(n, std::numeric_limits<double>::quiet_NaN());
+    std::vector<double> trust(n, 1.0);  // below 1: an element its neighbours contradict
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
       std::vector<Neighbor> near;
       for (std::size_t i = range.begin(); i != range.end(); ++i) {
         tree_.knn(positions_[i], kPoolSize, near);
         double best = std::numeric_limits<double>::infinity();
-        for (int k = 0; k < kCandidates; ++k) {
+        int chosen = -1;
+        for (int m = 0; m < kModels; ++m) {
           double sum = 0;
           std::size_t count = 0;
           for (const Neighbor& nb : near) {
-            const double e = error[nb.index][static_cast<std::size_t>(k)];
+            const double e = error[nb.index][static_cast<std::size_t>(m)];
             if (std::isfinite(e)) {
               sum += e;
               ++count;
             }
           }
-          // A bandwidth that predicts fewer than half the neighbourhood is too narrow here.
+          // A model that predicts fewer than half the neighbourhood is too narrow here.
           if (2 * count < near.size() || !(sum / static_cast<double>(count) < best)) continue;
           best = sum / static_cast<double>(count);
-          h[i] = candidates[static_cast<std::size_t>(k)];
+          chosen = m;
         }
+        if (chosen < 0) continue;
+        const auto m = static_cast<std::size_t>(chosen);
+        h[i] = candidates_[m / 2];
+        quadric_[i] = m % 2 == 1 ? 1.0 : 0.0;
+        const OwnEstimate own = ownEstimate(i, m, near, error, prediction, variance);
+        estimate[i] = own.value;
+        trust[i] = own.trust;
       }
     });
     bandwidth_ = summarize(h);
     field_ = std::make_unique<BandwidthField>(positions_, tree_, std::move(h), BandwidthField::Mean::Harmonic);
+
+    // An element its neighbours contradict weighs less in the smooth field too, so that an outlier
+    // does not reach its neighbours through their fits.
+    for (std::size_t i = 0; i < n; ++i) certainty_[i] *= trust[i];
+    correction_.assign(n, 0.0);
+    bump_ = kBumpWidth * spacing_;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
+      Scratch scratch;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        if (!std::isfinite(estimate[i])) continue;
+        const double smooth = smoothAt(positions_[i], normals[i], scratch);
+        if (std::isfinite(smooth)) correction_[i] = estimate[i] - smooth;
+      }
+    });
   }
 
   // NaN beyond reach of every carrier.
   double at(const Vec3& x, const Vec3& normal, Scratch& scratch) const {
-    std::uint32_t nearest = 0;
-    double h = field_->at(x, 4, &nearest);
-    if ((positions_[nearest] - x).squaredNorm() > reach_ * reach_) return std::numeric_limits<double>::quiet_NaN();
-    // The carriers' choice holds wherever the field there is interpolated, not extrapolated: then it
-    // is what the cross-validation chose it to be, the best prediction between elements, and at an
-    // element it keeps that element's own value (its weight dominates, its neighbours give the
-    // slope), so a peak the elements measured stays in the map. The linear fit's value at x is a
-    // weighted sum of the carriers' values; where x lies off the carriers that carry weight (a gap
-    // in the grid, the grid's edge), the sum's coefficients grow and alternate in sign, and one
-    // carrier's noise is amplified. The support widens until their absolute sum (the fit's
-    // amplification of noise, 1 for an average) is small.
-    for (int widen = 0; widen < kCandidates; ++widen, h *= kCandidateStep) {
-      tree_.radius(x, detail::kSupport * h, scratch.near);
-      if (amplification(x, normal, h, scratch.near) <= kMostAmplification) break;
+    if (!field_) return std::numeric_limits<double>::quiet_NaN();
+    const double smooth = smoothAt(x, normal, scratch);
+    if (!std::isfinite(smooth)) return smooth;
+    // The carriers' corrections, interpolated by Gaussian weights (Eq. (3)'s) of 0.4 pitch: at an
+    // element its own (the next element's weight is 0.2 % of it), between elements their mean, and
+    // twins (the same element measured twice) share theirs rather than count twice. Beyond half a
+    // pitch from every carrier (a gap, the grid's edge) the weights' sum falls below the floor and
+    // the correction fades to nothing by the support's edge.
+    tree_.radius(x, detail::kSupport * bump_, scratch.near);
+    double sum = 0, weights = 0;
+    for (const Neighbor& nb : scratch.near) {
+      const double w = gaussianWeightSq(nb.distance_sq, bump_ * bump_);
+      sum += w * correction_[nb.index];
+      weights += w;
     }
-    // The smooth field over the carriers of that support (scalar_field.hpp), Gaussian weights (Eq. (3)).
-    scratch.samples.clear();
-    for (const Neighbor& nb : scratch.near)
-      if (std::isfinite(strain_[nb.index]))
-        scratch.samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
-    return smoothScalar(x, normal, scratch.samples);
+    return smooth + sum / std::max(weights, kCorrectionWeightFloor);
   }
   const BandwidthSummary& bandwidth() const { return bandwidth_; }
   double spacing() const { return spacing_; }
 
  private:
-  // The sum of the absolute coefficients of the tangent-linear fit's value at x over `near`
-  // (infinite when the fit is not determined): for weights w_i and design rows a_i = (1, u_i, v_i),
-  // the value is sum_i w_i (a_i . z) s_i with z = (sum_i w_i a_i a_i^T)^-1 (1, 0, 0).
-  double amplification(const Vec3& x, const Vec3& normal, double h, const std::vector<Neighbor>& near) const {
-    const Eigen::Matrix3d frame = frameAround(normal);
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    const auto row = [&](const Neighbor& nb) {
-      const Vec3 d = (positions_[nb.index] - x) / h;  // scaled, for conditioning
-      return Eigen::Vector3d(1.0, d.dot(frame.col(0)), d.dot(frame.col(1)));
-    };
-    std::size_t used = 0;
+  // The best linear estimate of carrier i's strain from its own measurement s (variance stated) and
+  // its neighbours' leave-one-out prediction p with model m. p's variance is what the
+  // neighbourhood's prediction errors hold beyond the carriers' own noise: E[(p - s)^2] = var p +
+  // var s. NaN (keep the smooth field) when the carriers state no uncertainty.
+  struct OwnEstimate {
+    double value = std::numeric_limits<double>::quiet_NaN();
+    // The measurement's weight in the smooth field, relative to its stated one: one over the excess
+    // ratio beyond three standard deviations (a gross outlier all but drops out of its neighbours' fits).
+    double trust = 1.0;
+  };
+  OwnEstimate ownEstimate(std::size_t i, std::size_t m, const std::vector<Neighbor>& near, const std::vector<PerModel>& error,
+                     const std::vector<PerModel>& prediction, const std::vector<double>& variance) const {
+    const double s = strain_[i], p = prediction[i][m], var_s = variance[i];
+    if (!std::isfinite(s) || !std::isfinite(p) || !std::isfinite(var_s)) return {};
+    double excess = 0, noise = 0;
+    std::size_t count = 0;
     for (const Neighbor& nb : near) {
-      if (!std::isfinite(strain_[nb.index])) continue;
-      const Eigen::Vector3d a = row(nb);
-      M += weight(nb, h) * a * a.transpose();
-      ++used;
+      const double e = error[nb.index][m], v = variance[nb.index];
+      if (nb.index == i || !std::isfinite(e) || !std::isfinite(v)) continue;  // its neighbours' errors alone
+      excess += e - v;
+      noise += v;
+      ++count;
     }
-    if (used < 3) return std::numeric_limits<double>::infinity();
-    const Eigen::LDLT<Eigen::Matrix3d> solver(M);
-    if (solver.info() != Eigen::Success || !(std::abs(M.determinant()) > 1e-12 * std::pow(M.trace(), 3)))
-      return std::numeric_limits<double>::infinity();
-    const Eigen::Vector3d z = solver.solve(Eigen::Vector3d::UnitX());
-    double sum = 0;
-    for (const Neighbor& nb : near)
-      if (std::isfinite(strain_[nb.index])) sum += std::abs(weight(nb, h) * row(nb).dot(z));
-    return std::isfinite(sum) ? sum : std::numeric_limits<double>::infinity();
+    if (count < 3) return {};
+    // A floor: a neighbourhood's few errors never prove the prediction exact.
+    const double var_p = std::max(excess, kLeastPredictionVariance * noise) / static_cast<double>(count);
+    // Beyond three standard deviations of their difference the measurement's variance grows with
+    // the excess (a Huber weight): an outlier gives way to its neighbours, smoothly, while a real
+    // peak whose element understates its noise is not thrown away.
+    const double excess_ratio = std::pow(s - p, 2) / (9.0 * (var_s + var_p));
+    const double var_measured = excess_ratio > 1 ? var_s * std::sqrt(excess_ratio) : var_s;
+    return {(s / var_measured + p / var_p) / (1.0 / var_measured + 1.0 / var_p), excess_ratio > 1 ? 1.0 / excess_ratio : 1.0};
   }
+
+  // The smooth field: the plane's and the quadric's values blended by the neighbours' share of
+  // quadrics. NaN beyond reach of every carrier.
+  double smoothAt(const Vec3& x, const Vec3& normal, Scratch& scratch) const {
+    tree_.knn(x, 1, scratch.near);
+    if (scratch.near.empty() || scratch.near.front().distance_sq > reach_ * reach_)
+      return std::numeric_limits<double>::quiet_NaN();
+    const auto [h, quadric] = field_->atAndOther(x, quadric_, 4);
+    if (quadric <= 0.0) return fieldOfDegree(x, normal, h, 1, scratch);
+    if (quadric >= 1.0) return fieldOfDegree(x, normal, h, 2, scratch);
+    return (1.0 - quadric) * fieldOfDegree(x, normal, h, 1, scratch) + quadric * fieldOfDegree(x, normal, h, 2, scratch);
+  }
+
+  // The polynomial field of `degree` at x. The carriers' choice of bandwidth holds wherever the
+  // field there is interpolated, not extrapolated: then it is what the cross-validation chose it
+  // to be. Where x lies off the carriers that carry weight (a gap in the grid, the grid's edge), the
+  // fit's coefficients grow and alternate in sign, and one carrier's noise is amplified: the support
+  // widens a little until their absolute sum is small. Widening further would reach over the part
+  // and bring its far strain back as a slope or a curvature (at a dome's flange, the pole's): where
+  // a little does not do, the quadric gives way to the plane, and the plane to the carriers'
+  // weighted mean, whose gain is one (beyond the grid's last row, the strain of the rows before).
+  double fieldOfDegree(const Vec3& x, const Vec3& normal, double h, int degree, Scratch& scratch) const {
+    const double chosen = h;
+    for (int widen = 0; widen < kWidenings; ++widen, h *= kBandwidthStep) {
+      gather(x, h, scratch);
+      const auto fit = fitTangentPolynomial(x, normal, scratch.samples, degree, h);
+      if (fit && fit->amplification <= kMostAmplification[degree - 1]) return fit->value;
+    }
+    if (degree == 2) return fieldOfDegree(x, normal, chosen, 1, scratch);
+    // The weighted mean at the chosen bandwidth, or the first wider one that holds a carrier.
+    h = chosen;
+    for (int widen = 0; widen < kWidenings; ++widen, h *= kBandwidthStep) {
+      gather(x, h, scratch);
+      double sum = 0, weights = 0;
+      for (const ScalarSample& sample : scratch.samples) {
+        sum += sample.weight * sample.value;
+        weights += sample.weight;
+      }
+      if (weights > 0) return sum / weights;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  // The carriers with strain within the support of bandwidth h around x, weighted.
+  void gather(const Vec3& x, double h, Scratch& scratch) const {
+    tree_.radius(x, detail::kSupport * h, scratch.near);
+    scratch.samples.clear();
+    for (const Neighbor& nb : scratch.near)
+      if (std::isfinite(strain_[nb.index]))
+        scratch.samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
+  }
+
   // A carrier's weight at bandwidth h: the Gaussian of Eq. (3) times its certainty.
   double weight(const Neighbor& nb, double h) const {
     return gaussianWeightSq(nb.distance_sq, h * h) * certainty_[nb.index];
   }
-  // Candidate bandwidths: half a pitch times 1.4^k, up to seven pitches.
-  static constexpr int kCandidates = 9;
-  static constexpr double kCandidateStep = 1.4;
-  static constexpr std::size_t kPitchRank = 4;
-  // The most a field value may amplify the carriers' noise (1: an average of them; an interpolation
-  // within a grid cell stays near it, an extrapolation beyond the last carriers exceeds it).
-  static constexpr double kMostAmplification = 1.5;
-  // A carrier's neighbourhood for the choice (and for its tangent plane): a few pitches across.
-  static constexpr std::size_t kPoolSize = 16;
+
   const std::vector<Vec3>& positions_;
   const std::vector<double>& strain_;
   KdTree tree_;
   std::vector<double> certainty_;
+  std::array<double, kBandwidths> candidates_{};
+  std::vector<double> quadric_;     // per carrier: 1 where its neighbourhood chose a quadric
+  std::vector<double> correction_;  // per carrier: its best estimate minus the smooth field there
   std::unique_ptr<BandwidthField> field_;
-  double spacing_ = 0, reach_ = 0;
+  double spacing_ = 0, reach_ = 0, bump_ = 0;
   BandwidthSummary bandwidth_;
 };
 }  // namespace

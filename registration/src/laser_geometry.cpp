@@ -7,14 +7,6 @@
 
 namespace stampscan::registration {
 
-Eigen::Isometry3d headPose(const Vec3& position, double a, double b) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translate(position);
-  T.rotate(Eigen::AngleAxisd(b, Vec3::UnitZ()));
-  T.rotate(Eigen::AngleAxisd(a, Vec3::UnitX()));
-  return T;
-}
-
 HeadTrack::HeadTrack(std::vector<HeadSample> samples) : samples_(std::move(samples)) {
   if (samples_.size() < 2) throw std::invalid_argument("head track: needs at least two CMM position reports");
   for (std::size_t i = 1; i < samples_.size(); ++i)
@@ -67,7 +59,7 @@ HeadSample HeadTrack::at(std::int64_t t) const {
 
 Eigen::Isometry3d HeadTrack::poseAt(std::int64_t t) const {
   const HeadSample s = at(t);
-  return headPose(s.position, s.a, s.b);
+  return trace::headPose(s.position, s.a, s.b);
 }
 
 Vec3 sensorPoint(const Profile& p, std::size_t i) {

@@ -1,5 +1,6 @@
 #include "stampscan/registration/measure_scan.hpp"
 
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/registration/icp.hpp"
 #include "stampscan/registration/stereo_squares.hpp"
@@ -80,24 +81,6 @@ std::vector<Vec3> depthPriorOf(const std::vector<Profile>& profiles, const HeadT
 
 }  // namespace
 
-Eigen::Isometry3d toIsometry(const trace::RigidPose& pose) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) T.linear()(r, c) = pose.rotation[static_cast<std::size_t>(3 * r + c)];
-    T.translation()(r) = pose.translation[static_cast<std::size_t>(r)];
-  }
-  return T;
-}
-
-trace::RigidPose toRigidPose(const Eigen::Isometry3d& T) {
-  trace::RigidPose p;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) p.rotation[static_cast<std::size_t>(3 * r + c)] = T.linear()(r, c);
-    p.translation[static_cast<std::size_t>(r)] = T.translation()(r);
-  }
-  return p;
-}
-
 std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
                                                       std::int64_t clock_offset_ns, std::int64_t latency_ns,
                                                       double max_track_error_mm, const std::string& scene) {
@@ -135,7 +118,7 @@ void ScanMeasurer::calibrateDigitizer(const ScanTrace& trace) {
       throw std::runtime_error("the trace has reference-sphere sweeps but its session description gives no sphere radius");
     SphereCalibrationParams sp;
     sp.sphere_radius = *session.reference_sphere_radius_mm;
-    sp.nominal.head_from_digitizer = toIsometry(session.head_from_digitizer_nominal);
+    sp.nominal.head_from_digitizer = trace::toIsometry(session.head_from_digitizer_nominal);
     sp.nominal.clock_offset_ns = digitizer_offset;
     out_.sphere = ::stampscan::registration::calibrateDigitizer(sphere, track, sp);
     out_.digitizer = out_.sphere->calibration;

@@ -1,18 +1,14 @@
 #include "stampscan/sim/cmm_motion.hpp"
 
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
 namespace stampscan::sim {
 
-Eigen::Isometry3d HeadState::pose() const {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translate(position);
-  T.rotate(Eigen::AngleAxisd(b, Vec3::UnitZ()));
-  T.rotate(Eigen::AngleAxisd(a, Vec3::UnitX()));
-  return T;
-}
+Eigen::Isometry3d HeadState::pose() const { return trace::headPose(position, a, b); }
 
 CmmTrajectory::CmmTrajectory(const CmmLimits& limits, HeadState start) : limits_(limits), end_(start) {}
 

@@ -35,6 +35,11 @@ acquisition::NominalModel partModel(const FormedPart& part, double spacing_mm) {
   return model;
 }
 
+std::string simulatedProgramName(PartKind part, GridKind grid, bool sample_region) {
+  return std::string("sim-") + (part == PartKind::Dome ? "dome" : "pan") + "-" + toString(grid) +
+         (sample_region ? "-sample" : "");
+}
+
 acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, const fs::path& dir,
                                                const SimulatedProgramOptions& options) {
   ScanParams params;
@@ -43,10 +48,16 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
   params.grid.kind = grid;
   params.calibration = false;
   params.laser = params.stereo = true;
+  if (options.sample_region) {
+    const ScanParams quick = ScanParams::quick();
+    params.scan_region = quick.scan_region;
+    params.stereo_rows = quick.stereo_rows;
+    params.stereo_columns = quick.stereo_columns;
+  }
   const std::unique_ptr<FormedPart> part = makePart(params);
 
   acquisition::PartProgram program;
-  program.name = "sim-" + part->name() + "-" + toString(grid);
+  program.name = simulatedProgramName(kind, grid, options.sample_region);
   program.folder = dir;
   program.simulated_part = part->name();
   program.grid = {toString(grid), params.grid.pitch, params.grid.circle_diameter, params.grid.line_width};
@@ -56,10 +67,12 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
   program.plan = planScan(params);
   if (kind == PartKind::Dome) {
     program.description = "The simulator's punch-stretched dome (" + toString(grid) + " grid), nominal model a STEP B-spline surface";
+    if (options.sample_region) program.description += "; the plan scans its sample region";
     const double r = params.dome.die_radius / 4;
     program.regions.push_back({"pole", {-r, -r}, {r, r}});
   } else {
     program.description = "The simulator's stamped pan (" + toString(grid) + " grid), nominal model a binary STL mesh";
+    if (options.sample_region) program.description += "; the plan scans its sample region";
     program.regions.push_back({"pocket", {-params.pan.pocket_a, -params.pan.pocket_b}, {params.pan.pocket_a, params.pan.pocket_b}});
   }
 

@@ -1,6 +1,7 @@
 #include "stampscan/sim/scan_scenario.hpp"
 
 #include "stampscan/acquisition/calibration_plan.hpp"
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 
@@ -22,15 +23,6 @@ namespace msg = stampscan::trace;
 
 namespace {
 
-Eigen::Isometry3d isometry(const trace::RigidPose& p) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) T.linear()(r, c) = p.rotation[static_cast<std::size_t>(3 * r + c)];
-    T.translation()(r) = p.translation[static_cast<std::size_t>(r)];
-  }
-  return T;
-}
-
 Vec3 vec(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
 
 }  // namespace
@@ -45,7 +37,7 @@ void ScanParams::setCell(const acquisition::CellConfig& config) {
                              "their built-in plans stand at the table's origin; give 0 (a part program's own plan may "
                              "use another datum)");
   cell = config.geometry;
-  index_step = config.limits.index_step;
+  limits = config.limits;
   const acquisition::DigitizerDrawing& d = cell.digitizer;
   digitizer.points_per_profile = d.points_per_profile;
   digitizer.half_angle = 0.5 * d.fan_angle_deg * kDeg;
@@ -96,15 +88,7 @@ namespace {
 std::int64_t toNs(double seconds) { return static_cast<std::int64_t>(std::llround(seconds * 1e9)); }
 
 std::string number(double v) { return trace::formatNumber(v); }
-trace::RigidPose rigidPose(const Eigen::Isometry3d& T) {
-  trace::RigidPose p;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) p.rotation[static_cast<std::size_t>(3 * r + c)] = T.linear()(r, c);
-    p.translation[static_cast<std::size_t>(r)] = T.translation()(r);
-  }
-  return p;
-}
-std::string poseText(const Eigen::Isometry3d& T) { return trace::formatPose(rigidPose(T)); }
+std::string poseText(const Eigen::Isometry3d& T) { return trace::formatPose(trace::toRigidPose(T)); }
 trace::CameraIntrinsicsRecord intrinsicsRecord(const CameraIntrinsics& c) {
   return {c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2, c.k3};
 }
@@ -141,16 +125,14 @@ class Planner {
     plan_.part.circle_diameter = p_.grid.circle_diameter;
     plan_.part.line_width = p_.grid.line_width;
     plan_.travel_speed = 200;
-    plan_.park = {{0, 0, 450}, 0, 0};
+    plan_.park = acquisition::parkingPose(p_.limits);
     // The calibration scenes, planned from the cell as the station plans them for a real cell.
     acquisition::CalibrationScenes scenes;
     scenes.plate_views = p_.calibration ? p_.plate_poses : 0;
     scenes.sphere_sweeps = p_.calibration ? p_.sphere_sweeps : 0;
     scenes.second_sphere_sweeps = p_.has_second_sphere ? p_.second_sphere_sweeps : 0;
     scenes.seed = p_.seed;
-    acquisition::MachineLimits limits;
-    limits.index_step = p_.index_step;
-    acquisition::appendCalibrationScenes(p_.cell, limits, scenes, plan_);
+    acquisition::appendCalibrationScenes(p_.cell, p_.limits, scenes, plan_);
     if (p_.laser) planLaserStrips();
     if (p_.stereo) planStereo();
     return std::move(plan_);
@@ -161,8 +143,8 @@ class Planner {
 
   // The head angle the head can take nearest to `angle`: an indexing head's nearest stop.
   double stop(double angle) const {
-    if (p_.index_step <= 0) return angle;
-    return std::round(angle / p_.index_step) * p_.index_step;
+    if (p_.limits.index_step <= 0) return angle;
+    return std::round(angle / p_.limits.index_step) * p_.limits.index_step;
   }
 
   // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
@@ -284,8 +266,8 @@ CellTruth drawTruth(const ScanParams& p) {
     c->p1 = 2e-4 * g(rng);
     c->p2 = 2e-4 * g(rng);
   }
-  Eigen::Isometry3d left = isometry(acquisition::nominalCameraMount(p.cell.cameras, 0));
-  Eigen::Isometry3d right = isometry(acquisition::nominalCameraMount(p.cell.cameras, 1));
+  Eigen::Isometry3d left = trace::toIsometry(acquisition::nominalCameraMount(p.cell.cameras, 0));
+  Eigen::Isometry3d right = trace::toIsometry(acquisition::nominalCameraMount(p.cell.cameras, 1));
   for (Eigen::Isometry3d* T : {&left, &right}) {
     T->linear() = smallRotation(rng, 0.003) * T->linear();
     T->translation() += Vec3(0.3 * g(rng), 0.3 * g(rng), 0.3 * g(rng));
@@ -637,7 +619,7 @@ class SessionGenerator {
 
 acquisition::ScanPlan planScan(const ScanParams& params) { return Planner(params).plan(); }
 
-Eigen::Isometry3d platePose(const ScanParams& params) { return isometry(acquisition::machineFromPlate(params.cell.plate)); }
+Eigen::Isometry3d platePose(const ScanParams& params) { return trace::toIsometry(acquisition::machineFromPlate(params.cell.plate)); }
 
 CellTruth drawCellTruth(const ScanParams& params) { return drawTruth(params); }
 
@@ -656,7 +638,7 @@ trace::SessionDescription describeSession(const ScanParams& p) {
 }
 
 Eigen::Isometry3d nominalDigitizerMount(const ScanParams& params) {
-  return isometry(acquisition::toRigidPose(params.cell.digitizer.mount));
+  return trace::toIsometry(acquisition::toRigidPose(params.cell.digitizer.mount));
 }
 
 std::unique_ptr<FormedPart> makePart(const ScanParams& params) {

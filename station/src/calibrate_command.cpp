@@ -85,14 +85,15 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     const bool virtual_cell = opt->cell.hosted();
     acquisition::CellConfig config = opt->cell.load();
     const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
-    // The simulator's calibration scenes: every sphere sweep and plate view of a full session, the
-    // cameras at their full resolution (or the quick session's quarter, to match the default scan).
+    // The cell's calibration scenes ([calibration] plate_views, sphere_sweeps, planned for its
+    // artefacts); a virtual cell's cameras at their full resolution (or the quick session's quarter,
+    // to match the default scan).
     sim::ScanParams world =
         worldOnCell(opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
-    world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
     opt->world.applyTo(world);
     CalibrateJobOptions job;
-    job.plan = calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenesOf(world))
+    const acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
+    job.plan = calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
                                                    : acquisition::loadScanPlan(opt->plan),
                                    digitizer, cameras);
     job.run.limits = config.limits;

@@ -1,7 +1,8 @@
-// `station devices [--cell CELL.toml]`: finds every device of the cell, checks it, and prints a
-// table of identity, address, firmware, state and faults. Exit 0 when every required device
-// answered and reports no fault; 1 otherwise. A cell whose digitizer is virtual has it hosted in
-// this process (virtual_digitizer_host.hpp), which may re-execute the program under umockdev.
+// `station devices [--cell CELL.toml] [--virtual]`: finds every device of the cell, checks it, and
+// prints a table of identity, address, firmware, state and faults. Exit 0 when every required
+// device answered and reports no fault; 1 otherwise. With --virtual the cell file's virtual twin is
+// hosted in this process first; otherwise a cell whose digitizer is virtual has that hosted
+// (virtual_digitizer_host.hpp). Hosting may re-execute the program under umockdev.
 #include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
@@ -10,6 +11,7 @@
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/station/commands.hpp"
 #include "virtual_digitizer_host.hpp"
+#include "virtual_world_options.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -20,8 +22,6 @@
 namespace stampscan::station {
 
 using acquisition::CellConfig;
-using acquisition::loadCellConfig;
-using acquisition::virtualCell;
 
 namespace {
 
@@ -58,14 +58,23 @@ Row probe(drivers::Device& device, const std::string& address, bool required) {
 }  // namespace
 
 CommandRunner addDevicesCommand(CLI::App& app) {
-  auto cell_file = std::make_shared<std::string>();
+  auto choice = std::make_shared<CellChoice>();
   CLI::App* cmd = app.add_subcommand("devices", "Find and check every device of the cell; a table of their identity and state");
-  cmd->add_option("--cell", *cell_file, "Cell configuration (TOML); default: the built-in virtual cell");
-  return [cell_file]() {
-    const CellConfig cell = cell_file->empty() ? virtualCell() : loadCellConfig(*cell_file);
+  choice->addTo(cmd, false);
+  return [choice]() {
+    CellConfig cell = choice->load();
     // First of all: hosting may re-execute this program, and the device must be on the bus before
     // any libusb context exists (the cameras' Aravis makes one too).
-    const std::unique_ptr<sim::VirtualDigitizer> virtual_digitizer = hostVirtualDigitizer(cell);
+    std::unique_ptr<HostedVirtualCell> hosted;
+    std::unique_ptr<sim::VirtualDigitizer> virtual_digitizer;
+    // Unlike the commands that run the cell, the built-in virtual cell is not hosted unless asked
+    // for: `station devices` checks the cell that `station sim serve` serves.
+    if (choice->host_virtual) {
+      hosted = std::make_unique<HostedVirtualCell>(worldOnCell(sim::ScanParams::quick(), cell, true), cell);
+      cell = hosted->config();
+    } else {
+      virtual_digitizer = hostVirtualDigitizer(cell);
+    }
     std::printf("station devices: %s (%s)\n", cell.name.c_str(), cell.source.c_str());
     std::vector<Row> rows;
     // The same drivers a scan uses, built for a check (acquisition::CellUse::Check).
@@ -94,6 +103,7 @@ CommandRunner addDevicesCommand(CLI::App& app) {
                   r.required || r.ok ? "" : " (optional in this cell)");
       if (r.required && !r.ok) all_ok = false;
     }
+    if (hosted) std::printf("  the cell is the virtual one, hosted in this process\n");
     if (virtual_digitizer) std::printf("  the digitizer is the virtual one, hosted in this process under umockdev\n");
     std::printf("  %s\n", all_ok ? "all required devices answered" : "a required device is missing or faulty");
     return all_ok ? 0 : 1;

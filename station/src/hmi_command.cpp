@@ -4,6 +4,7 @@
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/part_model.hpp"
 #include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/calibration_results.hpp"
@@ -65,16 +66,20 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
       }
     }
     if (virtual_cell)
-      for (const std::string& name : simulatedProgramNames())
-        if (names.count(name) == 0)
-          out.push_back({name, "the virtual cell's simulated " + name.substr(4), name.substr(name.rfind('-') + 1), "DC04",
-                         2.54, 0.8, "written into the library on first use"});
+      for (const SimulatedProgramName& simulated : simulatedProgramNames())
+        if (names.count(simulated.name) == 0)
+          out.push_back({simulated.name,
+                         "the virtual cell's simulated " + simulated.part + " (" + simulated.grid + " grid)" +
+                             (simulated.sample_region ? ", its sample region" : ""),
+                         simulated.grid, "DC04", 2.54, 0.8, "written into the library on first use"});
     return out;
   };
   p.prepare = [=](const std::string& name) {
     const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
     hmi::ProgramScan scan;
-    scan.plan = programPlan(program, config, scenesOf(world), true);
+    // The panel's sessions are quick ones (the virtual cameras at a quarter of their resolution):
+    // half the cell's calibration scenes.
+    scan.plan = programPlan(program, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
     scan.plan.name = program.name + ", laser and stereo, with calibration scenes";
     scan.material = program.material;
     scan.press_program = program.press_program;
@@ -189,13 +194,19 @@ CommandRunner addHmiCommand(CLI::App& app) {
     // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
     hmi::HmiServer::checkOptions(options);
 
-    // The scan the panel starts: the built-in plan of the sample pan's region, as `station scan`.
+    // The scan the panel starts without a program: on the virtual cell, its sample pan's region (the
+    // program sim-pan-circle-sample), as `station scan`; a real cell scans only programs.
     sim::ScanParams world = worldOnCell(sim::ScanParams::quick(), config, virtual_cell);
     world.part = sim::PartKind::Pan;
     world.seed = opt->seed;
     hmi::CellSetup setup;
-    setup.scan.plan = sim::planScan(world);
-    setup.scan.plan.name = setup.scan.plan.part.kind + ", laser and stereo, with calibration scenes";
+    if (virtual_cell) {
+      const acquisition::PartProgram sample =
+          programFromLibrary(sim::simulatedProgramName(world.part, world.grid.kind, true), config, true, opt->runs);
+      setup.scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
+      setup.scan.plan.name = sample.name + ", laser and stereo, with calibration scenes";
+      setup.scan.part_program = PartProgramRef{sample.name, sample.folder.string()};
+    }
     setup.scan.run.limits = config.limits;
     setup.scan.run.session = acquisition::describeSession(config.geometry, setup.scan.plan);
     setup.scan.runs_dir = opt->runs;
@@ -206,28 +217,25 @@ CommandRunner addHmiCommand(CLI::App& app) {
     // The verification of the digitizer: every sphere sweep of the calibration and the ball bar, as
     // `station verify` (the stereo pair's check on the plate stays with the command, whose cameras
     // take the calibration's resolution).
-    sim::ScanParams sphere_world = world;
-    sphere_world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    acquisition::CalibrationScenes sphere_scenes = acquisition::calibrationScenes(config.calibration, 1.0, world.seed);
     VerifyJobOptions verify;
     verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
     verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
     if (const auto& bar = config.geometry.ball_bar) {
       verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
-      sphere_world.second_sphere_sweeps = 4;
+      sphere_scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
     }
-    verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, scenesOf(sphere_world)));
+    verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
     verify.run.limits = config.limits;
     verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
     verify.run.session.part_id = "reference sphere";
     verify.results_database = calibrationResultsDatabase(config.results_database, setup.calibration_dir);
     setup.verify = verify;
-    // The calibration: the calibration scenes of a full session (every sphere sweep and plate view)
-    // at the hosted cameras' resolution, as `station calibrate` with that world.
-    sim::ScanParams calibration_world = world;
-    calibration_world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
-    calibration_world.plate_poses = sim::ScanParams{}.plate_poses;
+    // The calibration: the cell's calibration scenes (every sphere sweep and plate view) at the
+    // hosted cameras' resolution, as `station calibrate`.
     CalibrateJobOptions calibrate;
-    calibrate.plan = calibrationScenesOf(acquisition::calibrationPlan(config, scenesOf(calibration_world)), true, true);
+    calibrate.plan = calibrationScenesOf(
+        acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, world.seed)), true, true);
     calibrate.run.limits = config.limits;
     calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
     calibrate.run.session.part_id = "calibration";

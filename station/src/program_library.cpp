@@ -17,8 +17,14 @@ fs::path programLibrary(const acquisition::CellConfig& cell, bool virtual_cell, 
                            "program's folder, or name the library in the cell file");
 }
 
-std::vector<std::string> simulatedProgramNames() {
-  return {"sim-dome-circle", "sim-dome-square", "sim-pan-circle", "sim-pan-square"};
+std::vector<SimulatedProgramName> simulatedProgramNames() {
+  std::vector<SimulatedProgramName> names;
+  for (const bool sample : {false, true})
+    for (const sim::PartKind part : {sim::PartKind::Dome, sim::PartKind::Pan})
+      for (const sim::GridKind grid : {sim::GridKind::Circle, sim::GridKind::Square})
+        names.push_back({sim::simulatedProgramName(part, grid, sample), part == sim::PartKind::Dome ? "dome" : "pan",
+                         sim::toString(grid), sample});
+  return names;
 }
 
 acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
@@ -36,18 +42,19 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
   std::error_code ec;
   const std::string& name_or_dir = name;
   const fs::path library = programLibrary(cell, virtual_cell, runs);
-  // The virtual cell's own parts: sim-<part>-<grid>.
+  // The virtual cell's own parts: sim-<part>-<grid>[-sample].
   if (virtual_cell && !fs::exists(library / name_or_dir / acquisition::kProgramFile, ec)) {
-    for (const char* part : {"dome", "pan"})
-      for (const char* grid : {"circle", "square"})
-        if (name_or_dir == std::string("sim-") + part + "-" + grid) {
-          sim::SimulatedProgramOptions options;
-          options.cell = &cell;
-          const fs::path dir = library / name_or_dir;
-          std::printf("  program     writing the virtual cell's %s with a %s grid into %s\n", part, grid, dir.c_str());
-          sim::writeSimulatedProgram(std::string(part) == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
-                                     sim::gridKindFromString(grid), dir, options);
-        }
+    for (const SimulatedProgramName& simulated : simulatedProgramNames())
+      if (name_or_dir == simulated.name) {
+        sim::SimulatedProgramOptions options;
+        options.cell = &cell;
+        options.sample_region = simulated.sample_region;
+        const fs::path dir = library / name_or_dir;
+        std::printf("  program     writing the virtual cell's %s with a %s grid%s into %s\n", simulated.part.c_str(),
+                    simulated.grid.c_str(), simulated.sample_region ? " (its sample region)" : "", dir.c_str());
+        sim::writeSimulatedProgram(simulated.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
+                                   sim::gridKindFromString(simulated.grid), dir, options);
+      }
   }
   const fs::path dir = library / name;
   if (fs::exists(dir / acquisition::kProgramFile, ec)) return acquisition::loadPartProgram(dir);

@@ -28,8 +28,12 @@ acquisition::PartProgram programToScan(const std::string& name_or_dir, const acq
 acquisition::PartProgram programFromLibrary(const std::string& name, const acquisition::CellConfig& cell,
                                             bool virtual_cell, const std::filesystem::path& runs);
 
-// The names of the virtual cell's own simulated parts' programs (sim-dome-circle, ...).
-std::vector<std::string> simulatedProgramNames();
+// The virtual cell's own simulated parts' programs (sim-dome-circle, ..., sim-pan-square-sample).
+struct SimulatedProgramName {
+  std::string name, part, grid;  // e.g. sim-pan-circle-sample, pan, circle
+  bool sample_region = false;
+};
+std::vector<SimulatedProgramName> simulatedProgramNames();
 
 // The plan a scan of the program runs: its own, after the cell's calibration scenes (the reference
 // sphere's sweeps and the plate's views, planned for the cell's artefacts) when asked for.

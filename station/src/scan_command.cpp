@@ -6,6 +6,7 @@
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/part_model.hpp"
 #include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
@@ -40,10 +41,13 @@ CommandRunner addScanCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("scan", "Scan a part on the cell: checks, the plan's sweeps, then the measured "
                                              "strain (default: the sample pan on the built-in virtual cell)");
   opt->cell.addTo(cmd);
-  cmd->add_option("--plan", opt->plan, "Scan plan (TOML); default: the built-in plan for --part");
-  cmd->add_option("--part", opt->part, "Built-in plan and, on the virtual cell, the part on the fixture")
+  cmd->add_option("--plan", opt->plan, "Scan plan (TOML); default: the part program's");
+  cmd->add_option("--part", opt->part,
+                  "Virtual cell without --program: its own part on the fixture (scanned as the program "
+                  "sim-PART-GRID, or sim-PART-GRID-sample for its sample region)")
       ->check(CLI::IsMember({"pan", "dome"}));
-  cmd->add_option("--grid", opt->grid, "The virtual part's printed grid")->check(CLI::IsMember({"circle", "square"}));
+  cmd->add_option("--grid", opt->grid, "Virtual cell without --program: its part's printed grid")
+      ->check(CLI::IsMember({"circle", "square"}));
   cmd->add_option("--part-id", opt->part_id, "The part's id, for the run folder and the record");
   cmd->add_option("-o,--runs", opt->runs, "Folder of run folders (created when missing)");
   cmd->add_option("--material", opt->material, "The sheet's material, for the forming-limit report (see `station report "
@@ -54,7 +58,9 @@ CommandRunner addScanCommand(CLI::App& app) {
                   "Its plan, grid and material; --part and --grid do not apply");
   cmd->add_option("--press-program", opt->press_program,
                   "The press program the part comes from, for the report and the history (default: the part program's)");
-  cmd->add_flag("--whole-part", opt->whole_part, "Scan the whole part (default: a 40 x 30 mm region, about 40 s)");
+  cmd->add_flag("--whole-part", opt->whole_part,
+                "Virtual cell without --program: scan its whole part (default: its 40 x 30 mm sample region, at a "
+                "quarter of the cameras' resolution, about 40 s)");
   cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the plan (built-in or the program's)");
   cmd->add_flag("--calibrated", opt->calibrated,
                 "Leave the calibration scenes out of the built-in plan and measure with the calibration in use (from "
@@ -76,7 +82,18 @@ CommandRunner addScanCommand(CLI::App& app) {
     const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
     if (!opt->material.empty()) (void)materials.find(opt->material);
 
-    // The part program, when one is asked for: its plan, grid and material.
+    // Without a program, a plan or a recording to replay, the virtual cell's own sample: the sample
+    // region of its part (a quick session: quarter-resolution images, half the calibration scenes),
+    // or the whole part. A real cell has no part of its own.
+    const bool quick = !opt->whole_part && opt->part_program.empty();
+    if (opt->part_program.empty() && opt->plan.empty() && opt->replay.empty()) {
+      if (!virtual_cell)
+        throw std::runtime_error(config.source + ": which part? Give its program (--program NAME or FOLDER) or a scan "
+                                 "plan (--plan FILE); a real cell has no built-in part");
+      opt->part_program = sim::simulatedProgramName(opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
+                                                    sim::gridKindFromString(opt->grid), quick);
+    }
+    // The part program: its plan, grid and material.
     std::optional<acquisition::PartProgram> program;
     if (!opt->part_program.empty()) {
       program = programToScan(opt->part_program, config, virtual_cell, opt->runs);
@@ -88,9 +105,8 @@ CommandRunner addScanCommand(CLI::App& app) {
       if (!opt->material.empty()) (void)materials.find(opt->material);
     }
 
-    // The virtual world, and the built-in plan for its part (or the plan file).
-    const bool whole_part = opt->whole_part || program.has_value();
-    sim::ScanParams world = worldOnCell(whole_part ? sim::ScanParams{} : sim::ScanParams::quick(), config, virtual_cell);
+    // The virtual world: the program's part (or --part's, for a plan file) on the cell.
+    sim::ScanParams world = worldOnCell(quick ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
     if (program) {
@@ -119,9 +135,10 @@ CommandRunner addScanCommand(CLI::App& app) {
       replay = std::move(prepared.replay);
       job.replayed_trace = opt->replay;
     } else if (program && opt->plan.empty()) {
-      job.plan = programPlan(*program, config, scenesOf(world), !opt->calibrated);
+      job.plan = programPlan(*program, config, acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, world.seed),
+                             !opt->calibrated);
     } else {
-      job.plan = opt->plan.empty() ? sim::planScan(world) : acquisition::loadScanPlan(opt->plan);
+      job.plan = acquisition::loadScanPlan(opt->plan);
     }
     if (opt->plan.empty() && !replay) {
       if (opt->laser_only)
@@ -141,8 +158,9 @@ CommandRunner addScanCommand(CLI::App& app) {
       hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
       config = hosted->config();
       if (!replay) {
-        job.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
-                                    hosted->cell().truth().digitizer_latency_ns};
+        const sim::FormedPart& part = hosted->cell().part();
+        job.truth = SimulationTruth{sim::groundTruth(part, world.grid), hosted->cell().truth().digitizer_latency_ns};
+        job.truth->thickness_strain_at = [&part](double x, double y) { return part.deformationAt(x, y).thickness_strain; };
         const sim::ElementVisibility visibility = sim::visibleElements(world, job.plan, job.truth->elements);
         job.truth->visible = visibility.visibleOr();
         // The planner's prediction of what each sweep sees, against which the scan is checked.
@@ -191,6 +209,11 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.accuracy->visible_found, r.accuracy->visible,
                   100.0 * static_cast<double>(r.accuracy->visible_found) / static_cast<double>(r.accuracy->visible),
                   r.accuracy->found_not_visible);
+    if (const auto& f = r.surface_accuracy; f && hosted && f->elements > 0)
+      std::printf("  surface     strain RMS %.4f at %zu elements (theirs %.4f), %.4f at %zu points halfway between "
+                  "them; %zu of %zu points within the grid without strain\n",
+                  f->at_elements_rms, f->elements, f->elements_own_rms, f->between_rms, f->between, f->without_strain,
+                  f->within_grid);
     if (replay) printReplay(*replay, r);
     if (r.report) {
       std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",

@@ -68,11 +68,11 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   return [opt]() {
     const bool virtual_cell = opt->cell.hosted();
     acquisition::CellConfig config = opt->cell.load();
-    // The simulator's plan for the cell's sphere, its sweeps alone: every fan position, depth, head
-    // angle, speed and direction of the calibration sweeps, so that the check sees what calibration saw.
+    // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
+    // and direction of them, so that the check sees what calibration saw (and the first plate views).
+    acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
     sim::ScanParams world = sim::ScanParams::quick();
-    world.image_scale = 1;  // the cameras at the resolution they were calibrated at (below)
-    world.sphere_sweeps = sim::ScanParams{}.sphere_sweeps;
+    world.image_scale = 1;  // a virtual cell's cameras at the resolution they were calibrated at (below)
     opt->world.applyTo(world);
     VerifyJobOptions job;
     job.run.limits = config.limits;
@@ -80,7 +80,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
     if (const auto& bar = config.geometry.ball_bar) {
       job.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
-      world.second_sphere_sweeps = 4;
+      scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
     }
     const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
     job.history = dir / "history";
@@ -99,7 +99,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
             static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width);
     }
     world = worldOnCell(world, config, virtual_cell);
-    job.plan = verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenesOf(world))
+    job.plan = verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
                                                    : acquisition::loadScanPlan(opt->plan),
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.

@@ -39,9 +39,14 @@ struct CellChoice {
   std::string file;
   bool host_virtual = false;
 
-  void addTo(CLI::App* cmd) {
-    cmd->add_option("--cell", file, "The cell file (TOML; see `station cell check`); default: the built-in virtual cell, "
-                                    "hosted here");
+  // `hosts_by_default`: without --cell the command hosts the built-in virtual cell (scan, calibrate,
+  // verify, hmi); otherwise it reaches the built-in cell's devices as served (devices).
+  void addTo(CLI::App* cmd, bool hosts_by_default = true) {
+    cmd->add_option("--cell", file,
+                    hosts_by_default ? "The cell file (TOML; see `station cell check`); default: the built-in virtual cell, "
+                                       "hosted here"
+                                     : "The cell file (TOML; see `station cell check`); default: the built-in virtual cell, "
+                                       "as `station sim serve` serves it");
     cmd->add_flag("--virtual", host_virtual,
                   "Host the cell file's virtual twin in this process (its simulated devices, built from the file) "
                   "instead of reaching the cell's devices");
@@ -64,12 +69,6 @@ inline sim::ScanParams worldOnCell(sim::ScanParams world, acquisition::CellConfi
   }
   world.setCell(config);
   return world;
-}
-
-// The calibration scenes a command's world asks for: its plate views, sphere sweeps and ball-bar
-// sweeps, the plate views drawn from its seed.
-inline acquisition::CalibrationScenes scenesOf(const sim::ScanParams& world) {
-  return {world.plate_poses, world.sphere_sweeps, world.second_sphere_sweeps, world.seed};
 }
 
 }  // namespace stampscan::station

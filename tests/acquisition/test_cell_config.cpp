@@ -50,6 +50,8 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   EXPECT_EQ(b.cmm.port, 11294);
   EXPECT_EQ(b.plc.port, 11502);
   EXPECT_EQ(b.plc_unit_id, 3);
+  EXPECT_EQ(b.calibration.plate_views, 14);
+  EXPECT_NE(b.calibration.sphere_sweeps, a.calibration.sphere_sweeps);
   // Every PLC signal elsewhere than in the standard map (the built-in cell's).
   EXPECT_EQ(a.plc_registers, drivers::plc::RegisterMap::standard());
   for (std::size_t row = 0; row < drivers::plc::kSignalCount; ++row)
@@ -150,6 +152,7 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
       {"[plate]\npitch_mm = 3\ndot_diameter_mm = 3\n", "[plate] dot_diameter_mm must be below pitch_mm"},
       {"[fixture]\ndatum_rotation_deg = [0, 0]\n", "[fixture] datum_rotation_deg must be a list of 3 numbers"},
       {"[plc]\nport = 70000\n", "[plc] port 70000 is not 1-65535"},
+      {"[calibration]\nplate_views = 2\n", "[calibration] plate_views is 2, not 4..200"},
       {"[plc]\nunit_id = 300\n", "[plc] unit_id is 300, not 0..255"},
       {"[plc]\nregisters = 5\n", "[plc] registers must be a table"},
       {"[plc.registers]\ndoor_closd = 10\n", "[plc.registers] door_closd is not a key of this section (known: "},
@@ -248,6 +251,33 @@ TEST(CellPlans, CalibrationScenesArePlannedFromTheCellFile) {
     const double depth = (mirror - Eigen::Vector3d(c[0], c[1], c[2])).dot(R.col(2));
     EXPECT_NEAR(depth, 110, 0.5 * 70) << sweep->scene << " " << sweep->index;
   }
+  // The plan parks within this cell's travel, whatever its size.
+  for (int axis = 0; axis < 3; ++axis) {
+    EXPECT_GT(plan.park.position[static_cast<std::size_t>(axis)], b.limits.travel_min[static_cast<std::size_t>(axis)]);
+    EXPECT_LT(plan.park.position[static_cast<std::size_t>(axis)], b.limits.travel_max[static_cast<std::size_t>(axis)]);
+  }
+}
+
+// The counts of calibration scenes come from the cell's [calibration] section; a quick session runs
+// a share of them, never fewer than calibrate the sensors.
+TEST(CellPlans, TheCellFileSetsHowManyCalibrationScenes) {
+  const CellConfig b = loadCellConfig(kSecondCell);
+  const CalibrationScenes all = calibrationScenes(b.calibration);
+  EXPECT_EQ(all.plate_views, 14);
+  EXPECT_EQ(all.sphere_sweeps, 10);
+  const CalibrationScenes half = calibrationScenes(b.calibration, 0.5, 7);
+  EXPECT_EQ(half.plate_views, 7);
+  EXPECT_EQ(half.sphere_sweeps, 5);
+  EXPECT_EQ(half.seed, 7u);
+  CalibrationPolicy few;
+  few.plate_views = 5;
+  few.sphere_sweeps = 4;
+  EXPECT_EQ(calibrationScenes(few, 0.1).plate_views, 4);
+  EXPECT_EQ(calibrationScenes(few, 0.1).sphere_sweeps, 4);
+  EXPECT_THROW(calibrationScenes(few, 0.0), std::invalid_argument);
+  const ScanPlan plan = calibrationPlan(b, all);
+  EXPECT_EQ(plan.stereoCount(kScenePlate), 14u);
+  EXPECT_EQ(plan.sweepCount(kSceneSphere), 10u);
 }
 
 }  // namespace

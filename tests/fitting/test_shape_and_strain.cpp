@@ -2,6 +2,8 @@
 // sphere cap whose strain field is known.
 #include "stampscan/fitting/shape_and_strain.hpp"
 
+#include "stampscan/fitting/kdtree.hpp"
+
 #include "shapes.hpp"
 
 #include <gtest/gtest.h>
@@ -95,6 +97,72 @@ TEST(ShapeAndStrain, DenseShapeCarriesTheElementsStrainAndStopsBeyondThem) {
               fit.strain_bandwidth.median);
   EXPECT_LT(test::rmsOf(mesh_shape), noise / 4);
   EXPECT_LT(test::rmsOf(mesh_strain), 0.0015);
+}
+
+// A strain band narrower than the pitch allows a plane to follow (a die radius: a Gaussian ridge of
+// 0.2 across 5 mm), carriers that state their uncertainty, and one outlier element: at the elements
+// the map is as true as the elements, halfway between them within 1.5 times of it, the ridge's peak
+// is kept, and the outlier reaches no neighbour.
+TEST(ShapeAndStrain, TheMapHonoursTheElementsFollowsABandAndDoesNotSpreadAnOutlier) {
+  const auto truth = [](const Vec3& p) { return 0.02 + 0.2 * std::exp(-std::pow(p.x() / 5.0, 2)); };
+  const double noise = 0.002;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Cloud shape, carriers;
+  for (double x = -25; x <= 25; x += 0.25)
+    for (double y = -25; y <= 25; y += 0.25) shape.positions.push_back(Vec3(x, y, 0.002 * g(rng)));
+  std::size_t outlier = 0;
+  for (int i = -9; i <= 9; ++i)
+    for (int j = -9; j <= 9; ++j) {
+      const Vec3 p(2.54 * i + 0.3, 2.54 * j, 0);  // the ridge's crest between two columns of elements
+      carriers.positions.push_back(p);
+      carriers.strain.push_back(truth(p) + noise * g(rng));
+      if (i == -6 && j == 2) {
+        outlier = carriers.size() - 1;
+        carriers.strain.back() += 0.1;
+      }
+    }
+  carriers.scalars[kStrainUncertainty].assign(carriers.size(), noise);
+  ShapeAndStrainParams params;
+  params.with_mesh = false;
+  params.output_spacing_mm = 0.25;
+  const ShapeAndStrain fit = fitShapeAndStrain(shape, carriers, params);
+
+  std::vector<double> own, at_elements, between;
+  for (std::size_t k = 0; k < carriers.size(); ++k) {
+    const Vec3& p = carriers.positions[k];
+    if (k == outlier || std::abs(p.x()) > 20 || std::abs(p.y()) > 20) continue;
+    own.push_back(carriers.strain[k] - truth(p));
+    at_elements.push_back(fit.strain_at_carriers[k] - truth(p));
+  }
+  const KdTree element_tree(carriers.positions);
+  std::vector<Neighbor> nn;
+  double worst_near_outlier = 0;
+  for (std::size_t i = 0; i < fit.surface.size(); ++i) {
+    const Vec3& p = fit.surface.positions[i];
+    const double s = fit.surface.strain[i];
+    ASSERT_TRUE(std::isfinite(s) || std::abs(p.x()) > 20 || std::abs(p.y()) > 20) << p.transpose();
+    element_tree.knn(p, 1, nn);
+    const double d = std::sqrt(nn[0].distance_sq);
+    if (std::abs(p.x()) > 20 || std::abs(p.y()) > 20) continue;  // within the grid
+    // Around the outlier's neighbours (a pitch away from it), within their own half pitch.
+    const double from_outlier = (p - carriers.positions[outlier]).norm();
+    if (from_outlier > 1.5 * 2.54 && from_outlier < 3.5 * 2.54)
+      worst_near_outlier = std::max(worst_near_outlier, std::abs(s - truth(p)));
+    if (nn[0].index == outlier) continue;
+    if (d > 0.4 * 2.54 && d < 0.6 * 2.54 && from_outlier > 2.54) between.push_back(s - truth(p));
+  }
+  const double own_rms = test::rmsOf(own), at_rms = test::rmsOf(at_elements), between_rms = test::rmsOf(between);
+  std::printf("strain RMS: elements %.5f, the map at them %.5f, halfway between them %.5f; worst beside the outlier %.5f\n",
+              own_rms, at_rms, between_rms, worst_near_outlier);
+  EXPECT_LE(at_rms, own_rms);
+  EXPECT_LE(between_rms, 1.5 * own_rms);
+  EXPECT_LT(worst_near_outlier, 5 * noise);
+  // The crest (0.22 between the columns at x = -2.24 and 0.3) is kept, not flattened.
+  double crest = 0;
+  for (std::size_t i = 0; i < fit.surface.size(); ++i)
+    if (std::abs(fit.surface.positions[i].y()) < 10) crest = std::max(crest, fit.surface.strain[i]);
+  EXPECT_NEAR(crest, 0.22, 0.006);
 }
 
 TEST(ShapeAndStrain, RefusesWhatItCannotFit) {

@@ -20,7 +20,7 @@ using test_support::trackOf;
 TEST(LaserGeometry, HeadPoseMatchesTheSimulatorsKinematics) {
   for (const auto& [a, b] : {std::pair{0.0, 0.0}, std::pair{0.3, -0.2}, std::pair{-0.35, 1.2}}) {
     const sim::HeadState h{Eigen::Vector3d(10, -20, 300), a, b, 0};
-    EXPECT_TRUE(registration::headPose(h.position, a, b).isApprox(h.pose(), 1e-15));
+    EXPECT_TRUE(trace::headPose(h.position, a, b).isApprox(h.pose(), 1e-15));
   }
 }
 

@@ -17,5 +17,6 @@ set(_served_cell_tests
   StationTest.CalibrateRecoversTheVirtualCellsSensorsAndPutsThemInUse
   StationTest.AFailedCalibrationIsKeptOutOfUseUnlessAccepted StationTest.CalibrateLeavesOutTheViewsThatSpoilAFit
   # the second cell's virtual twin, with its cameras
-  StationTest.ASecondCellFromItsFileScansThePartToTheSameGoals)
+  StationTest.ASecondCellFromItsFileScansThePartToTheSameGoals
+  StationTest.ASecondCellIsCheckedCalibratedAndVerifiedFromItsFile)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)

@@ -299,7 +299,7 @@ TEST_F(StationTest, TheCellsMachineLimitsBoundThePlan) {
   // A cell whose machine is smaller than the built-in plan needs: refused, naming the axis.
   const fs::path cell = work() / "small.toml";
   writeFile(cell, "name = \"small cell\"\n[machine]\ntravel_min = [-100, -100, -100]\ntravel_max = [100, 100, 600]\n");
-  RunResult r = run("scan --dry-run --cell " + quote(cell));
+  RunResult r = run("scan --dry-run --cell " + quote(cell) + " --virtual -o " + quote(work() / "runs"));
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
   // The plate stands at x = -250 beside the part.
   EXPECT_NE(r.out.find("problem     step 1 (stereo calibration_plate 0): pose x = -2"), std::string::npos) << r.out;
@@ -317,8 +317,14 @@ TEST_F(StationTest, TheCellsMachineLimitsBoundThePlan) {
 TEST_F(StationTest, ASecondCellFromItsFileScansThePartToTheSameGoals) {
   const std::string cell = quote(fs::path(STAMPSCAN_VIRTUAL_CELL_FILE).parent_path() / "virtual-indexing.toml");
   const fs::path runs = work() / "runs";
-  RunResult r = run("scan --dry-run --cell " + cell + " --virtual");
+  // A real cell has no part of its own: its scans name the program (or a plan).
+  RunResult r = run("scan --dry-run --cell " + cell + " -o " + quote(runs));
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("which part? Give its program"), std::string::npos) << r.err;
+  // Its virtual twin's own sample, a program written for this cell.
+  r = run("scan --dry-run --cell " + cell + " --virtual -o " + quote(runs));
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(fs::exists(runs / "programs" / "sim-pan-circle-sample" / "plan.toml"));
   r = run("scan -q --part-id B-1 --cell " + cell + " --virtual -o " + quote(runs));
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("on virtual cell B, indexing head (hosted in this process)"), std::string::npos) << r.out;

@@ -246,6 +246,8 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     options.program = request.program;
     options.material = request.material;
     if (request.part_program.empty() && setup_.programs.restore) setup_.programs.restore();
+    if (request.part_program.empty() && options.plan.steps.empty())
+      throw std::runtime_error("choose the part's program: this cell has no part of its own to scan");
     if (!request.part_program.empty()) {
       if (!setup_.programs.prepare) throw std::runtime_error("this cell offers no part programs");
       ProgramScan scan = setup_.programs.prepare(request.part_program);

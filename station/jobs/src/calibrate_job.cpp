@@ -99,7 +99,7 @@ DigitizerOutcome calibrateDigitizerOn(const registration::ScanTrace& trace, cons
   const registration::HeadTrack track(trace.head);
   registration::SphereCalibrationParams sp;
   sp.sphere_radius = *session.reference_sphere_radius_mm;
-  sp.nominal.head_from_digitizer = registration::toIsometry(session.head_from_digitizer_nominal);
+  sp.nominal.head_from_digitizer = trace::toIsometry(session.head_from_digitizer_nominal);
   sp.nominal.clock_offset_ns = registration::clockOffset(pairs->second);
   const std::vector<std::vector<registration::Profile>> sweeps = registration::sphereSweepProfiles(
       trace, track, sp.nominal.clock_offset_ns, 0, registration::MeasureParams{}.max_track_error_mm);

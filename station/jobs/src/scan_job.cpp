@@ -14,10 +14,12 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <limits>
 
 namespace stampscan::station {
 
@@ -253,6 +255,63 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   return a;
 }
 
+SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
+                                             const SimulationTruth& truth) {
+  SurfaceStrainAccuracy a;
+  const fitting::Cloud& t = truth.elements;
+  const auto fitted = elements.scalars.find(fitting::kFittedStrain);
+  if (t.size() < 2 || elements.empty() || !elements.hasStrain() || !t.hasStrain() || fitted == elements.scalars.end() ||
+      fitted->second.size() != elements.size() || surface.strain.size() != surface.size())
+    return a;
+  constexpr double kMatch = 0.5;  // mm, as accuracyAgainst
+  const fitting::KdTree true_tree(t.positions), found_tree(elements.positions);
+  std::vector<fitting::Neighbor> nn;
+  double own = 0, on_surface = 0;
+  for (std::size_t i = 0; i < elements.size(); ++i) {
+    if (!std::isfinite(fitted->second[i]) || !std::isfinite(elements.strain[i])) continue;
+    true_tree.knn(elements.positions[i], 1, nn);
+    if (nn.empty() || nn[0].distance_sq > kMatch * kMatch) continue;
+    ++a.elements;
+    own += std::pow(elements.strain[i] - t.strain[nn[0].index], 2);
+    on_surface += std::pow(fitted->second[i] - t.strain[nn[0].index], 2);
+  }
+  if (a.elements) {
+    a.at_elements_rms = std::sqrt(on_surface / static_cast<double>(a.elements));
+    a.elements_own_rms = std::sqrt(own / static_cast<double>(a.elements));
+  }
+  // The pitch: the true elements' median nearest-neighbour distance.
+  std::vector<double> nearest;
+  for (std::size_t i = 0; i < t.size(); i += std::max<std::size_t>(1, t.size() / 500)) {
+    true_tree.knn(t.positions[i], 2, nn);
+    if (nn.size() == 2) nearest.push_back(std::sqrt(nn[1].distance_sq));
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2), nearest.end());
+  const double pitch = nearest[nearest.size() / 2];
+  std::vector<fitting::Neighbor> f;
+  const auto found = [&](std::size_t true_index) {
+    found_tree.knn(t.positions[true_index], 1, f);
+    return !f.empty() && f[0].distance_sq <= kMatch * kMatch;
+  };
+  double between = 0;
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    true_tree.knn(surface.positions[i], 2, nn);
+    if (nn.size() < 2 || !found(nn[0].index)) continue;
+    const double d = std::sqrt(nn[0].distance_sq);
+    if (d > pitch) continue;
+    ++a.within_grid;
+    const double s = surface.strain[i];
+    if (!std::isfinite(s)) {
+      ++a.without_strain;
+      continue;
+    }
+    if (!truth.thickness_strain_at || d < 0.4 * pitch || d > 0.6 * pitch || !found(nn[1].index)) continue;
+    ++a.between;
+    between += std::pow(s - truth.thickness_strain_at(surface.positions[i].x(), surface.positions[i].y()), 2);
+  }
+  if (a.between) a.between_rms = std::sqrt(between / static_cast<double>(a.between));
+  return a;
+}
+
 ScanJob::ScanJob(acquisition::Cell& cell, ScanJobObserver* observer) : cell_(cell), observer_(observer) {}
 
 void ScanJob::abort(const std::string& reason) {
@@ -365,6 +424,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     // The Cloud4D again, with the surface's strain at each element beside the element's own.
     cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
     fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+    if (o.truth) result.surface_accuracy = surfaceAccuracyAgainst(cloud, fit.surface, *o.truth);
     surface_record = {{"laser_returns", fit.shape_points},
                       {"points", fit.surface.size()},
                       {"points_without_strain", fit.without_strain},
@@ -418,6 +478,14 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
       record["accuracy"]["visible"] = {{"elements", result.accuracy->visible},
                                        {"found", result.accuracy->visible_found},
                                        {"found_not_visible", result.accuracy->found_not_visible}};
+    if (const auto& f = result.surface_accuracy)
+      record["accuracy"]["surface_strain"] = {{"elements", f->elements},
+                                              {"at_elements_rms", f->at_elements_rms},
+                                              {"elements_own_rms", f->elements_own_rms},
+                                              {"between_points", f->between},
+                                              {"between_rms", f->between_rms},
+                                              {"within_grid_points", f->within_grid},
+                                              {"within_grid_without_strain", f->without_strain}};
   }
   if (!o.replayed_trace.empty()) {
     // The recording measured as `station process` measures it: a replay must give the same

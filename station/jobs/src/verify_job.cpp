@@ -109,7 +109,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
     // No calibration in use: the sweeps calibrate the digitizer themselves (mount and latency).
     registration::SphereCalibrationParams sp;
     sp.sphere_radius = 0.5 * certified_diameter;
-    sp.nominal.head_from_digitizer = registration::toIsometry(o.run.session.head_from_digitizer_nominal);
+    sp.nominal.head_from_digitizer = trace::toIsometry(o.run.session.head_from_digitizer_nominal);
     sp.nominal.clock_offset_ns = registration::clockOffset(pairs->second);
     registration::DigitizerCalibration nominal = sp.nominal;
     result.calibrated = registration::calibrateDigitizer(allSphereProfiles(trace, track, nominal), track, sp);

@@ -18,6 +18,11 @@ struct CalibrationScenes {
   std::uint64_t seed = 1;        // draws the plate views' directions
 };
 
+// The scenes the cell's calibration policy asks for ([calibration] plate_views, sphere_sweeps;
+// `station verify` adds ball_bar_sweeps itself); `share` of them for a quick session (at least the
+// fewest that calibrate: 4 of each).
+CalibrationScenes calibrationScenes(const CalibrationPolicy& policy, double share = 1.0, std::uint64_t seed = 1);
+
 // Appends the scenes to `plan`: the plate views, then the sphere sweeps, then the second sphere's.
 // The plate views look at the plate from many directions and distances (the view diversity intrinsic
 // calibration needs; with the plate fixed, the cameras' mount on the head is observable too). The

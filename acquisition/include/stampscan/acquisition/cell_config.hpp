@@ -39,6 +39,11 @@ struct CalibrationPolicy {
   double length_mpe_mm = 0.050;
   // The stereo pair's MPEs on the calibration plate's dots (flat form, length between dots).
   double stereo_form_mpe_mm = 0.050, stereo_length_mpe_mm = 0.050;
+  // The calibration scenes (calibration_plan.hpp): the views of the plate and the sweeps over the
+  // reference sphere that `station calibrate` runs (a scan with calibration scenes runs them too,
+  // a quick one half of them), and the sweeps over the ball bar's second sphere that `station
+  // verify` adds.
+  int plate_views = 12, sphere_sweeps = 8, ball_bar_sweeps = 4;
 };
 
 struct CellConfig {

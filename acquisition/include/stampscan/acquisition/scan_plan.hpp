@@ -19,7 +19,7 @@
 //   scene = "part"                # part, reference_sphere, calibration_plate
 //   start = [-30, -40, 160]       # mm: the head's reference point
 //   end = [-30, 40, 160]
-//   head = [0, -2]                # degrees: tilt a, turn b (see registration::headPose)
+//   head = [0, -2]                # degrees: tilt a, turn b (see trace::headPose)
 //   speed = 25                    # mm/s
 //   expected_elements = 120       # optional: grid elements the planner predicts the sweep sees whole
 //   [[step]]
@@ -113,6 +113,11 @@ struct MachineLimits {
   // An indexing head stops only at multiples of its step (rad); 0: a continuous head.
   double index_step = 0;
 };
+
+// Where a generated plan starts and ends, clear of everything on the table: the middle of the
+// travel in x and y, 150 mm below its top (or its middle, on a machine less than 300 mm high), the
+// head level.
+HeadPose parkingPose(const MachineLimits& limits);
 
 // The plan's problems against the limits, one line each ("step 3 (sweep part 2): end x = 450 mm is
 // outside the travel -400..400"); empty when it can run.

@@ -43,4 +43,19 @@ std::optional<LinearScalar> fitTangentLinear(const Vec3& x, const Vec3& n, const
 // The value of that fit at x; NaN when the weights sum to zero.
 double smoothScalar(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples);
 
+// A polynomial of degree 1 (c0 + c.t) or 2 (and the three quadratic terms) in the tangent plane
+// through x with unit normal n, fitted by weighted least squares: the Eq. (17) hyperplane, and a
+// quadric where the attribute bends faster than the samples' spacing (a strain band across a die
+// radius). The value at x is a weighted sum of the samples' values, sum_i l_i c_i; `amplification`
+// is sum_i |l_i|, the fit's gain on the samples' noise (1 for a weighted mean; it grows where x
+// lies off the samples that carry weight). `scale` (a bandwidth) conditions the tangent coordinates.
+struct LocalPolynomial {
+  double value;
+  double amplification;
+};
+// Nothing when the samples do not determine the polynomial (too few, or not spread in both
+// tangent directions).
+std::optional<LocalPolynomial> fitTangentPolynomial(const Vec3& x, const Vec3& n, const std::vector<ScalarSample>& samples,
+                                                    int degree, double scale);
+
 }  // namespace stampscan::fitting

@@ -2,6 +2,7 @@
 // the machine frame given the digitizer's calibration (mount on the head, clock offset, latency).
 #pragma once
 
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/fitting/cloud.hpp"
 
 #include <Eigen/Geometry>
@@ -12,10 +13,6 @@
 namespace stampscan::registration {
 
 using fitting::Vec3;
-
-// The head frame in machine coordinates from a CMM position report: the ram's reference point,
-// then the indexing head's turn b about z and tilt a about x: translation * Rz(b) * Rx(a).
-Eigen::Isometry3d headPose(const Vec3& position, double a, double b);
 
 struct HeadSample {
   std::int64_t time_ns = 0;  // station clock

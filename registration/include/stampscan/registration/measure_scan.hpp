@@ -166,8 +166,4 @@ class ScanMeasurer {
 // grid element found, stereo asked for without plate views.
 ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params = {}, MeasureObserver* observer = nullptr);
 
-// Rigid transforms between the trace's record and Eigen.
-Eigen::Isometry3d toIsometry(const trace::RigidPose& pose);
-trace::RigidPose toRigidPose(const Eigen::Isometry3d& pose);
-
 }  // namespace stampscan::registration

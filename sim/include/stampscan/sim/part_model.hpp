@@ -31,10 +31,16 @@ struct SimulatedProgramOptions {
   double sheet_thickness_mm = 0.8;
   // The cell the plan is made for (its sensors, head and artefacts); null: the built-in virtual cell.
   const acquisition::CellConfig* cell = nullptr;
+  // The plan covers only the quick sessions' sample region of the part (ScanParams::quick(): 40 x
+  // 30 mm, two stereo views), and the program is named sim-<part>-<grid>-sample.
+  bool sample_region = false;
 };
 
-// Writes a complete program folder for a built-in part: plan.toml, the simulator's whole-part plan
-// (sim::planScan, laser and stereo, no calibration scenes); the model, the dome as STEP (one
+// The name of a simulated part's program: sim-<part>-<grid>, with -sample for the sample region.
+std::string simulatedProgramName(PartKind part, GridKind grid, bool sample_region = false);
+
+// Writes a complete program folder for a built-in part: plan.toml, the simulator's plan of the
+// whole part or its sample region (sim::planScan, laser and stereo, no calibration scenes); the model, the dome as STEP (one
 // B-spline face approximating its height field), the pan as binary STL; and program.toml last, with
 // [simulation] part, so that a folder holding program.toml is complete. Every file is written
 // atomically. Returns the program as written; its model is the mesh written (pan), or the sampled

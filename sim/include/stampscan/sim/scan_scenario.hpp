@@ -39,8 +39,9 @@ struct ScanParams {
   // and the fixture. The simulated cell's true sensors are these plus the seed's deviation; its
   // reference sphere, ball bar and plate stand where the cell puts them. Set it with setCell().
   acquisition::CellGeometry cell;
-  // The head's index step (rad; 0: continuous): the planner uses only its stops.
-  double index_step = 0;
+  // The machine's travel, speeds and head (the planner parks within the travel and uses only an
+  // indexing head's stops).
+  acquisition::MachineLimits limits;
   // Takes the cell's geometry and copies its drawn values into the sensor models below (the
   // digitizer's optics, the cameras' intrinsics and bits, the stereo standoff, the artefacts).
   void setCell(const acquisition::CellConfig& config);

@@ -29,6 +29,7 @@
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -41,6 +42,8 @@ struct SimulationTruth {
   // Per element of `elements`: 1 when a sensor sees it whole from a pose of the plan
   // (sim/visibility.hpp); empty when not known.
   std::vector<std::uint8_t> visible{};
+  // The part's true thickness strain at machine (x, y) on its surface; empty when not known.
+  std::function<double(double x, double y)> thickness_strain_at{};
 };
 
 // The part program a scan runs (acquisition/part_program.hpp): its name (the part number) and folder.
@@ -86,6 +89,22 @@ struct ScanAccuracy {
   std::size_t visible = 0, visible_found = 0, found_not_visible = 0;
 };
 
+// The fitted surface's strain against the truth (ScanJob, when the cell is simulated and the
+// surface was fitted): where the map is read.
+struct SurfaceStrainAccuracy {
+  // At the matched elements: the surface's strain there (fitting::kFittedStrain) and the elements'
+  // own, on the same elements.
+  std::size_t elements = 0;
+  double at_elements_rms = 0, elements_own_rms = 0;
+  // At the surface's points about halfway between two found elements (0.4-0.6 of the pitch from
+  // the nearest), against the part's true strain at each point.
+  std::size_t between = 0;
+  double between_rms = 0;
+  // The surface's points within the grid (their nearest true element found, within a pitch of
+  // it), and those of them without strain.
+  std::size_t within_grid = 0, without_strain = 0;
+};
+
 struct ScanJobResult {
   std::filesystem::path run_dir;
   acquisition::ScanRunResult run;
@@ -98,6 +117,7 @@ struct ScanJobResult {
   std::string digitizer_calibration, camera_calibration;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
+  std::optional<SurfaceStrainAccuracy> surface_accuracy;
   // With ScanJobOptions::replayed_trace: this run's measurements against the recording's.
   std::optional<ScanAccuracy> against_recording;
   std::size_t recording_measurements = 0;
@@ -152,5 +172,10 @@ class ScanJob {
 // SimulationTruth::visible), also how many of the visible true elements were found.
 ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Cloud& truth,
                              const std::vector<std::uint8_t>& visible = {});
+
+// The fitted surface's strain against the truth: `elements` is the Cloud4D with the surface's
+// strain at each element (fitting::kFittedStrain), `surface` the fitted points with their strain.
+SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
+                                             const SimulationTruth& truth);
 
 }  // namespace stampscan::station
