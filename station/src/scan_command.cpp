@@ -209,6 +209,9 @@ CommandRunner addScanCommand(CLI::App& app) {
                   r.accuracy->visible_found, r.accuracy->visible,
                   100.0 * static_cast<double>(r.accuracy->visible_found) / static_cast<double>(r.accuracy->visible),
                   r.accuracy->found_not_visible);
+    if (r.accuracy && hosted && r.accuracy->with_uncertainty > 0)
+      std::printf("  uncertainty %.1f %% of %zu elements' true strain within their stated expanded uncertainty (k = 2)\n",
+                  100.0 * r.accuracy->within_expanded_uncertainty, r.accuracy->with_uncertainty);
     if (const auto& f = r.surface_accuracy; f && hosted && f->elements > 0)
       std::printf("  surface     strain RMS %.4f at %zu elements (theirs %.4f), %.4f at %zu points halfway between "
                   "them; %zu of %zu points within the grid without strain\n",

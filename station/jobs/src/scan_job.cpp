@@ -227,6 +227,9 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   const fitting::KdTree tree(truth.positions);
   std::vector<fitting::Neighbor> nn;
   double sp = 0, ss = 0;
+  const auto stated = measured.scalars.find(fitting::kStrainUncertainty);
+  const bool states = stated != measured.scalars.end() && stated->second.size() == measured.size();
+  std::size_t covered = 0;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     tree.knn(measured.positions[i], 1, nn);
     if (nn.empty() || nn[0].distance_sq > 0.5 * 0.5) continue;
@@ -234,7 +237,12 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
     sp += nn[0].distance_sq;
     const double d = measured.strain[i] - truth.strain[nn[0].index];
     ss += d * d;
+    if (states && std::isfinite(stated->second[i]) && stated->second[i] > 0) {
+      ++a.with_uncertainty;
+      covered += std::abs(d) <= 2 * stated->second[i];
+    }
   }
+  if (a.with_uncertainty) a.within_expanded_uncertainty = static_cast<double>(covered) / static_cast<double>(a.with_uncertainty);
   if (a.matched) {
     a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
     a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
@@ -473,6 +481,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     record["accuracy"] = {{"matched", result.accuracy->matched},
                           {"position_rms_mm", result.accuracy->position_rms_mm},
                           {"strain_rms", result.accuracy->strain_rms},
+                          {"strain_within_expanded_uncertainty", result.accuracy->within_expanded_uncertainty},
                           {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
     if (!o.truth->visible.empty())
       record["accuracy"]["visible"] = {{"elements", result.accuracy->visible},

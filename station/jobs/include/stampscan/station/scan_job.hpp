@@ -87,6 +87,10 @@ struct ScanAccuracy {
   // With the truth's visibility: the visible true elements, and those of them that a measured
   // element lies within 0.5 mm of (found); the true elements found that no sensor sees whole.
   std::size_t visible = 0, visible_found = 0, found_not_visible = 0;
+  // Of the matched elements that state their strain's uncertainty (fitting::kStrainUncertainty),
+  // the share whose true strain lies within the expanded uncertainty (k = 2): about 95 % when honest.
+  std::size_t with_uncertainty = 0;
+  double within_expanded_uncertainty = 0;
 };
 
 // The fitted surface's strain against the truth (ScanJob, when the cell is simulated and the
