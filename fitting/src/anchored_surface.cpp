@@ -24,7 +24,6 @@ using detail::FitScratch;
 using detail::fitLocal;
 using detail::kSupport;
 using detail::LocalFit;
-using detail::median;
 
 namespace {
 // A point takes fine anchor cells where at least this share of the nearby probes were limited by

@@ -2,6 +2,7 @@
 
 #include "stampscan/fitting/kernels.hpp"
 #include "stampscan/fitting/local_fit.hpp"
+#include "stampscan/fitting/median.hpp"
 #include "stampscan/fitting/scalar_field.hpp"
 
 #include <algorithm>
@@ -18,11 +19,6 @@ constexpr double kMinTangentSpread = 0.05;
 constexpr double kMinKeptWeight = 0.4;
 }  // namespace
 
-double median(std::vector<double>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 
 std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
@@ -46,7 +42,7 @@ std::optional<LocalFit> fitLocal(const std::vector<Vec3>& points, const KdTree& 
       if (k % stride == 0) s.abs_residual.push_back(std::abs(s.residual[k]));
     }
     if (s.abs_residual.size() < min_points) return;
-    const double sigma = std::max(1.4826 * median(s.abs_residual), 1e-6 * h);
+    const double sigma = std::max(1.4826 * medianInPlace(s.abs_residual), 1e-6 * h);
     const double cutoff = kTukeyC * sigma;
     for (std::size_t k = 0; k < s.near.size(); ++k) {
       const double r = s.residual[k] / cutoff;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "stampscan/fitting/kdtree.hpp"
+#include "stampscan/fitting/median.hpp"
 #include "stampscan/fitting/quadric_patch.hpp"
 #include "stampscan/fitting/scalar_field.hpp"
 
@@ -36,9 +37,6 @@ struct FitScratch {
   std::vector<double> abs_residual;
   std::vector<ScalarSample> samples;
 };
-
-// Median of v (reorders v). v must not be empty.
-double median(std::vector<double>& v);
 
 // The fit at `centre` with bandwidth h over `points` (indexed by `tree`); `strain` may be null.
 // Nothing when fewer than min_points neighbours, when they do not spread in two directions, or when

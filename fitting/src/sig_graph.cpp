@@ -1,6 +1,7 @@
 #include "stampscan/fitting/sig_graph.hpp"
 
 #include "stampscan/fitting/bandwidth.hpp"
+#include "stampscan/fitting/median.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,12 +14,6 @@
 namespace stampscan::fitting {
 
 namespace {
-double median(std::vector<float>& v) {
-  if (v.empty()) return 0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 }  // namespace
 
 SigGraph SigGraph::build(const std::vector<Vec3>& points, const KdTree& tree, const SigParams& params) {
@@ -62,7 +57,7 @@ SigGraph SigGraph::build(const std::vector<Vec3>& points, const KdTree& tree, co
       std::vector<float> lengths;
       lengths.reserve(adjacency[i].size());
       for (const Edge& e : adjacency[i]) lengths.push_back(e.length);
-      med[i] = median(lengths);
+      med[i] = lengths.empty() ? 0.0 : medianInPlace(lengths);
     });
   }
 

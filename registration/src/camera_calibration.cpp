@@ -1,5 +1,7 @@
 #include "stampscan/registration/camera_calibration.hpp"
 
+#include "stampscan/fitting/median.hpp"
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/features2d.hpp>
@@ -31,12 +33,6 @@ Eigen::Isometry3d poseFrom(const cv::Mat& rvec, const cv::Mat& tvec) {
   T.linear() = r;
   T.translation() = Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   return T;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
 }
 
 double rms(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b) {
@@ -164,7 +160,7 @@ CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const Circ
       out.plate_poses[index[k]] = poseFrom(rvecs[k], tvecs[k]);
       errors.push_back(out.views[index[k]].rms_px);
     }
-    const double limit = std::max(params.outlier_factor * median(errors), params.outlier_floor_px);
+    const double limit = std::max(params.outlier_factor * fitting::medianOr(errors, 0.0), params.outlier_floor_px);
     bool dropped = false;
     for (std::size_t v : index)
       if (out.views[v].rms_px > limit) {

@@ -1,6 +1,7 @@
 #include "stampscan/registration/element_merge.hpp"
 
 #include "stampscan/fitting/kdtree.hpp"
+#include "stampscan/fitting/median.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -28,12 +29,6 @@ class Groups {
  private:
   std::vector<std::uint32_t> parent_;
 };
-
-double median(std::vector<double> v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // The difference of two measurements with independent normal errors of variances s1 and s2 is
 // normal with variance s1 + s2: its square's median is 0.4549 (s1 + s2) for a scalar, and
@@ -65,14 +60,14 @@ void estimateNoise(const PairDifferences& laser, const PairDifferences& stereo, 
                    PathVariances& l, PathVariances& s) {
   const auto own = [](const PairDifferences& d, PathVariances& v) {
     if (d.strain_sq.size() < kLeastPairs) return;
-    v.strain_own = median(d.strain_sq) / (2 * kMedianChi2One);
-    v.position_own = median(d.position_sq) / (2 * kMedianChi2Three);
+    v.strain_own = fitting::median(d.strain_sq) / (2 * kMedianChi2One);
+    v.position_own = fitting::median(d.position_sq) / (2 * kMedianChi2Three);
   };
   own(laser, l);
   own(stereo, s);
   if (mixed.strain_sq.size() < kLeastPairs || (!l.known() && !s.known())) return;
-  const double sum_strain = median(mixed.strain_sq) / kMedianChi2One;
-  const double sum_position = median(mixed.position_sq) / kMedianChi2Three;
+  const double sum_strain = fitting::median(mixed.strain_sq) / kMedianChi2One;
+  const double sum_position = fitting::median(mixed.position_sq) / kMedianChi2Three;
   if (l.known() && s.known()) {
     l.strain_shared = s.strain_shared = std::max(0.0, 0.5 * (sum_strain - *l.strain_own - *s.strain_own));
     l.position_shared = s.position_shared = std::max(0.0, 0.5 * (sum_position - *l.position_own - *s.position_own));
@@ -99,7 +94,7 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
   if (known && members.size() >= 3) {
     std::vector<double> strains;
     for (std::uint32_t i : members) strains.push_back(m[i].thickness_strain);
-    const double centre = median(strains);
+    const double centre = fitting::median(strains);
     std::vector<std::uint32_t> kept;
     for (std::uint32_t i : members)
       if (std::abs(m[i].thickness_strain - centre) <= kOutlierSigmas * std::sqrt(path(i).strain())) kept.push_back(i);

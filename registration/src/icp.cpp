@@ -1,5 +1,7 @@
 #include "stampscan/registration/icp.hpp"
 
+#include "stampscan/fitting/median.hpp"
+
 #include <Eigen/Dense>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -37,12 +39,6 @@ struct Pair {
   Vec3 along = Vec3::Zero();  // the offset p - q along the target's surface
 };
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 }  // namespace
 
@@ -62,7 +58,7 @@ PointToPlaneIcp::PointToPlaneIcp(const std::vector<Vec3>& target, std::vector<Ve
     tree_->knn(target_[i], 2, nn);
     if (nn.size() == 2) gaps.push_back(std::sqrt(nn[1].distance_sq));
   }
-  spacing_ = median(gaps);
+  spacing_ = fitting::medianOr(gaps, 0.0);
 }
 
 PointToPlaneIcp::~PointToPlaneIcp() = default;
@@ -104,7 +100,7 @@ IcpResult PointToPlaneIcp::align(const std::vector<Vec3>& source, const Eigen::I
       if (valid[i]) abs_residuals.push_back(std::abs(pairs[i].r));
     if (abs_residuals.size() < 6) break;
     // Robust scale: 1.4826 * median |r| estimates sigma for Gaussian residuals.
-    const double scale = std::max(1.4826 * median(abs_residuals), 1e-12 * diagonal_);
+    const double scale = std::max(1.4826 * fitting::medianOr(abs_residuals, 0.0), 1e-12 * diagonal_);
     const double cutoff = params.tukey_constant * scale;
     Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();

@@ -1,5 +1,7 @@
 #include "image_line_fit.hpp"
 
+#include "stampscan/fitting/median.hpp"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -138,12 +140,6 @@ struct Sample {
 double gauss(double z) { return std::exp(-0.5 * z * z) / std::sqrt(2 * std::numbers::pi); }
 double cdf(double z) { return 0.5 * std::erfc(-z / std::numbers::sqrt2); }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 bool excluded(const Eigen::Vector2d& x, const Exclusions& ex) {
   for (const auto& r : ex.rings)
     if (std::abs(r.distance(x)) < ex.reach) return true;
@@ -173,14 +169,14 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
     else if (std::abs(at.d) < 0.25 * line_px * at.width_scale) ink.push_back(q.value);
   }
   if (sheet.size() < 8 || ink.size() < 4) return result;
-  const double level = median(sheet);
+  const double level = fitting::medianOr(sheet, 0.0);
   if (level <= 0) return result;
   const double peak = cdf(0.5 * line_px / s0) - cdf(-0.5 * line_px / s0);
   Vector p;
   {
     const auto g = geometry.get();
     for (int i = 0; i < G; ++i) p(i) = g[static_cast<std::size_t>(i)];
-    p.template tail<6>() << level, 0, 0, std::clamp((1 - median(ink) / level) / peak, 0.05, 1.0), s0, line_px;
+    p.template tail<6>() << level, 0, 0, std::clamp((1 - fitting::medianOr(ink, 0.0) / level) / peak, 0.05, 1.0), s0, line_px;
   }
   using Located = Where;
   const auto model = [&](const Vector& q, const Sample& sample, const Located& at) {
@@ -210,7 +206,7 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
   const auto robustWeights = [&](const std::vector<double>& r) {
     std::vector<double> a(r.size());
     for (std::size_t i = 0; i < r.size(); ++i) a[i] = std::abs(r[i]);
-    const double c = 4.685 * std::max(1e-6 * p(L0), 1.4826 * median(a));
+    const double c = 4.685 * std::max(1e-6 * p(L0), 1.4826 * fitting::medianOr(a, 0.0));
     for (std::size_t i = 0; i < r.size(); ++i) {
       const double u = r[i] / c;
       weight[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;

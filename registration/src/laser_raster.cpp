@@ -9,12 +9,6 @@
 
 namespace stampscan::registration::detail {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 double Raster::sample(double x, double y) const {
   const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
   if (!ok(r, c) || !ok(r, c + 1) || !ok(r + 1, c) || !ok(r + 1, c + 1)) return kNaN;

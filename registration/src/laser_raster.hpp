@@ -3,6 +3,7 @@
 // and the square grid paths. See laser_rings.hpp for the steps.
 #pragma once
 
+#include "stampscan/fitting/median.hpp"
 #include "stampscan/registration/laser_geometry.hpp"
 #include "stampscan/registration/grid_element.hpp"
 #include "stampscan/registration/laser_rings.hpp"
@@ -17,7 +18,7 @@ namespace stampscan::registration::detail {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-double median(std::vector<double> v);
+using fitting::median;  // NaN for no values
 
 // The sweep as images: intensity, validity, and the machine position behind every pixel.
 struct Raster {

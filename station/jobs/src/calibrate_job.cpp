@@ -2,6 +2,8 @@
 
 #include "stampscan/station/calibration_results.hpp"
 
+#include "stampscan/fitting/median.hpp"
+
 #include "stampscan/registration/digitizer_calibration.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -26,13 +28,6 @@ std::string format(const char* fmt, auto... args) {
   char buf[512];
   std::snprintf(buf, sizeof buf, fmt, args...);
   return buf;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 double angleDeg(const Eigen::Matrix3d& r) { return Eigen::AngleAxisd(r).angle() * kDegPerRad; }
@@ -130,7 +125,7 @@ DigitizerOutcome calibrateDigitizerOn(const registration::ScanTrace& trace, cons
       counts.push_back(static_cast<double>(stats.back().first));
       rmss.push_back(stats.back().second);
     }
-    const double median_count = median(counts), median_rms = median(rmss);
+    const double median_count = fitting::medianOr(counts, 0.0), median_rms = fitting::medianOr(rmss, 0.0);
     std::vector<std::size_t> next;
     for (std::size_t k = 0; k < kept.size(); ++k) {
       const std::string name = kept[k] < labels.size() ? labels[kept[k]] : "sphere sweep " + std::to_string(kept[k]);
