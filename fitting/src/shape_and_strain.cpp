@@ -360,59 +360,30 @@ class CarrierStrain {
 // How far a carrier may lie from its foot on the shape, in carrier spacings, to be on the surface.
 constexpr double kMostCarrierOffset = 0.1;
 
-ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, const ShapeAndStrainParams& params) {
-  if (shape.empty()) throw std::invalid_argument("shape and strain: no shape points");
-  if (shape.hasStrain()) throw std::invalid_argument("shape and strain: the shape points must not carry strain");
-  if (carriers.empty() || !carriers.hasStrain())
-    throw std::invalid_argument("shape and strain: no carriers with strain");
+ShapeSurface::ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams& params) {
+  if (points.empty()) throw std::invalid_argument("shape and strain: no shape points");
   if (!(params.output_spacing_mm > 0)) throw std::invalid_argument("shape and strain: the output spacing must be positive");
-  if (shape.size() > std::numeric_limits<std::uint32_t>::max())
+  if (points.size() > std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument("shape and strain: more than 4 billion shape points");
   const auto t0 = Clock::now();
   const auto& progress = params.shape.progress;
-  ShapeAndStrain out;
-  out.shape_points = shape.size();
-  out.carriers = carriers.size();
+  points_.positions = std::move(points);
+  fit_ = std::make_unique<FittedSurface>(points_, params.shape);
+  stats_ = fit_->preparationStats();
 
-  const FittedSurface shape_fit(shape, params.shape);
-  out.shape_stats = shape_fit.preparationStats();
   auto t = Clock::now();
-  const CarrierStrain strain_field(carriers, params);
-  out.strain_bandwidth = strain_field.bandwidth();
-  out.carrier_spacing = strain_field.spacing();
-  out.shape_stats.stage_seconds["strain field"] = secondsSince(t);
-
-  t = Clock::now();
-  const std::vector<Vec3> starts = cubeMeans(shape.positions, params.output_spacing_mm);
+  const std::vector<Vec3> starts = cubeMeans(points_.positions, params.output_spacing_mm);
   std::vector<Projection> feet(starts.size());
-  std::vector<double> strain(starts.size(), std::numeric_limits<double>::quiet_NaN());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size(), 256), [&](const auto& range) {
-    CarrierStrain::Scratch scratch;
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
-      feet[k] = shape_fit.surface().project(starts[k]);
-      if (feet[k].valid) strain[k] = strain_field.at(feet[k].point, feet[k].normal, scratch);
-    }
+    for (std::size_t k = range.begin(); k != range.end(); ++k) feet[k] = fit_->surface().project(starts[k]);
   });
-  out.strain_at_carriers.assign(carriers.size(), std::numeric_limits<double>::quiet_NaN());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, carriers.size(), 256), [&](const auto& range) {
-    CarrierStrain::Scratch scratch;
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
-      // A carrier beyond the shape's points (an element only the stereo views saw) has no surface
-      // under it: its projection lands elsewhere, or nowhere.
-      const Projection foot = shape_fit.surface().project(carriers.positions[k]);
-      if (foot.valid && (foot.point - carriers.positions[k]).norm() <= kMostCarrierOffset * strain_field.spacing())
-        out.strain_at_carriers[k] = strain_field.at(foot.point, foot.normal, scratch);
-    }
-  });
-  for (std::size_t k = 0; k < starts.size(); ++k) {
-    if (!feet[k].valid) continue;
-    out.surface.positions.push_back(feet[k].point);
-    out.surface.normals.push_back(feet[k].normal);
-    out.surface.strain.push_back(strain[k]);
-    out.without_strain += !std::isfinite(strain[k]);
-    out.not_converged += !feet[k].converged;
+  for (const Projection& foot : feet) {
+    if (!foot.valid) continue;
+    surface_.positions.push_back(foot.point);
+    surface_.normals.push_back(foot.normal);
+    not_converged_ += !foot.converged;
   }
-  out.shape_stats.stage_seconds["surface points"] = secondsSince(t);
+  stats_.stage_seconds["surface points"] = secondsSince(t);
   if (progress) progress("surface points", 1.0);
 
   if (params.with_mesh) {
@@ -420,18 +391,71 @@ ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, cons
     MeshParams mesh_params;
     mesh_params.cell_size = params.output_spacing_mm;
     mesh_params.progress = progress;
-    out.mesh = meshSurface(shape_fit, out.surface, mesh_params, &out.mesh_stats);
-    Cloud& v = out.mesh.vertices;
-    v.strain.assign(v.size(), std::numeric_limits<double>::quiet_NaN());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.size(), 256), [&](const auto& range) {
+    mesh_ = meshSurface(*fit_, surface_, mesh_params, &mesh_stats_);
+    mesh_.vertices.strain.clear();
+    stats_.stage_seconds["mesh"] = secondsSince(t);
+  }
+  seconds_ = secondsSince(t0);
+}
+
+ShapeSurface::~ShapeSurface() = default;
+
+ShapeAndStrain strainOnShape(const ShapeSurface& shape, const Cloud& carriers, const ShapeAndStrainParams& params) {
+  if (carriers.empty() || !carriers.hasStrain())
+    throw std::invalid_argument("shape and strain: no carriers with strain");
+  const auto t0 = Clock::now();
+  ShapeAndStrain out;
+  out.shape_points = shape.points();
+  out.carriers = carriers.size();
+  out.shape_stats = shape.stats();
+  out.mesh_stats = shape.meshStats();
+  out.not_converged = shape.notConverged();
+
+  const CarrierStrain strain_field(carriers, params);
+  out.strain_bandwidth = strain_field.bandwidth();
+  out.carrier_spacing = strain_field.spacing();
+  out.shape_stats.stage_seconds["strain field"] = secondsSince(t0);
+
+  const auto t = Clock::now();
+  const ImplicitSurface& surface = shape.implicitSurface();
+  // Every point of the shape and of its mesh reads the field where it lies, with its normal.
+  const auto readField = [&](Cloud& cloud) {
+    cloud.strain.assign(cloud.size(), std::numeric_limits<double>::quiet_NaN());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 256), [&](const auto& range) {
       CarrierStrain::Scratch scratch;
       for (std::size_t k = range.begin(); k != range.end(); ++k)
-        v.strain[k] = strain_field.at(v.positions[k], v.normals[k], scratch);
+        cloud.strain[k] = strain_field.at(cloud.positions[k], cloud.normals[k], scratch);
     });
-    out.shape_stats.stage_seconds["mesh"] = secondsSince(t);
-  }
-  out.seconds = secondsSince(t0);
+  };
+  out.surface = shape.surface();
+  readField(out.surface);
+  out.without_strain = static_cast<std::size_t>(
+      std::count_if(out.surface.strain.begin(), out.surface.strain.end(), [](double v) { return !std::isfinite(v); }));
+  out.mesh = shape.mesh();
+  if (!out.mesh.vertices.empty()) readField(out.mesh.vertices);
+  out.strain_at_carriers.assign(carriers.size(), std::numeric_limits<double>::quiet_NaN());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, carriers.size(), 256), [&](const auto& range) {
+    CarrierStrain::Scratch scratch;
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      // A carrier beyond the shape's points (an element only the stereo views saw) has no surface
+      // under it: its projection lands elsewhere, or nowhere.
+      const Projection foot = surface.project(carriers.positions[k]);
+      if (foot.valid && (foot.point - carriers.positions[k]).norm() <= kMostCarrierOffset * strain_field.spacing())
+        out.strain_at_carriers[k] = strain_field.at(foot.point, foot.normal, scratch);
+    }
+  });
+  out.shape_stats.stage_seconds["strain on the surface"] = secondsSince(t);
+  if (params.shape.progress) params.shape.progress("strain on the surface", 1.0);
+  out.seconds = shape.seconds() + secondsSince(t0);
   return out;
+}
+
+ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, const ShapeAndStrainParams& params) {
+  if (shape.hasStrain()) throw std::invalid_argument("shape and strain: the shape points must not carry strain");
+  if (carriers.empty() || !carriers.hasStrain())
+    throw std::invalid_argument("shape and strain: no carriers with strain");
+  const ShapeSurface fitted(shape.positions, params);
+  return strainOnShape(fitted, carriers, params);
 }
 
 }  // namespace stampscan::fitting

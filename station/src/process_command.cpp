@@ -158,10 +158,10 @@ CommandRunner addProcessCommand(CLI::App& app) {
     }
     if (!opt->fit.empty()) {
       const double before = since();
-      fitting::Cloud shape;
-      shape.positions = std::move(m.surface_points);
-      if (shape.empty()) throw std::runtime_error(opt->input + ": the part sweeps have no laser returns to fit a surface to");
-      const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, !opt->quiet);
+      if (m.surface_points.empty())
+        throw std::runtime_error(opt->input + ": the part sweeps have no laser returns to fit a surface to");
+      const auto shape = runShapeFit(std::move(m.surface_points), !opt->quiet);
+      const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
       printShapeAndStrainSummary(fit);
       // The Cloud4D again, with the surface's strain at each element beside the element's own.
       cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;

@@ -74,15 +74,20 @@ void printTimes(const char* label, double seconds, const std::map<std::string, d
 }
 }  // namespace
 
-ShapeAndStrain runShapeAndStrainFit(const Cloud& shape, const Cloud& elements, bool show_progress) {
+std::unique_ptr<ShapeSurface> runShapeFit(std::vector<Vec3> shape_points, bool show_progress) {
   std::unique_ptr<ProgressBar> bar;
   ShapeAndStrainParams params;
   if (show_progress) {
     bar = std::make_unique<ProgressBar>();
     params.shape.progress = [&bar](const std::string& stage, double f) { bar->update(stage, f); };
   }
-  ShapeAndStrain fit = fitShapeAndStrain(shape, elements, params);
+  auto shape = std::make_unique<ShapeSurface>(std::move(shape_points), params);
   if (bar) bar->finish();
+  return shape;
+}
+
+ShapeAndStrain runStrainOnShape(const ShapeSurface& shape, const Cloud& elements) {
+  ShapeAndStrain fit = strainOnShape(shape, elements);
   colorByStrain(fit.surface);
   colorByStrain(fit.mesh.vertices);
   return fit;

@@ -1,10 +1,14 @@
 #include "live_measurement.hpp"
 
 #include <algorithm>
+#include <string>
 
 namespace stampscan::station {
 
 namespace {
+
+// Thrown from the surface fit's progress callback to stop it (a scan aborted while it ran).
+struct ShapeFitCancelled {};
 
 template <typename T>
 void appendFrom(std::vector<T>& to, const std::vector<T>& from, std::size_t& taken) {
@@ -15,7 +19,12 @@ void appendFrom(std::vector<T>& to, const std::vector<T>& from, std::size_t& tak
 
 LiveMeasurement::LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
                                  const registration::MeasureParams& params, registration::MeasureObserver* observer)
-    : live_(live), plan_(plan), params_(params), measurer_(params, observer), thread_([this] { loop(); }) {}
+    : live_(live),
+      plan_(plan),
+      params_(params),
+      measurer_(params, observer),
+      observer_(observer),
+      thread_([this] { loop(); }) {}
 
 LiveMeasurement::~LiveMeasurement() {
   {
@@ -24,6 +33,36 @@ LiveMeasurement::~LiveMeasurement() {
   }
   wake_.notify_all();
   if (thread_.joinable()) thread_.join();
+  shape_cancelled_ = true;
+  if (shape_thread_.joinable()) shape_thread_.join();
+}
+
+void LiveMeasurement::startShapeFit() {
+  if (shape_started_) return;
+  shape_started_ = true;
+  std::vector<fitting::Vec3> points = measurer_.takeSurfacePoints();
+  if (points.empty()) return;
+  if (observer_)
+    observer_->stageDone("surface", "fitting the surface to " + std::to_string(points.size()) +
+                                        " laser returns while the views are measured");
+  shape_thread_ = std::thread([this, points = std::move(points)]() mutable {
+    try {
+      fitting::ShapeAndStrainParams params;
+      params.shape.progress = [this](const std::string&, double) {
+        if (shape_cancelled_) throw ShapeFitCancelled{};
+      };
+      shape_ = std::make_unique<fitting::ShapeSurface>(std::move(points), params);
+    } catch (const ShapeFitCancelled&) {
+    } catch (...) {
+      shape_failure_ = std::current_exception();
+    }
+  });
+}
+
+std::unique_ptr<fitting::ShapeSurface> LiveMeasurement::shape() {
+  if (shape_thread_.joinable()) shape_thread_.join();
+  if (shape_failure_) std::rethrow_exception(shape_failure_);
+  return std::move(shape_);
 }
 
 void LiveMeasurement::stepsDone(std::size_t steps) {
@@ -126,6 +165,7 @@ void LiveMeasurement::advance(std::size_t step) {
     pending_sweeps_.clear();
     const registration::DigitizerCalibration& d = measurer_.digitizer();
     std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
+    if (part_sweeps_measured_ == plan_.sweepCount(acquisition::kScenePart)) startShapeFit();
   }
   measureReadyViews();
 }
@@ -164,6 +204,7 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   for (const registration::SweepWindow& w : pending_sweeps_)
     measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));
   pending_sweeps_.clear();
+  startShapeFit();  // unless the last part sweep started it
   // Cameras that did not calibrate leave the stereo views out; the laser's elements stand.
   if (params_.with_stereo && !measurer_.camerasCalibrated()) measurer_.calibrateCameras(mine_);
   part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::kScenePart));

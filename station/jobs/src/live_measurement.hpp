@@ -3,17 +3,22 @@
 // that feed it are done: the digitizer's calibration after the last sphere sweep, the cameras'
 // after the last plate view, each part sweep after it ends, each part view once every part sweep
 // is in (its rings are matched on the laser's surface). So the Cloud4D is ready soon after the last
-// sweep instead of a whole measurement after it.
+// sweep instead of a whole measurement after it. Once the last part sweep is measured, the surface
+// is fitted to the sweeps' laser returns on a second thread, while the stereo views are measured;
+// the strain of all the elements goes on it when they are in (fitting/shape_and_strain.hpp).
 //
 // The thread keeps its own copy of what it still needs (new messages are copied once, under the
 // live trace's lock, and dropped once measured), so the devices' threads never wait for it.
 #pragma once
 
 #include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/fitting/shape_and_strain.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 
+#include <atomic>
 #include <condition_variable>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <thread>
 
@@ -23,7 +28,9 @@ class LiveMeasurement {
  public:
   LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
                   const registration::MeasureParams& params, registration::MeasureObserver* observer);
-  ~LiveMeasurement();  // stops the thread (what it measured is dropped unless finish() was called)
+  // Stops the threads (what they measured is dropped unless finish() and shape() were called); a
+  // surface fit under way stops at its next stage.
+  ~LiveMeasurement();
   LiveMeasurement(const LiveMeasurement&) = delete;
   LiveMeasurement& operator=(const LiveMeasurement&) = delete;
 
@@ -32,12 +39,16 @@ class LiveMeasurement {
   // The run is over and completed: measures what is left and returns the whole. Rethrows what a
   // stage threw.
   registration::ScanMeasurement finish();
+  // After finish(): the surface fitted to every part sweep's laser returns (null when the plan's
+  // sweeps returned none). Waits for the fit; rethrows what it threw.
+  std::unique_ptr<fitting::ShapeSurface> shape();
 
  private:
   void loop();
   void pull();                          // new messages of the live trace into mine_
   void advance(std::size_t step);       // what became measurable with step `step` done
   void measureReadyViews();
+  void startShapeFit();  // on the laser returns the measurer holds
 
   const registration::LiveScanTrace& live_;
   const acquisition::ScanPlan& plan_;
@@ -53,6 +64,15 @@ class LiveMeasurement {
   std::vector<registration::SweepWindow> pending_sweeps_;  // ended, not measured yet
   bool plate_step_passed_ = false;  // the cameras' calibration was tried after the last plate view
 
+  // The surface fit, on a thread of its own; the flag stops it at its next stage.
+  registration::MeasureObserver* observer_;
+  std::atomic<bool> shape_cancelled_ = false;
+  bool shape_started_ = false;
+  std::unique_ptr<fitting::ShapeSurface> shape_;
+  std::exception_ptr shape_failure_;
+  std::thread shape_thread_;
+
+  // The measuring thread (declared last: it starts once everything above is made).
   std::mutex mutex_;
   std::condition_variable wake_;
   std::size_t steps_done_ = 0, steps_advanced_ = 0;

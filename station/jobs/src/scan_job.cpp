@@ -409,7 +409,6 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   // What the live measurement has not done yet, then the fit.
   const auto t0 = std::chrono::steady_clock::now();
   registration::ScanMeasurement m = measuring->finish();
-  measuring.reset();
   // The Cloud4D: one point per printed element (its measurements by every sweep and view merged);
   // every measurement beside it.
   fitting::Cloud cloud = registration::toCloud(m.merged.elements);
@@ -420,13 +419,13 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   wm.comment = "StampScan measurements of the grid elements, part " + o.part_id;
   fitting::writePly(result.run_dir / "measurements.ply", registration::toCloud(m.elements), wm);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  // The surface: its shape from the laser's returns, the elements' strain on it.
-  fitting::Cloud shape;
-  shape.positions = std::move(m.surface_points);
+  // The surface: its shape from the laser's returns (fitted since the last part sweep), the
+  // elements' strain on it.
+  const std::unique_ptr<fitting::ShapeSurface> shape = measuring->shape();
+  measuring.reset();
   nlohmann::json surface_record;
-  if (!shape.empty()) {
-    observer.stageDone("surface", "fitting the surface to " + std::to_string(shape.size()) + " laser returns");
-    const fitting::ShapeAndStrain fit = runShapeAndStrainFit(shape, cloud, false);
+  if (shape) {
+    const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
     fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
     // The Cloud4D again, with the surface's strain at each element beside the element's own.
@@ -451,7 +450,6 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
     fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
   }
-  std::vector<fitting::Vec3>().swap(shape.positions);
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.elements = cloud.size();
   result.measurements = m.elements.size();

@@ -21,6 +21,7 @@
 #include "stampscan/fitting/surface_fit.hpp"
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -51,16 +52,56 @@ struct ShapeAndStrain {
   std::size_t shape_points = 0, carriers = 0;
   std::size_t without_strain = 0;  // output points beyond the carriers' reach
   std::size_t not_converged = 0;   // output points whose projection on the shape did not settle
-  double seconds = 0;
+  double seconds = 0;  // the shape's fit and the strain's
 };
 
-// `shape`: the dense points (positions; normals are not needed, strain must be absent). `carriers`:
-// points with strain, one per grid element: several measurements of one element, a few micrometres
-// apart, are to be merged first (registration's element_merge.hpp), or their distance would be
-// taken for the grid's spacing and the field would reach almost nowhere. A kStrainUncertainty
-// scalar, when present, weights each carrier by its inverse variance; further scalars are not carried. Both are borrowed for the call. Throws
-// std::invalid_argument when either is empty, the shape has strain, the carriers have none, or the
-// spacing is not positive.
+// The shape fitted alone, before the carriers are known: the dense points' surface, sampled once per
+// output cell, and its mesh, without strain. A scan fits it as soon as its last part sweep is
+// measured, while the stereo views are still being measured; the strain follows with them
+// (strainOnShape). Owns its points. Throws std::invalid_argument when they are empty or more than
+// four billion, or the output spacing is not positive.
+class ShapeSurface {
+ public:
+  ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams& params = {});
+  ~ShapeSurface();
+  ShapeSurface(const ShapeSurface&) = delete;
+  ShapeSurface& operator=(const ShapeSurface&) = delete;
+
+  // The implicit surface the output points lie on (the progress callback of the parameters is not
+  // called after construction).
+  const ImplicitSurface& implicitSurface() const { return fit_->surface(); }
+  std::size_t points() const { return points_.size(); }
+  // The output points (positions and normals; the strain stays to strainOnShape).
+  const Cloud& surface() const { return surface_; }
+  const Mesh& mesh() const { return mesh_; }  // empty unless ShapeAndStrainParams::with_mesh
+  const MeshStats& meshStats() const { return mesh_stats_; }
+  const FitStats& stats() const { return stats_; }
+  std::size_t notConverged() const { return not_converged_; }
+  double seconds() const { return seconds_; }
+
+ private:
+  Cloud points_;
+  std::unique_ptr<FittedSurface> fit_;
+  Cloud surface_;
+  Mesh mesh_;
+  MeshStats mesh_stats_;
+  FitStats stats_;
+  std::size_t not_converged_ = 0;
+  double seconds_ = 0;
+};
+
+// The carriers' strain on a fitted shape: the strain field (shape_and_strain.cpp says how) read at
+// the shape's output points, its mesh vertices and the carriers' feet. `carriers`: points with
+// strain, one per grid element: several measurements of one element, a few micrometres apart, are to
+// be merged first (registration's element_merge.hpp), or their distance would be taken for the
+// grid's spacing and the field would reach almost nowhere. A kStrainUncertainty scalar, when
+// present, weights each carrier by its inverse variance; further scalars are not carried. Throws
+// std::invalid_argument when the carriers are empty or have no strain.
+ShapeAndStrain strainOnShape(const ShapeSurface& shape, const Cloud& carriers, const ShapeAndStrainParams& params = {});
+
+// Both at once. `shape`: the dense points (positions; normals are not needed, strain must be absent).
+// Both are borrowed for the call. Throws std::invalid_argument as the two above do, and when the
+// shape has strain.
 ShapeAndStrain fitShapeAndStrain(const Cloud& shape, const Cloud& carriers, const ShapeAndStrainParams& params = {});
 
 }  // namespace stampscan::fitting

@@ -22,6 +22,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace stampscan::registration {
@@ -133,6 +134,9 @@ class ScanMeasurer {
   bool digitizerCalibrated() const { return digitizer_ready_; }
   const DigitizerCalibration& digitizer() const { return out_.digitizer; }
   bool camerasCalibrated() const { return out_.rig.has_value(); }
+  // The part sweeps' returns so far (MeasureParams::keep_surface_points), handed over: a scan fits
+  // the surface to them once its last part sweep is measured; finish() then has only later ones.
+  std::vector<Vec3> takeSurfacePoints() { return std::exchange(surface_points_, {}); }
   // The laser's elements, then the views'. Throws std::runtime_error when no element was found.
   ScanMeasurement finish();
 
