@@ -79,6 +79,12 @@ class BinarySource {
 
   void skipBytes(std::size_t count) { pos_ += count; }
 
+  // Where data stand after the last record the header declares; nothing when the file ends there.
+  std::optional<std::string> trailingData() const {
+    if (remaining() == 0) return std::nullopt;
+    return byteWhere(pos_) + " (" + std::to_string(remaining()) + " bytes)";
+  }
+
  private:
   std::string_view bytes_;
   std::size_t pos_;
@@ -153,6 +159,17 @@ class AsciiSource {
 
   void skipItems(const Property& property, std::uint64_t count) {
     for (std::uint64_t i = 0; i < count; ++i) value(property, property.type);
+  }
+
+  // The line of the first value after the last record the header declares; nothing when only
+  // blanks follow.
+  std::optional<std::string> trailingData() const {
+    std::size_t line = line_;
+    for (std::size_t at = pos_; at < bytes_.size(); ++at) {
+      if (bytes_[at] == '\n') ++line;
+      else if (!isBlank(bytes_[at]) && bytes_[at] != '\r') return lineWhere(line + 1, at);
+    }
+    return std::nullopt;
   }
 
  private:
@@ -429,6 +446,11 @@ void readElements(Source& source, const Header& header, MeshBuilder& builder) {
       skipElement(source, element, builder.file);
     }
   }
+  // Data past what the header declares: its counts are wrong (a file appended to, or a header
+  // rewritten short), so what was read is not the file's whole content.
+  if (const auto at = source.trailingData())
+    throw InputError(builder.file, *at, "data after the last record the header declares: its element counts do not "
+                                        "match the file");
 }
 
 // Faces may precede the vertices in the file, so dropped vertices are removed from them only at the end.

@@ -15,6 +15,7 @@ namespace {
 struct ReportCommandOptions {
   std::string run_dir, material, program, cell;
   bool list_materials = false;
+  bool leave_out_invalid = false;
 };
 
 void printMaterials(const report::MaterialLibrary& library) {
@@ -35,6 +36,9 @@ CommandRunner addReportCommand(CLI::App& app) {
       std::string("Sheet material (default: run.json's \"material\", else ") + report::kDefaultMaterial + ")");
   cmd->add_option("--program", opt->program, "The press program, for the report (default: run.json's \"program\")");
   cmd->add_flag("--list-materials", opt->list_materials, "List the materials and exit");
+  cmd->add_flag("--leave-out-invalid", opt->leave_out_invalid,
+                "Judge the elements with valid strains when some are not finite or beyond any sheet's (without it "
+                "such a cloud is refused); the verdict is then never good and says how many were left out");
   cmd->add_option("--cell", opt->cell,
                   "The cell file: its [report] materials are added to the built-in ones, and the run is recorded in "
                   "its [results] database");
@@ -50,6 +54,7 @@ CommandRunner addReportCommand(CLI::App& app) {
     options.material = opt->material;
     options.program = opt->program;
     options.materials = &materials;
+    options.analysis.leave_out_invalid = opt->leave_out_invalid;
     const report::ReportSummary s = report::writeRunReport(opt->run_dir, options);
     std::printf("station report %s\n", s.run_dir.c_str());
     std::printf("  material    %s%s\n", s.material.c_str(),
@@ -59,9 +64,11 @@ CommandRunner addReportCommand(CLI::App& app) {
                                                                        : "");
     std::printf("  surface     %s\n", s.drawn_from_mesh ? "mesh.ply" : "cloud4d.ply (the run has no mesh)");
     for (const auto& file : s.files) std::printf("  wrote       %s\n", file.filename().c_str());
-    std::printf("  elements    %zu:", s.elements);
+    std::printf("  elements    %zu%s:", s.elements, s.elements_left_out ? " judged" : "");
     for (std::size_t z = 0; z < report::kZoneCount; ++z)
       std::printf("%s %s %zu", z ? "," : "", report::toString(static_cast<report::Zone>(z)), s.zone_counts[z]);
+    if (s.elements_left_out)
+      std::printf("\n  left out    %zu invalid elements (--leave-out-invalid)", s.elements_left_out);
     char margin[48] = "none (no strain path meets the FLC)";
     if (std::isfinite(s.min_margin_percent)) std::snprintf(margin, sizeof margin, "%.1f%%", s.min_margin_percent);
     std::printf("\n  figures     max thinning %.1f%%, min safety margin %s\n", s.max_thinning_percent, margin);

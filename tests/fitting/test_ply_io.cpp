@@ -202,8 +202,11 @@ TEST(PlyRead, SkipsOtherElementsBeforeAndAfterTheVertices) {
   EXPECT_EQ(binary_mesh.vertices.positions[0], Vec3(1, 2, 3));
   EXPECT_EQ(binary_mesh.vertices.positions[1], Vec3(4, 5, 6));
 
-  // Trailing bytes after the last element do not matter, but a short element does.
-  EXPECT_NO_THROW(parsePly(binary + body.str() + "extra", "b.ply"));
+  // Data after the last element the header declares means its counts are wrong (a header that
+  // declares fewer vertices than the file holds): refused, naming where they start; so is a short element.
+  expectError(binary + body.str() + "extra", "byte", "data after the last record the header declares");
+  expectError(ascii + "7 8 9\n", "line 22", "data after the last record the header declares");
+  EXPECT_NO_THROW(parsePly(ascii + "\n \n", "a.ply"));  // blank lines are no data
   expectError(binary + body.str().substr(0, body.str().size() - 1), "byte",
               "truncated range_grid data: expected 3 'range_grid' records, got 2");
 }

@@ -151,5 +151,39 @@ TEST(StrainAnalysis, MissingStrainsAreNamed) {
   }
 }
 
+// A verdict is never better than the data allow: an element with a strain that is not a number,
+// or beyond any sheet's, refuses the analysis (naming it), or is left out when asked, and then the
+// part is not called good and the verdict says what it rests on.
+TEST(StrainAnalysis, InvalidElementsAreRefusedOrLeftOutNeverGood) {
+  for (const double bad : {std::nan(""), 1e30, -2.0}) {
+    fitting::Cloud c = safePlate();
+    c.scalars["major_strain"][at(3, 4)] = bad;
+    c.strain[at(7, 7)] = std::nan("");
+    try {
+      analyseStrains(c, steel());
+      FAIL() << "no error for " << bad;
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("2 of " + std::to_string(c.size()) + " elements have invalid strains"), std::string::npos) << what;
+      EXPECT_NE(what.find("element " + std::to_string(at(3, 4)) + ": major_strain"), std::string::npos) << what;
+    }
+    AnalysisParams leave_out;
+    leave_out.leave_out_invalid = true;
+    const StrainAnalysis a = analyseStrains(c, steel(), leave_out);
+    EXPECT_EQ(a.left_out, 2u);
+    EXPECT_EQ(a.elements.size(), c.size() - 2);
+    EXPECT_EQ(a.elements_in_cloud, c.size());
+    EXPECT_EQ(a.verdict, Verdict::Marginal) << a.verdict_reason;
+    EXPECT_NE(a.verdict_reason.find("left out"), std::string::npos) << a.verdict_reason;
+    EXPECT_NE(a.verdict_reason.find("judged on " + std::to_string(c.size() - 2) + " of " + std::to_string(c.size())),
+              std::string::npos)
+        << a.verdict_reason;
+  }
+  // The same plate whole is good, on all of its elements.
+  const StrainAnalysis whole = analyseStrains(safePlate(), steel());
+  EXPECT_EQ(whole.verdict, Verdict::Good) << whole.verdict_reason;
+  EXPECT_EQ(whole.left_out, 0u);
+}
+
 }  // namespace
 }  // namespace stampscan::report

@@ -134,6 +134,8 @@ std::string reportJson(const ReportSummary& s, const StrainAnalysis& a, const Ma
                       {"verdict", toString(a.verdict)},
                       {"verdict_reason", a.verdict_reason},
                       {"elements", a.elements.size()},
+                      {"elements_in_cloud", a.elements_in_cloud},
+                      {"elements_left_out", a.left_out},
                       {"max_thinning_percent", a.max_thinning_percent},
                       {"min_margin_percent", std::isfinite(a.min_margin_percent) ? nlohmann::json(a.min_margin_percent)
                                                                                  : nlohmann::json(nullptr)}};
@@ -334,6 +336,7 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
   files.write("elements.csv", elementsCsv(analysis));
   summary.verdict = analysis.verdict;
   summary.verdict_reason = analysis.verdict_reason;
+  summary.elements_left_out = analysis.left_out;
   summary.elements = analysis.elements.size();
   summary.zone_counts = analysis.zone_counts;
   summary.max_thinning_percent = analysis.max_thinning_percent;

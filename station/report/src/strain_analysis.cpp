@@ -7,8 +7,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <numeric>
 #include <stdexcept>
+#include <utility>
 
 namespace stampscan::report {
 
@@ -136,15 +138,41 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
   const std::vector<double>& major = major_it->second;
   const std::vector<double>& minor = minor_it->second;
 
+  // A verdict is never better than the data allow: an element whose strains are not finite or
+  // beyond any sheet's refuses the analysis, or is left out (and the verdict cannot be good).
   std::vector<std::uint32_t> kept;
   kept.reserve(cloud.size());
-  for (std::size_t i = 0; i < cloud.size(); ++i)
-    if (std::isfinite(cloud.strain[i]) && std::isfinite(major[i]) && std::isfinite(minor[i]))
+  std::size_t invalid = 0;
+  std::string first_invalid;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const std::pair<const char*, double> values[] = {
+        {"major_strain", major[i]}, {"minor_strain", minor[i]}, {"strain", cloud.strain[i]}};
+    const auto bad = std::find_if(std::begin(values), std::end(values), [](const auto& v) {
+      return !std::isfinite(v.second) || std::abs(v.second) > kMostTrueStrain;
+    });
+    if (bad == std::end(values)) {
       kept.push_back(static_cast<std::uint32_t>(i));
-  if (kept.empty()) throw std::invalid_argument("the cloud has no element with finite strains");
+      continue;
+    }
+    if (invalid++ == 0) {
+      char text[160];
+      std::snprintf(text, sizeof text, "element %zu: %s = %g, %s", i, bad->first, bad->second,
+                    std::isfinite(bad->second) ? "beyond any sheet's strain" : "not a number");
+      first_invalid = text;
+    }
+  }
+  if (invalid > 0 && !params.leave_out_invalid)
+    throw std::invalid_argument(std::to_string(invalid) + " of " + std::to_string(cloud.size()) +
+                                " elements have invalid strains (" + first_invalid +
+                                "); a verdict rests on every element (leave them out explicitly to judge the rest, "
+                                "never as good)");
+  if (kept.empty()) throw std::invalid_argument("the cloud has no element with valid strains (" + first_invalid + ")");
 
   const auto uncertainty = cloud.scalars.find(fitting::kStrainUncertainty);
   StrainAnalysis a;
+  a.elements_in_cloud = cloud.size();
+  a.left_out = invalid;
+  a.left_out_reason = first_invalid;
   a.elements.resize(kept.size());
   tbb::parallel_for(std::size_t{0}, kept.size(), [&](std::size_t k) {
     const std::uint32_t i = kept[k];
@@ -227,11 +255,19 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
     a.verdict_reason = "within the " + std::to_string(static_cast<int>(std::lround(material.safety_margin_percent))) +
                        "% safety margin of the FLC: a patch of " + std::to_string(largest_risk) + " elements at " +
                        formatPosition(a.elements[largest_risk_at].position) + noise();
+  } else if (a.left_out > 0) {
+    a.verdict = Verdict::Marginal;
+    a.verdict_reason = "no patch of " + std::to_string(need) +
+                       " or more judged elements above the FLC or within its safety margin, but " +
+                       std::to_string(a.left_out) + " elements were left out as invalid (" + a.left_out_reason +
+                       "): they may be the ones that fail; measure the part again" + noise();
   } else {
     a.verdict = Verdict::Good;
     a.verdict_reason =
         "no patch of " + std::to_string(need) + " or more elements above the FLC or within its safety margin" + noise();
   }
+  if (a.left_out > 0)
+    a.verdict_reason += " (judged on " + std::to_string(n) + " of " + std::to_string(a.elements_in_cloud) + " elements)";
 
   // The worst spots: the lowest margins, one element per spot.
   std::vector<std::uint32_t> order(n);

@@ -55,7 +55,8 @@ struct ReportSummary {
   bool drawn_from_mesh = true;  // the maps show mesh.ply; without one, the elements of cloud4d.ply
   Verdict verdict = Verdict::Good;
   std::string verdict_reason;
-  std::size_t elements = 0;
+  std::size_t elements = 0;           // judged
+  std::size_t elements_left_out = 0;  // invalid, left out (AnalysisParams::leave_out_invalid)
   std::array<std::size_t, kZoneCount> zone_counts{};
   double max_thinning_percent = 0;
   double min_margin_percent = 0;

@@ -47,6 +47,10 @@ struct AnalysisParams {
   std::size_t min_patch_elements = 3;
   double patch_radius_factor = 1.6;
   std::size_t worst_spots = 8;
+  // An element whose strains are not finite or beyond any sheet's (kMostTrueStrain) is a damaged
+  // measurement or file: by default the whole analysis is refused. Left out when this is set, and
+  // then the verdict is never good (the elements left out may be the ones that fail).
+  bool leave_out_invalid = false;
   // Worst spots closer than this many grid pitches to a worse one are the same spot.
   double worst_spot_separation_factor = 4.0;
 };
@@ -71,8 +75,15 @@ struct WorstSpot {
   bool counted = false;  // in a patch large enough to count in the verdict
 };
 
+// The largest true strain (major, minor or thickness, either sign) an element may have: a stretch
+// of 4.5 (350 %), beyond any sheet metal's forming limit.
+inline constexpr double kMostTrueStrain = 1.5;
+
 struct StrainAnalysis {
-  std::vector<ElementStrain> elements;
+  std::vector<ElementStrain> elements;  // the elements judged
+  std::size_t elements_in_cloud = 0;    // all of the cloud's, judged or not
+  std::size_t left_out = 0;             // invalid elements left out (AnalysisParams::leave_out_invalid)
+  std::string left_out_reason;          // the first of them, and why
   std::array<std::size_t, kZoneCount> zone_counts{};
   Verdict verdict = Verdict::Good;
   std::string verdict_reason;
@@ -91,8 +102,8 @@ ElementStrain analyseElement(const fitting::Vec3& position, double major_true, d
                              const Material& material, const AnalysisParams& params = {});
 
 // The whole part. The cloud needs `strain` (eps3) and the scalars major_strain and minor_strain
-// (true strains); throws std::invalid_argument naming what is missing. Elements with a non-finite
-// strain are left out.
+// (true strains); throws std::invalid_argument naming what is missing, and naming the invalid
+// elements (non-finite strains, or beyond kMostTrueStrain) unless they are to be left out.
 StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& material, const AnalysisParams& params = {});
 
 }  // namespace stampscan::report
