@@ -255,6 +255,20 @@ TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
 
   // DNS rebinding: a name other than loopback's is refused by the loopback panel.
   expectError(client_->Get("/api/cell", {{"Host", "evil.example:8080"}}), 403, "a Host that is not loopback");
+  expectError(client_->Get("/api/session", {{"Host", "127.0.0.1.evil.example:8080"}}), 403,
+              "a name that only starts like a loopback address");
+  // A body without a declared length (chunked: as much as the sender likes) is refused unread.
+  // (A small one here: the client would take a signal writing on after the refusal.)
+  auto chunked = client_->Post(
+      "/api/scan/abort",
+      [](std::size_t offset, httplib::DataSink& sink) {
+        if (offset == 0) sink.write("{}", 2);
+        else sink.done();
+        return true;
+      },
+      "application/json");
+  ASSERT_TRUE(chunked);
+  EXPECT_EQ(chunked->status, 411) << chunked->body;
   auto fld = client_->Get("/api/runs/20261125-010203-part/files/fld.png");
   ASSERT_TRUE(fld);
   EXPECT_EQ(fld->status, 200);

@@ -59,6 +59,38 @@ TEST(HmiAuth, LoopbackNeedsNoLogin) {
   EXPECT_TRUE(isLoopbackHost("localhost"));
   EXPECT_FALSE(isLoopbackHost("0.0.0.0"));
   EXPECT_FALSE(isLoopbackHost("192.168.1.20"));
+  // Exactly: a name that starts like a loopback address may resolve anywhere.
+  EXPECT_TRUE(isLoopbackHost("127.1.2.3"));
+  EXPECT_FALSE(isLoopbackHost("127.0.0.1.evil.example"));
+  EXPECT_FALSE(isLoopbackHost("127.example"));
+  EXPECT_FALSE(isLoopbackHost("127.0.0.1 "));
+  EXPECT_FALSE(isLoopbackHost("localhost.evil.example"));
+}
+
+TEST(HmiAuth, AListenNameIsResolvedBeforeItIsTrusted) {
+  EXPECT_EQ(resolveListenAddress("127.0.0.1"), std::vector<std::string>{"127.0.0.1"});
+  for (const std::string& a : resolveListenAddress("localhost")) EXPECT_TRUE(isLoopbackHost(a)) << a;
+  EXPECT_FALSE(isLoopbackHost(resolveListenAddress("0.0.0.0").front()));
+  try {
+    resolveListenAddress("no-such-host.invalid");
+    ADD_FAILURE() << "an unknown name resolved";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no-such-host.invalid"), std::string::npos) << e.what();
+  }
+}
+
+TEST(HmiAuth, RepeatedWrongPasswordsLockTheName) {
+  Authenticator auth(true, {User{"olga", Role::Operator, hashPassword("right")}, User{"max", Role::Maintenance, hashPassword("mt")}},
+                     std::chrono::seconds(60));
+  EXPECT_TRUE(auth.login("max", "mt")) << "the right password logs in";
+  for (int i = 0; i < Authenticator::kMostFailures; ++i) {
+    EXPECT_FALSE(auth.locked("olga"));
+    EXPECT_FALSE(auth.login("olga", "wrong"));
+  }
+  EXPECT_TRUE(auth.locked("olga"));
+  EXPECT_FALSE(auth.login("olga", "right")) << "a locked name does not log in, even with its password";
+  EXPECT_FALSE(auth.locked("max"));
+  EXPECT_TRUE(auth.login("max", "mt")) << "another name is not locked with it";
 }
 
 TEST(HmiAuth, AUsersFileThatIsWrongIsNamed) {

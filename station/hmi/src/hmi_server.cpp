@@ -6,6 +6,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "web_assets.hpp"
 
+#include <algorithm>
 #include <fstream>
 
 namespace stampscan::hmi {
@@ -57,6 +58,12 @@ std::optional<Role> neededRole(const httplib::Request& req) {
 
 bool isStateChanging(const httplib::Request& req) { return req.method != "GET" && req.method != "HEAD"; }
 
+// No login only when every address the listen name resolves to is a loopback one: a name such as
+// "127.example" may resolve to an address of the plant's network.
+bool listensOnLoopbackOnly(const std::vector<std::string>& addresses) {
+  return std::all_of(addresses.begin(), addresses.end(), [](const std::string& a) { return isLoopbackHost(a); });
+}
+
 std::vector<User> usersFor(const HmiOptions& o, bool login_required) {
   if (!login_required) return {};
   if (o.users_file.empty())
@@ -82,15 +89,17 @@ void sendError(httplib::Response& res, int status, const std::string& error, con
 HmiServer::Impl::Impl(CellSetup setup, HmiOptions o)
     : options(std::move(o)),
       host(parseListen(options.listen).first),
+      bind_address(resolveListenAddress(host).front()),
+      loopback_only(listensOnLoopbackOnly(resolveListenAddress(host))),
       port(parseListen(options.listen).second),
-      auth(!isLoopbackHost(host), usersFor(options, !isLoopbackHost(host)), options.session_idle_timeout),
+      auth(!loopback_only, usersFor(options, !loopback_only), options.session_idle_timeout),
       jobs(std::move(setup), hub) {
   if (options.actions_log.empty()) options.actions_log = runsDir() / "hmi-actions.jsonl";
 }
 
 void HmiServer::checkOptions(const HmiOptions& options) {
   const std::string host = parseListen(options.listen).first;
-  usersFor(options, !isLoopbackHost(host));
+  usersFor(options, !listensOnLoopbackOnly(resolveListenAddress(host)));
 }
 
 std::optional<Session> HmiServer::Impl::sessionOf(const httplib::Request& req) {
@@ -139,6 +148,15 @@ void addPageRoutes(HmiServer::Impl& impl) {
 // Sessions, roles, Origin and CSRF, before any /api/ route runs.
 httplib::Server::HandlerResponse gate(HmiServer::Impl& impl, const httplib::Request& req, httplib::Response& res) {
   using R = httplib::Server::HandlerResponse;
+  // A body is read into memory only with a declared length, which the payload limit bounds (this
+  // library's limit does not apply to chunked bodies, and a body without a length runs until the
+  // client closes): anything else is refused before it is read.
+  if (req.has_header("Transfer-Encoding") ||
+      (isStateChanging(req) && !req.has_header("Content-Length") && req.method != "DELETE")) {
+    res.set_header("Connection", "close");
+    sendError(res, 411, "refused: a request body needs a Content-Length (chunked bodies are not taken)");
+    return R::Handled;
+  }
   if (req.path.rfind("/api/", 0) != 0) return R::Unhandled;
   // Without a login, a page of another site could reach the loopback panel through a DNS name that
   // resolves to 127.0.0.1 (DNS rebinding) and then be "same origin": only loopback names are served.
@@ -192,8 +210,13 @@ void addSessionRoutes(HmiServer::Impl& impl) {
     if (!s) {
       Session unknown;
       unknown.user = body["user"].get<std::string>();
-      impl.recordAction(unknown, "login refused", json::object(), req);
-      return sendError(res, 401, "wrong user name or password");
+      const bool locked = impl.auth.locked(unknown.user);
+      impl.recordAction(unknown, locked ? "login refused, account locked" : "login refused",
+                        locked ? json{{"locked_minutes", Authenticator::kLockout.count()}} : json::object(), req);
+      // The same answer either way: a locked name is not told apart from a wrong password.
+      return sendError(res, 401, "wrong user name or password",
+                       "after " + std::to_string(Authenticator::kMostFailures) + " wrong passwords a name is locked for " +
+                           std::to_string(Authenticator::kLockout.count()) + " minutes");
     }
     impl.recordAction(*s, "login", json::object(), req);
     res.set_header("Set-Cookie", std::string(kSessionCookie) + "=" + s->token + "; Path=/; HttpOnly; SameSite=Strict");
@@ -273,9 +296,9 @@ HmiServer::~HmiServer() { stop(); }
 int HmiServer::bind() {
   Impl& impl = *impl_;
   if (impl.port == 0) {
-    impl.port = impl.server.bind_to_any_port(impl.host);
+    impl.port = impl.server.bind_to_any_port(impl.bind_address);
     if (impl.port < 0) throw std::runtime_error("cannot listen on " + impl.options.listen);
-  } else if (!impl.server.bind_to_port(impl.host, impl.port)) {
+  } else if (!impl.server.bind_to_port(impl.bind_address, impl.port)) {
     throw std::runtime_error("cannot listen on " + impl.options.listen + " (in use, or not an address of this machine)");
   }
   return impl.port;

@@ -19,7 +19,11 @@ struct HmiServer::Impl {
   Impl(CellSetup setup, HmiOptions o);
 
   HmiOptions options;
-  std::string host;
+  std::string host;  // as given in the listen option
+  // What host resolved to (the address bound, so a name's DNS cannot move it between the check
+  // and the bind), and whether all it resolves to is loopback (no login then).
+  std::string bind_address;
+  bool loopback_only = false;
   int port = 0;
   EventHub hub;
   Authenticator auth;

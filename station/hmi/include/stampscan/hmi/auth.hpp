@@ -60,8 +60,13 @@ class Authenticator {
   Authenticator(bool login_required, std::vector<User> users, std::chrono::seconds idle_timeout);
 
   bool loginRequired() const { return login_required_; }
-  // A new session, or nothing when the name or password is wrong (the same answer for both).
+  // A new session, or nothing when the name or password is wrong (the same answer for both) or the
+  // name is locked: kMostFailures wrong passwords within kLockout lock it for kLockout. At most two
+  // verifications run at once (each takes 64 MiB), however many logins arrive together.
   std::optional<Session> login(const std::string& user, const std::string& password);
+  bool locked(const std::string& user);  // by failed logins, now
+  static constexpr int kMostFailures = 5;
+  static constexpr std::chrono::minutes kLockout{15};
   void logout(const std::string& token);
   // The session of a cookie token, renewed; nothing when unknown or expired. Without login, the
   // local session whatever the token.
@@ -74,9 +79,19 @@ class Authenticator {
   Session local_;
   std::mutex mutex_;
   std::map<std::string, Session> sessions_;
+  struct Failures {
+    int count = 0;
+    std::chrono::steady_clock::time_point window_end, locked_until;
+  };
+  static constexpr std::size_t kMostTrackedNames = 10000;
+  std::map<std::string, Failures> failures_;
 };
 
-// True for 127.0.0.0/8, ::1 and "localhost".
+// True for "localhost" and the address literals of 127.0.0.0/8 and ::1, exactly (a name that
+// merely starts with "127." is not).
 bool isLoopbackHost(const std::string& host);
+// The IP addresses a listen name resolves to (numeric, each once; a literal is itself). Throws
+// std::runtime_error naming the name when it does not resolve.
+std::vector<std::string> resolveListenAddress(const std::string& host);
 
 }  // namespace stampscan::hmi
