@@ -13,7 +13,7 @@ packages=(build-essential cmake ninja-build pkg-config
           libcgal-demo nlohmann-json3-dev libusb-1.0-0-dev libumockdev-dev umockdev
           libtomlplusplus-dev libaravis-dev aravis-tools aravis-tools-cli iproute2 libcairo2-dev
           fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql
-          libcpp-httplib-dev libsodium-dev libjs-three libjs-chart.js chromium
+          libcpp-httplib-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng
           libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev)
 missing=()
 for p in "${packages[@]}"; do

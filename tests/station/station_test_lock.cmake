@@ -20,3 +20,5 @@ set(_served_cell_tests
   StationTest.ASecondCellFromItsFileScansThePartToTheSameGoals
   StationTest.ASecondCellIsCheckedCalibratedAndVerifiedFromItsFile)
 set_tests_properties(${_served_cell_tests} PROPERTIES RESOURCE_LOCK stampscan_virtual_cameras)
+# The scan beside a heavy load runs alone: the load would slow every test running beside it.
+set_tests_properties(StationTest.TheDefaultScanBesideAHeavyLoadMeasuresThePartAsOnAnIdleMachine PROPERTIES RUN_SERIAL TRUE)
