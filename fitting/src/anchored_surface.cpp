@@ -5,6 +5,7 @@
 #include "stampscan/fitting/quadric_patch.hpp"
 
 #include "cell_pyramid.hpp"
+#include "loop_progress.hpp"
 #include "robust_patch_fit.hpp"
 #include "spanning_orientation.hpp"
 
@@ -106,8 +107,11 @@ struct AnchoredSurface::Impl {
   std::vector<std::uint32_t> adjacency;
   std::vector<std::uint32_t> anchor_of_point;
 
-  Impl(const std::vector<Vec3>& p, const KdTree& t, const std::vector<double>* s, const AnchoredParams& a)
-      : points(p), tree(t), strain(s), params(a) {}
+  Impl(const std::vector<Vec3>& p, const KdTree& t, const std::vector<double>* s, const AnchoredParams& a,
+       const Progress& pr)
+      : points(p), tree(t), strain(s), params(a), caller_progress(pr) {}
+  // The caller's progress, told by the construction's loops (loop_progress.hpp); not used after it.
+  const Progress& caller_progress;
 
   // A tier is a level and a spacing: coarse cells (anchor_spacing * h) where the probes found the
   // surface smooth enough that h was limited by the point count, fine cells (one h) where misfit
@@ -166,7 +170,9 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
   std::vector<std::optional<QuadricPatch>> patches(probes.size());  // the fit at the chosen h
   std::vector<std::optional<QuadricPatch>> first_patches(probes.size());  // at the smallest h
 
+  detail::LoopProgress ticks(caller_progress, "bandwidth", probes.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, probes.size(), 8), [&](const auto& range) {
+    ticks.add(range.size());
     FitScratch scratch;
     std::vector<Neighbor> knn;
     for (std::size_t p = range.begin(); p != range.end(); ++p) {
@@ -270,7 +276,9 @@ void AnchoredSurface::Impl::buildAnchors() {
 }
 
 void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {
+  detail::LoopProgress ticks(caller_progress, "anchors", anchors.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 16), [&](const auto& range) {
+    ticks.add(range.size());
     FitScratch scratch;
     for (std::size_t a = range.begin(); a != range.end(); ++a) {
       Anchor& anchor = anchors[a];
@@ -374,7 +382,9 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
   stats.wide_probes = kept.size();
   std::vector<double> wide(kept.size(), 0.0);
   std::vector<double> limited(kept.size(), 0.0);
+  detail::LoopProgress ticks(caller_progress, "widening", kept.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kept.size(), 8), [&](const auto& range) {
+    ticks.add(range.size());
     detail::CellFitScratch scratch;
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
       const std::size_t p = kept[k];
@@ -404,7 +414,9 @@ void AnchoredSurface::Impl::fitAnchorsOnCells(const Progress& progress) {
   // Each anchor chooses its own bandwidth by the same rule, from the narrow h there up to one step
   // beyond the wide field's: the field is interpolated between probes and may be too wide where a
   // radius starts between them.
+  detail::LoopProgress ticks(caller_progress, "wide anchors", anchors.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchors.size(), 16), [&](const auto& range) {
+    ticks.add(range.size());
     detail::CellFitScratch scratch;
     for (std::size_t a = range.begin(); a != range.end(); ++a) {
       Anchor& anchor = anchors[a];
@@ -469,7 +481,9 @@ void AnchoredSurface::Impl::linkAnchors() {
   const std::size_t blocks = (anchors.size() + kBlock - 1) / kBlock;
   std::vector<std::vector<std::uint32_t>> block_lists(blocks);
   adjacency_offset.assign(anchors.size() + 1, 0);
+  detail::LoopProgress ticks(caller_progress, "anchor links", blocks);
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t block) {
+    ticks.add(1);
     std::vector<Neighbor> near;
     auto& list = block_lists[block];
     for (std::size_t a = block * kBlock; a < std::min(anchors.size(), (block + 1) * kBlock); ++a) {
@@ -667,7 +681,7 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
 
 AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,
                                  const AnchoredParams& params, const Progress& progress)
-    : impl_(std::make_unique<Impl>(points, tree, strain, params)) {
+    : impl_(std::make_unique<Impl>(points, tree, strain, params, progress)) {
   if (points.empty()) throw std::invalid_argument("cannot fit an empty cloud");
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();

@@ -1,5 +1,7 @@
 #include "stampscan/fitting/mesh.hpp"
 
+#include "loop_progress.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -89,7 +91,9 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
   field.keys = std::move(corners);
   field.values.assign(field.keys.size(), std::numeric_limits<double>::quiet_NaN());
   const KdTree& tree = fitted.tree();
+  detail::LoopProgress field_ticks(params.progress, "mesh field", field.keys.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, field.keys.size(), 256), [&](const auto& range) {
+    field_ticks.add(range.size());
     std::vector<Neighbor> near;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const Vec3 x = cornerPosition(field.keys[i]);
@@ -119,7 +123,9 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
     double strain = 0;
   };
   std::vector<CellVertex> cell_vertices(surface_cells.size());
+  detail::LoopProgress vertex_ticks(params.progress, "mesh", surface_cells.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface_cells.size(), 256), [&](const auto& range) {
+    vertex_ticks.add(range.size());
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const auto c = unpack(surface_cells[i]);
       std::array<double, 8> f;

@@ -4,6 +4,7 @@
 #include "stampscan/fitting/local_fit.hpp"
 #include "stampscan/fitting/scalar_field.hpp"
 
+#include "loop_progress.hpp"
 #include "robust_patch_fit.hpp"
 
 #include <tbb/blocked_range.h>
@@ -374,7 +375,9 @@ ShapeSurface::ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams&
   auto t = Clock::now();
   const std::vector<Vec3> starts = cubeMeans(points_.positions, params.output_spacing_mm);
   std::vector<Projection> feet(starts.size());
+  detail::LoopProgress ticks(progress, "surface points", starts.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size(), 256), [&](const auto& range) {
+    ticks.add(range.size());
     for (std::size_t k = range.begin(); k != range.end(); ++k) feet[k] = fit_->surface().project(starts[k]);
   });
   for (const Projection& foot : feet) {

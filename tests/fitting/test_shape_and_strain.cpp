@@ -11,7 +11,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace stampscan::fitting {
 namespace {
@@ -36,6 +40,33 @@ Cloud carriersOnCap(double x_max, double position_noise, double strain_noise, un
       }
     }
   return c;
+}
+
+// A fit can be stopped within a stage: its loops tell their progress as they go, and a callback
+// that throws stops the fit there (a scan stopped after its motion does so).
+TEST(ShapeAndStrain, AFitStopsWithinAStageWhenItsProgressThrows) {
+  const Cloud shape = test::sampleSphereCap(150000, kRadius, 0.35, 0.03, 9);
+  struct Stop {};
+  std::vector<std::pair<std::string, double>> told;
+  std::mutex told_mutex;
+  ShapeAndStrainParams params;
+  params.shape.progress = [&](const std::string& stage, double fraction) {
+    std::lock_guard lock(told_mutex);
+    told.emplace_back(stage, fraction);
+    if (fraction > 0 && fraction < 1) throw Stop{};
+  };
+  EXPECT_THROW(ShapeSurface(shape.positions, params), Stop);
+  ASSERT_FALSE(told.empty());
+  EXPECT_LT(told.back().second, 1.0) << "stopped at " << told.back().first << " " << told.back().second;
+  // Without the stop the same fit runs to its end, telling each stage.
+  told.clear();
+  params.shape.progress = [&](const std::string& stage, double fraction) {
+    std::lock_guard lock(told_mutex);
+    told.emplace_back(stage, fraction);
+  };
+  const ShapeSurface whole(shape.positions, params);
+  EXPECT_GT(whole.surface().size(), 1000u);
+  EXPECT_GT(told.size(), 10u);
 }
 
 TEST(ShapeAndStrain, DenseShapeCarriesTheElementsStrainAndStopsBeyondThem) {

@@ -59,6 +59,11 @@ void LiveMeasurement::startShapeFit() {
   });
 }
 
+void LiveMeasurement::cancel() {
+  views_cancelled_ = true;
+  shape_cancelled_ = true;
+}
+
 std::unique_ptr<fitting::ShapeSurface> LiveMeasurement::shape() {
   if (shape_thread_.joinable()) shape_thread_.join();
   if (shape_failure_) std::rethrow_exception(shape_failure_);
@@ -181,7 +186,7 @@ void LiveMeasurement::measureReadyViews() {
       part_sweeps_measured_ < plan_.sweepCount(acquisition::kScenePart))
     return;
   // (A view waits until the head track reaches past it: the CMM reports only while it moves.)
-  while (!mine_.part_left.empty() &&
+  while (!views_cancelled_ && !mine_.part_left.empty() &&
          measurer_.measureView(mine_, 0, static_cast<std::uint32_t>(1000 + part_views_measured_))) {
     ++part_views_measured_;
     mine_.part_left.erase(mine_.part_left.begin());

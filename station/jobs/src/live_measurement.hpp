@@ -39,6 +39,9 @@ class LiveMeasurement {
   // The run is over and completed: measures what is left and returns the whole. Rethrows what a
   // stage threw.
   registration::ScanMeasurement finish();
+  // Any thread: stops what is left to measure (the views not measured yet, the surface fit at its
+  // next step); finish() then returns what was measured, and shape() nothing.
+  void cancel();
   // After finish(): the surface fitted to every part sweep's laser returns (null when the plan's
   // sweeps returned none). Waits for the fit; rethrows what it threw.
   std::unique_ptr<fitting::ShapeSurface> shape();
@@ -66,7 +69,7 @@ class LiveMeasurement {
 
   // The surface fit, on a thread of its own; the flag stops it at its next stage.
   registration::MeasureObserver* observer_;
-  std::atomic<bool> shape_cancelled_ = false;
+  std::atomic<bool> shape_cancelled_ = false, views_cancelled_ = false;
   bool shape_started_ = false;
   std::unique_ptr<fitting::ShapeSurface> shape_;
   std::exception_ptr shape_failure_;

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <functional>
 #include <limits>
 
 namespace stampscan::station {
@@ -324,10 +325,12 @@ ScanJob::ScanJob(acquisition::Cell& cell, ScanJobObserver* observer) : cell_(cel
 
 void ScanJob::abort(const std::string& reason) {
   std::lock_guard lock(mutex_);
-  if (runner_)
+  if (runner_) {
     runner_->abort(reason);
-  else if (!pending_abort_)
-    pending_abort_ = reason;
+    return;
+  }
+  if (!pending_abort_) pending_abort_ = reason;
+  if (live_) live_->cancel();  // after the motion: the measurement stops at its next step
 }
 
 ScanJobResult ScanJob::run(const ScanJobOptions& o) {
@@ -359,6 +362,19 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   std::optional<LiveMeasurement> measuring;
   measuring.emplace(live, o.plan, measure, &observer);
   observer.measuring(&*measuring);
+  // The measurement is the job's to stop until it is dropped (every way out of this function).
+  const auto forget_measuring = [&] {
+    std::lock_guard lock(mutex_);
+    live_ = nullptr;
+  };
+  {
+    std::lock_guard lock(mutex_);
+    live_ = &*measuring;
+  }
+  struct Forget {
+    std::function<void()> f;
+    ~Forget() { f(); }
+  } forget{forget_measuring};
   {
     trace::McapWriter writer(trace_file);
     trace::TraceRecorder recorder(writer);
@@ -378,6 +394,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
         runner_ = nullptr;
       }
       observer.measuring(nullptr);
+      forget_measuring();
       measuring.reset();
       writer.close();
       std::error_code ignored;
@@ -399,6 +416,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   nlohmann::json record = runRecord(o, cell_, result.run);
   record["calibration"] = {{"digitizer", result.digitizer_calibration}, {"cameras", result.camera_calibration}};
   if (!result.run.completed) {
+    forget_measuring();
     measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);
     recordInHistory(result.run_dir, database, "");  // as aborted, with its reason from run.json
@@ -409,6 +427,25 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   // What the live measurement has not done yet, then the fit.
   const auto t0 = std::chrono::steady_clock::now();
   registration::ScanMeasurement m = measuring->finish();
+  // A stop after the motion (Ctrl-C, SIGTERM, the panel's abort): the trace and what was measured
+  // are kept, and the run is recorded as incomplete; `station process` measures it again.
+  const auto stopped = [&](const char* during) {
+    std::optional<std::string> reason;
+    {
+      std::lock_guard lock(mutex_);
+      reason = pending_abort_;
+    }
+    if (!reason) return;
+    forget_measuring();
+    measuring.reset();
+    record["completed"] = false;
+    record["abort_reason"] = *reason + " " + during;
+    writeJsonAtomically(result.run_dir / "run.json", record);
+    recordInHistory(result.run_dir, database, "");
+    throw std::runtime_error("the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
+                             (fs::exists(result.run_dir / "cloud4d.ply") ? " and elements are" : " is") + " kept in " +
+                             result.run_dir.string() + "; `station process --with-stereo --fit` measures it again)");
+  };
   // The Cloud4D: one point per printed element (its measurements by every sweep and view merged);
   // every measurement beside it.
   fitting::Cloud cloud = registration::toCloud(m.merged.elements);
@@ -419,9 +456,12 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   wm.comment = "StampScan measurements of the grid elements, part " + o.part_id;
   fitting::writePly(result.run_dir / "measurements.ply", registration::toCloud(m.elements), wm);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stopped("after its motion, while measuring");
   // The surface: its shape from the laser's returns (fitted since the last part sweep), the
   // elements' strain on it.
   const std::unique_ptr<fitting::ShapeSurface> shape = measuring->shape();
+  stopped("while its surface was fitted");
+  forget_measuring();
   measuring.reset();
   nlohmann::json surface_record;
   if (shape) {

@@ -162,6 +162,8 @@ class ScanJob {
   // when the run was aborted (its folder keeps the trace and run.json) or measuring failed.
   ScanJobResult run(const ScanJobOptions& options);
   // Any thread: the run stops (motion aborted, shutter closed) and run() throws with the reason.
+  // After the motion, the measurement stops at its next step (a view, a thirty-second of a fit
+  // stage): the trace and what is measured are kept, and the run is recorded as incomplete.
   void abort(const std::string& reason);
 
  private:
@@ -169,6 +171,7 @@ class ScanJob {
   ScanJobObserver* observer_;
   std::mutex mutex_;
   acquisition::ScanRunner* runner_ = nullptr;  // while a run is under way
+  class LiveMeasurement* live_ = nullptr;        // while its measurement is
   std::optional<std::string> pending_abort_;
 };
 
