@@ -68,7 +68,11 @@ void onTerminatingSignal(int signal_number) {
   ::raise(signal_number);
 }
 
-// A name beside `file` that no other writer, in this process or another, picks at the same time.
+// A name beside `file` that no other writer, in this process or another, picks at the same time:
+// "<file>.tmp-<pid>-<12 hex digits>". The writer's process id in it lets a later writer of the same
+// file tell a temporary left by a killed process (SIGKILL, a power cut: no handler ran) from one
+// still being written.
+constexpr char kTemporaryMark[] = ".tmp-";
 fs::path temporaryPathFor(const fs::path& file) {
   static std::atomic<std::uint64_t> counter{0};
   static const std::uint64_t processSalt = [] {
@@ -78,12 +82,40 @@ fs::path temporaryPathFor(const fs::path& file) {
   for (int attempt = 0;; ++attempt) {
     const auto tick = static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
     std::uint64_t mixed = processSalt ^ (tick * 0x9E3779B97F4A7C15ull) ^ (++counter << 48);
-    std::string suffix = ".tmp-";
+    std::string suffix = kTemporaryMark + std::to_string(::getpid()) + "-";
     for (int digit = 0; digit < 12; ++digit, mixed >>= 4) suffix += "0123456789abcdef"[mixed & 0xf];
     fs::path candidate = file;
     candidate += suffix;
     std::error_code error;
     if (!fs::exists(candidate, error) || attempt >= 16) return candidate;
+  }
+}
+
+// Removes the temporaries of `file` whose writer no longer runs (temporaryPathFor's names with the
+// process id of a process that does not exist). One whose process still runs, or whose name does
+// not parse, is left alone.
+void removeOrphanedTemporaries(const fs::path& file) {
+  const std::string prefix = file.filename().string() + kTemporaryMark;
+  std::error_code error;
+  fs::directory_iterator it(file.parent_path().empty() ? fs::path(".") : file.parent_path(), error);
+  if (error) return;
+  for (const fs::directory_entry& entry : it) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::size_t dash = name.find('-', prefix.size());
+    if (dash == std::string::npos || dash == prefix.size()) continue;
+    long pid = 0;
+    try {
+      std::size_t used = 0;
+      pid = std::stol(name.substr(prefix.size(), dash - prefix.size()), &used);
+      if (used != dash - prefix.size()) continue;
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive (or not ours to ask)
+    std::error_code ignored;
+    fs::remove(entry.path(), ignored);
   }
 }
 
@@ -111,6 +143,7 @@ class CommitWindow {
 }  // namespace
 
 AtomicFile::AtomicFile(fs::path target) : target_(std::move(target)), temporary_(temporaryPathFor(target_)) {
+  removeOrphanedTemporaries(target_);
   slot_ = armSlot(temporary_);
 }
 

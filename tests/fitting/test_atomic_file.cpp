@@ -151,3 +151,34 @@ TEST(AtomicFile, ASignalRemovesPendingTemporariesAndStillEndsTheProcess) {
   }
   fs::remove_all(dir);
 }
+
+// A writer killed outright (SIGKILL, a power cut) leaves its temporary: the next writer of the same
+// file removes it, and leaves alone the temporaries of writers that still run.
+TEST(AtomicFile, TheNextWriterRemovesTheTemporaryOfAKilledOne) {
+  const fs::path dir = freshDir("orphans");
+  const fs::path target = dir / "trace.mcap";
+  // A process that has ended: its id is free (until reused, when its temporary is left alone).
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) _exit(0);
+  waitpid(child, nullptr, 0);
+  const fs::path orphan = dir / ("trace.mcap.tmp-" + std::to_string(child) + "-0123456789ab");
+  const fs::path running = dir / ("trace.mcap.tmp-" + std::to_string(::getppid()) + "-0123456789ab");
+  const fs::path other_file = dir / ("other.mcap.tmp-" + std::to_string(child) + "-0123456789ab");
+  const fs::path unparsed = dir / "trace.mcap.tmp-notapid";
+  for (const fs::path& f : {orphan, running, other_file, unparsed}) writeText(f, "half");
+  {
+    AtomicFile file(target);
+    EXPECT_NE(file.temporaryPath().filename().string().find(".tmp-" + std::to_string(::getpid()) + "-"),
+              std::string::npos)
+        << file.temporaryPath();
+    EXPECT_FALSE(fs::exists(orphan)) << "the killed writer's temporary is removed";
+    writeText(file.temporaryPath(), "whole");
+    file.commit();
+  }
+  EXPECT_TRUE(fs::exists(running)) << "a running writer's temporary is left alone";
+  EXPECT_TRUE(fs::exists(other_file)) << "another file's temporaries are not this writer's";
+  EXPECT_TRUE(fs::exists(unparsed));
+  EXPECT_EQ(readAll(target), "whole");
+  fs::remove_all(dir);
+}

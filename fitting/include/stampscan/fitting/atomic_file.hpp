@@ -25,7 +25,9 @@ namespace stampscan::fitting {
 
 class AtomicFile {
  public:
-  // Picks the temporary name; nothing is created until the caller writes to temporaryPath().
+  // Picks the temporary name (with this process's id); nothing is created until the caller writes
+  // to temporaryPath(). Temporaries of the same target left by a process that no longer runs (killed
+  // before any handler could remove them) are removed first.
   explicit AtomicFile(std::filesystem::path target);
   ~AtomicFile();  // removes the temporary unless committed
   AtomicFile(const AtomicFile&) = delete;
