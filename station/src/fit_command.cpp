@@ -75,8 +75,7 @@ CommandRunner addFitCommand(CLI::App& app) {
     ReadReport read;
     const Cloud input = readCloud(opt->input, &read);
     if (!opt->quiet) std::printf("station fit %s\n", opt->input.c_str());
-    MeshRequest mesh_request;
-    FitOutcome outcome = runFit(input, params, opt->mesh.empty() ? nullptr : &mesh_request, !opt->quiet);
+    FitOutcome outcome = runFit(input, params, FitRun{.with_mesh = !opt->mesh.empty(), .show_progress = !opt->quiet});
     PlyWriteOptions write;
     write.format = opt->ascii ? PlyFormat::Ascii : PlyFormat::BinaryLittleEndian;
     write.precision = opt->doubles ? PlyPrecision::Double : PlyPrecision::Float;

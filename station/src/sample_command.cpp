@@ -83,8 +83,7 @@ CommandRunner addDemoCommand(CLI::App& app) {
     ReadReport read;
     read.points_read = sample.cloud.size();
     const FitParams params;
-    MeshRequest mesh_request;
-    FitOutcome outcome = runFit(sample.cloud, params, &mesh_request, true);
+    FitOutcome outcome = runFit(sample.cloud, params, FitRun{.with_mesh = true, .show_progress = true});
     colorByStrain(outcome.surface);
     colorByStrain(outcome.mesh.vertices);
     w.comment = "StampScan fit of the sample pan, method auto";

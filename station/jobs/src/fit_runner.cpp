@@ -41,16 +41,16 @@ FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth,
   return params;
 }
 
-FitOutcome runFit(const Cloud& input, FitParams params, const MeshRequest* mesh_request, bool show_progress) {
+FitOutcome runFit(const Cloud& input, FitParams params, const FitRun& run) {
   std::unique_ptr<ProgressBar> bar;
-  if (show_progress) {
+  if (run.show_progress) {
     bar = std::make_unique<ProgressBar>();
     params.progress = [&bar](const std::string& stage, double f) { bar->update(stage, f); };
   }
   FitOutcome outcome;
   FittedSurface fitted(input, params);
   outcome.surface = fitted.projectAll(&outcome.stats);
-  if (mesh_request) {
+  if (run.with_mesh) {
     MeshParams mp;
     mp.progress = params.progress;
     const auto t0 = std::chrono::steady_clock::now();

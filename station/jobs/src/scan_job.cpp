@@ -483,8 +483,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
                                       std::to_string(fit.mesh.triangles.size()) + " triangles");
   } else {
     // No returns kept (a plan without part sweeps): the surface of the elements alone.
-    MeshRequest mesh_request;
-    FitOutcome fit = runFit(cloud, fitting::FitParams{}, &mesh_request, false);
+    FitOutcome fit = runFit(cloud, fitting::FitParams{}, FitRun{.with_mesh = true});
     colorByStrain(fit.surface);
     colorByStrain(fit.mesh.vertices);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);

@@ -14,7 +14,11 @@
 
 namespace stampscan::station {
 
-struct MeshRequest {};
+// What a fit run makes besides the surface, and whether it shows a progress bar.
+struct FitRun {
+  bool with_mesh = false;
+  bool show_progress = false;
+};
 
 struct FitOutcome {
   fitting::Cloud surface;
@@ -26,7 +30,7 @@ struct FitOutcome {
 
 fitting::FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth, const std::string& kernel,
                                  const std::string& scalar, int sig_r, const std::vector<double>& viewpoint);
-FitOutcome runFit(const fitting::Cloud& input, fitting::FitParams params, const MeshRequest* mesh, bool show_progress);
+FitOutcome runFit(const fitting::Cloud& input, fitting::FitParams params, const FitRun& run);
 // The shape from dense points (a laser's returns), with a progress bar; then the strain of the grid
 // elements on it (fitting/shape_and_strain.hpp), the surface and mesh coloured by strain. A scan
 // fits the shape while its stereo views are measured; `station process` runs the two in a row, with
