@@ -4,8 +4,10 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <variant>
 
 namespace stampscan::acquisition {
 
@@ -23,7 +25,57 @@ Eigen::Isometry3d isometry(const Placement& p) {
   return T;
 }
 
+// `pose` of the datum frame carried onto the machine frame by machine_from_datum (see placeOnFixture).
+HeadPose placePose(const HeadPose& pose, const Eigen::Isometry3d& machine_from_datum, const Eigen::Vector3d& mount,
+                   double index_step) {
+  const Eigen::Isometry3d target =
+      machine_from_datum * trace::headPose({pose.position[0], pose.position[1], pose.position[2]}, pose.a, pose.b);
+  // trace::headPose is Rz(b) Rx(a): its z axis is (sin a sin b, -sin a cos b, cos a).
+  const Eigen::Vector3d z = target.linear().col(2), x = target.linear().col(0);
+  double a = std::acos(std::clamp(z.z(), -1.0, 1.0));
+  double b = std::sin(a) > 1e-9 ? std::atan2(z.x(), -z.y()) : std::atan2(x.y(), x.x());
+  if (pose.a < 0) {  // (a, b) and (-a, b + pi) point the head alike: keep the plan's side
+    a = -a;
+    b += std::numbers::pi;
+  }
+  b = std::remainder(b, 2 * std::numbers::pi);
+  if (index_step > 0) {
+    a = std::round(a / index_step) * index_step;
+    b = std::round(b / index_step) * index_step;
+  }
+  const Eigen::Matrix3d R = trace::headPose(Eigen::Vector3d::Zero(), a, b).linear();
+  const Eigen::Vector3d position = target.translation() + (target.linear() - R) * mount;
+  return HeadPose{{position.x(), position.y(), position.z()}, a, b};
+}
+
 }  // namespace
+
+ScanPlan placeOnFixture(const ScanPlan& plan, const CellGeometry& cell, double index_step) {
+  ScanPlan placed = plan;
+  if (cell.fixture.datum == Placement{}) return placed;
+  const Eigen::Isometry3d machine_from_datum = isometry(cell.fixture.datum);
+  const auto& m = cell.digitizer.mount.position_mm;
+  const Eigen::Vector3d mount(m[0], m[1], m[2]);
+  for (PlanStep& step : placed.steps) {
+    if (auto* sweep = std::get_if<SweepStep>(&step); sweep && sweep->scene == kScenePart) {
+      sweep->start = placePose(sweep->start, machine_from_datum, mount, index_step);
+      sweep->end = placePose(sweep->end, machine_from_datum, mount, index_step);
+    } else if (auto* view = std::get_if<StereoStep>(&step); view && view->scene == kScenePart) {
+      view->pose = placePose(view->pose, machine_from_datum, mount, index_step);
+    }
+  }
+  return placed;
+}
+
+NominalModel placeOnFixture(const NominalModel& model, const CellGeometry& cell) {
+  NominalModel placed = model;
+  const Eigen::Isometry3d machine_from_datum = isometry(cell.fixture.datum);
+  for (std::array<double, 3>& v : placed.vertices) {
+    const Eigen::Vector3d p = machine_from_datum * Eigen::Vector3d(v[0], v[1], v[2]);
+    v = {p.x(), p.y(), p.z()};
+  }
+  return placed;
+}
 
 trace::RigidPose toRigidPose(const Placement& placement) { return trace::toRigidPose(isometry(placement)); }
 

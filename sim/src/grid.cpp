@@ -69,7 +69,7 @@ std::vector<Vec2> gridElements(const GridSpec& grid, const BlankRect& blank) {
   return out;
 }
 
-fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid) {
+fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid, const Eigen::Isometry3d& machine_from_datum) {
   const std::vector<Vec2> elements = gridElements(grid, part.blank());
   const std::size_t n = elements.size();
   fitting::Cloud truth;
@@ -88,14 +88,15 @@ fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid) {
   auto& mv = truth.scalars["material_v"];
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     const Deformation d = part.deformationOfMaterial(elements[i]);
-    truth.positions[i] = d.point;
-    truth.normals[i] = d.normal;
+    truth.positions[i] = machine_from_datum * d.point;
+    truth.normals[i] = machine_from_datum.linear() * d.normal;
     truth.strain[i] = d.thickness_strain;
     major[i] = d.major_strain;
     minor[i] = d.minor_strain;
-    dx[i] = d.major_direction.x();
-    dy[i] = d.major_direction.y();
-    dz[i] = d.major_direction.z();
+    const Vec3 direction = machine_from_datum.linear() * d.major_direction;
+    dx[i] = direction.x();
+    dy[i] = direction.y();
+    dz[i] = direction.z();
     mu[i] = elements[i].x();
     mv[i] = elements[i].y();
   });

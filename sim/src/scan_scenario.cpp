@@ -31,11 +31,6 @@ ScanParams::ScanParams() { setCell(acquisition::virtualCell()); }
 
 void ScanParams::setCell(const acquisition::CellConfig& config) {
   constexpr double kDeg = std::numbers::pi / 180;
-  // The simulated parts and their built-in plans stand at the table's origin.
-  if (config.geometry.fixture.datum != acquisition::Placement{})
-    throw std::runtime_error(config.source + ": [fixture] datum_mm and datum_rotation_deg: the simulated parts and "
-                             "their built-in plans stand at the table's origin; give 0 (a part program's own plan may "
-                             "use another datum)");
   cell = config.geometry;
   limits = config.limits;
   const acquisition::DigitizerDrawing& d = cell.digitizer;
@@ -338,12 +333,14 @@ class SessionGenerator {
 
   ScanSummary run() {
     part_ = makePart(p_);
-    part_scene_ = std::make_unique<PartScene>(*part_, p_.grid);
+    part_scene_ = std::make_unique<PartScene>(*part_, p_.grid, machineFromDatum(p_));
     sphere_scene_ = std::make_unique<SphereScene>(p_.sphere);
     second_sphere_scene_ = std::make_unique<SphereScene>(p_.second_sphere);
     plate_scene_ = std::make_unique<PlateScene>(p_.plate, platePose(p_));
     makeTruth();
-    const acquisition::ScanPlan plan = planScan(p_);
+    // The planner plans the part in its datum frame; the session runs it on the fixture.
+    plan_ = acquisition::placeOnFixture(planScan(p_), p_.cell, p_.limits.index_step);
+    const acquisition::ScanPlan& plan = plan_;
     const Vec3 park(plan.park.position[0], plan.park.position[1], plan.park.position[2]);
     trajectory_ = CmmTrajectory({}, HeadState{park, 0, 0, 0});
     // The operator loads the part: the door is open, then closes, then the clamp closes; the CMM
@@ -412,7 +409,7 @@ class SessionGenerator {
     trace::SessionDescription cell = describeSession(p_);
     cell.part = part_->name();
     // The plan this session plays, whole, so that a replay runs it again.
-    const acquisition::ScanPlan plan = planScan(p_);
+    const acquisition::ScanPlan& plan = plan_;
     cell.plan = plan.name;
     cell.plan_toml = acquisition::toToml(plan);
     sink_.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(cell));
@@ -604,6 +601,7 @@ class SessionGenerator {
   std::mt19937_64 rng_;
   std::unique_ptr<FormedPart> part_;
   std::unique_ptr<PartScene> part_scene_;
+  acquisition::ScanPlan plan_;
   std::unique_ptr<SphereScene> sphere_scene_, second_sphere_scene_;
   std::unique_ptr<PlateScene> plate_scene_;
   std::unique_ptr<CameraRenderer> renderers_[2];  // made at the first frame: the pixel rays are cached
@@ -618,6 +616,10 @@ class SessionGenerator {
 }  // namespace
 
 acquisition::ScanPlan planScan(const ScanParams& params) { return Planner(params).plan(); }
+
+Eigen::Isometry3d machineFromDatum(const ScanParams& params) {
+  return trace::toIsometry(acquisition::toRigidPose(params.cell.fixture.datum));
+}
 
 Eigen::Isometry3d platePose(const ScanParams& params) { return trace::toIsometry(acquisition::machineFromPlate(params.cell.plate)); }
 

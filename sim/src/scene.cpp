@@ -41,8 +41,10 @@ bool shinyCell(const Vec2& m) {
 
 }  // namespace
 
-PartScene::PartScene(const FormedPart& part, const GridSpec& grid, Table table)
-    : part_(part), grid_(grid), printed_(printedArea(grid, part.blank())), table_(table) {
+PartScene::PartScene(const FormedPart& part, const GridSpec& grid, const Eigen::Isometry3d& machine_from_datum, Table table)
+    : part_(part), grid_(grid), printed_(printedArea(grid, part.blank())), machine_from_datum_(machine_from_datum),
+      datum_from_machine_(machine_from_datum.inverse()), at_origin_(machine_from_datum.isApprox(Eigen::Isometry3d::Identity(), 1e-15)),
+      table_(table) {
   // A bound on the slope from a dense sample, with margin: marching by gap / (|dz| + slope |dxy|)
   // can then never step through the surface.
   const BlankRect box = part.footprint();
@@ -57,6 +59,20 @@ PartScene::PartScene(const FormedPart& part, const GridSpec& grid, Table table)
 }
 
 std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, double t_hint) const {
+  if (at_origin_) {
+    if (std::optional<Hit> hit = castOnPart(ray, footprint_per_mm, t_hint)) return hit;
+    return hitTable(ray, table_);
+  }
+  // Distances along the ray are the same in both frames.
+  const Ray in_datum{datum_from_machine_ * ray.origin, datum_from_machine_.linear() * ray.direction};
+  std::optional<Hit> hit = castOnPart(in_datum, footprint_per_mm, t_hint);
+  if (!hit) return hitTable(ray, table_);
+  hit->point = machine_from_datum_ * hit->point;
+  hit->normal = machine_from_datum_.linear() * hit->normal;
+  return hit;
+}
+
+std::optional<Hit> PartScene::castOnPart(const Ray& ray, double footprint_per_mm, double t_hint) const {
   const Vec3& o = ray.origin;
   const Vec3& d = ray.direction;
   const auto gap = [&](double t) {
@@ -82,7 +98,7 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
     }
   }
   double g = gap(t);
-  if (g < 0) return hitTable(ray, table_);  // starts below the surface: looking from underneath
+  if (g < 0) return std::nullopt;  // starts below the surface: looking from underneath
   // March with steps that cannot cross the surface (the gap shrinks by at most `denominator` per
   // unit step), then bracket and refine by the Illinois variant of regula falsi.
   double t_prev = t, g_prev = g;
@@ -97,7 +113,7 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
       break;
     }
   }
-  if (!bracketed) return hitTable(ray, table_);
+  if (!bracketed) return std::nullopt;
   double a = t_prev, fa = g_prev, b = t, fb = g;
   int side = 0;
   // Regula falsi keeps one end fixed, so the bracket need not shrink: stop on a small gap instead
@@ -124,7 +140,7 @@ std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, doub
   const double t_hit = 0.5 * (a + b);
   const Vec3 p = o + t_hit * d;
   const Vec2 m = part_.materialAt(p.x(), p.y());
-  if (!part_.blank().contains(m)) return hitTable(ray, table_);  // past the blank's edge
+  if (!part_.blank().contains(m)) return std::nullopt;  // past the blank's edge
   Hit hit;
   hit.t = t_hit;
   hit.point = p;

@@ -101,7 +101,8 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   if (mu == truth.scalars.end() || mv == truth.scalars.end() || truth.normals.size() != truth.size())
     throw std::invalid_argument("visibleElements: the truth cloud needs normals and material_u/v (sim::groundTruth)");
   const std::unique_ptr<FormedPart> part = makePart(world);
-  const PartScene scene(*part, world.grid);
+  const Eigen::Isometry3d machine_from_datum = machineFromDatum(world);
+  const PartScene scene(*part, world.grid, machine_from_datum);
   const CellTruth cell = drawCellTruth(world);
 
   std::vector<Sweep> sweeps;
@@ -128,9 +129,12 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   out.stereo.assign(truth.size(), 0);
   std::vector<std::atomic<std::uint32_t>> per_sweep(sweeps.size());
   tbb::parallel_for(std::size_t{0}, truth.size(), [&](std::size_t i) {
-    const std::vector<Vec3> ring = outline(*part, world.grid, Vec2(mu->second[i], mv->second[i]), params.outline_samples);
+    std::vector<Vec3> ring = outline(*part, world.grid, Vec2(mu->second[i], mv->second[i]), params.outline_samples);
     std::vector<Vec3> normals;
-    for (const Vec3& q : ring) normals.push_back(part->normal(q.x(), q.y()));
+    for (Vec3& q : ring) {  // from the part's datum frame onto the fixture
+      normals.push_back(machine_from_datum.linear() * part->normal(q.x(), q.y()));
+      q = machine_from_datum * q;
+    }
     for (std::size_t w = 0; w < sweeps.size(); ++w) {
       bool all = true;
       for (std::size_t k = 0; k < ring.size() && all; ++k)

@@ -96,10 +96,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
       part_world.grid.line_width = program.grid.line_width_mm;
       HostedVirtualCell& cell = **hosted;
       cell.cell().loadPart(part_world.part, part_world.grid);
-      scan.truth = SimulationTruth{sim::groundTruth(cell.cell().part(), part_world.grid), cell.cell().truth().digitizer_latency_ns};
-      const sim::ElementVisibility visibility = sim::visibleElements(part_world, scan.plan, scan.truth->elements);
-      scan.truth->visible = visibility.visibleOr();
-      sim::predictElements(scan.plan, visibility);
+      scan.truth = cell.truthOfScan(part_world, scan.plan);
     }
     return scan;
   };
@@ -114,7 +111,9 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
       std::lock_guard lock(cache->mutex);
       if (const auto it = cache->stl.find(name); it != cache->stl.end()) return it->second;
     }
-    std::string bytes = acquisition::binaryStl(programFromLibrary(name, config, virtual_cell, runs).model);
+    // Where the fixture holds the part: in the frame of the scan's cloud and surface.
+    std::string bytes = acquisition::binaryStl(
+        acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
     std::lock_guard lock(cache->mutex);
     return cache->stl.emplace(name, std::move(bytes)).first->second;
   };
@@ -249,7 +248,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
     if (virtual_cell) {
       hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, true);
       config = hosted->config();
-      setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid),
+      setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid, sim::machineFromDatum(world)),
                                          hosted->cell().truth().digitizer_latency_ns};
     }
     setup.programs = panelPrograms(config, virtual_cell, opt->runs, world, virtual_cell ? &hosted : nullptr);

@@ -63,7 +63,8 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
 
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
                                   const acquisition::CalibrationScenes& scenes, bool calibration_scenes) {
-  acquisition::ScanPlan plan = program.plan;
+  // The program's plan is in the part's datum frame; the cell's fixture puts it on the table.
+  acquisition::ScanPlan plan = acquisition::placeOnFixture(program.plan, cell.geometry, cell.limits.index_step);
   if (calibration_scenes) {
     acquisition::ScanPlan calibration = acquisition::calibrationPlan(cell, scenes);
     calibration.steps.insert(calibration.steps.end(), plan.steps.begin(), plan.steps.end());

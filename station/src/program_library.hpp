@@ -35,8 +35,9 @@ struct SimulatedProgramName {
 };
 std::vector<SimulatedProgramName> simulatedProgramNames();
 
-// The plan a scan of the program runs: its own, after the cell's calibration scenes (the reference
-// sphere's sweeps and the plate's views, planned for the cell's artefacts) when asked for.
+// The plan a scan of the program runs: its own, carried from the part's datum frame onto the cell's
+// fixture (acquisition::placeOnFixture), after the cell's calibration scenes (the reference sphere's
+// sweeps and the plate's views, planned for the cell's artefacts) when asked for.
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
                                   const acquisition::CalibrationScenes& scenes, bool calibration_scenes);
 

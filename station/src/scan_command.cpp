@@ -138,7 +138,8 @@ CommandRunner addScanCommand(CLI::App& app) {
       job.plan = programPlan(*program, config, acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, world.seed),
                              !opt->calibrated);
     } else {
-      job.plan = acquisition::loadScanPlan(opt->plan);
+      // A plan file, like a program's plan, gives the part's steps in its datum frame.
+      job.plan = acquisition::placeOnFixture(acquisition::loadScanPlan(opt->plan), config.geometry, config.limits.index_step);
     }
     if (opt->plan.empty() && !replay) {
       if (opt->laser_only)
@@ -158,13 +159,8 @@ CommandRunner addScanCommand(CLI::App& app) {
       hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
       config = hosted->config();
       if (!replay) {
-        const sim::FormedPart& part = hosted->cell().part();
-        job.truth = SimulationTruth{sim::groundTruth(part, world.grid), hosted->cell().truth().digitizer_latency_ns};
-        job.truth->thickness_strain_at = [&part](double x, double y) { return part.deformationAt(x, y).thickness_strain; };
-        const sim::ElementVisibility visibility = sim::visibleElements(world, job.plan, job.truth->elements);
-        job.truth->visible = visibility.visibleOr();
-        // The planner's prediction of what each sweep sees, against which the scan is checked.
-        sim::predictElements(job.plan, visibility);
+        // The planner's prediction of what each sweep sees, against which the scan is checked, too.
+        job.truth = hosted->truthOfScan(world, job.plan);
       }
     }
     acquisition::Cell cell(config);

@@ -145,7 +145,7 @@ CommandRunner addSimCommand(CLI::App& app) {
     std::printf("  wrote       %s: %zu messages, %s\n", opt->output.c_str(), summary.messages, megabytes(size).c_str());
     if (!opt->truth.empty()) {
       const std::unique_ptr<sim::FormedPart> part = sim::makePart(params);
-      const fitting::Cloud truth = sim::groundTruth(*part, params.grid);
+      const fitting::Cloud truth = sim::groundTruth(*part, params.grid, sim::machineFromDatum(params));
       sim::writeGroundTruth(opt->truth, truth);
       std::printf("  truth       %s: %zu grid elements\n", opt->truth.c_str(), truth.size());
     }

@@ -1,5 +1,8 @@
 #include "virtual_digitizer_host.hpp"
 
+#include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/visibility.hpp"
+
 #include <dlfcn.h>
 #include <unistd.h>
 
@@ -159,6 +162,20 @@ HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisi
   config_.cmm.port = cell_->cmm().port();
   config_.plc.port = cell_->plc().port();
   config_.digitizer_virtual = true;
+}
+
+SimulationTruth HostedVirtualCell::truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan) {
+  const sim::FormedPart& part = cell_->part();
+  const Eigen::Isometry3d machine_from_datum = sim::machineFromDatum(world);
+  SimulationTruth truth{sim::groundTruth(part, world.grid, machine_from_datum), cell_->truth().digitizer_latency_ns};
+  truth.thickness_strain_at = [&part, datum_from_machine = machine_from_datum.inverse()](const fitting::Vec3& point) {
+    const fitting::Vec3 on_part = datum_from_machine * point;
+    return part.deformationAt(on_part.x(), on_part.y()).thickness_strain;
+  };
+  const sim::ElementVisibility visibility = sim::visibleElements(world, plan, truth.elements);
+  truth.visible = visibility.visibleOr();
+  sim::predictElements(plan, visibility);
+  return truth;
 }
 
 HostedVirtualCell::~HostedVirtualCell() {

@@ -8,6 +8,7 @@
 #include "stampscan/sim/virtual_cell.hpp"
 #include "stampscan/sim/virtual_digitizer.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/station/scan_job.hpp"
 
 #include <memory>
 
@@ -55,6 +56,13 @@ class HostedVirtualCell {
 
   const acquisition::CellConfig& config() const { return config_; }
   sim::VirtualCell& cell() { return *cell_; }
+
+  // What the simulator knows of a scan of `plan` (as the machine runs it) on the cell's part, to
+  // score the scan with: the true elements where the fixture holds the part, which of them the plan
+  // lets a sensor see whole, and the digitizer's true latency. The plan's part sweeps are given the
+  // elements the simulator predicts each sees (SweepStep::expected_elements). `world` is the one
+  // the cell simulates (its part and grid).
+  SimulationTruth truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan);
 
  private:
   std::unique_ptr<sim::VirtualCell> cell_;

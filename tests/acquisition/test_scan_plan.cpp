@@ -1,10 +1,13 @@
 // ScanPlan: the plan file reads back what was written, the simulator's plans are sound, and bad plans
 // are refused with the file, the line and the field.
 #include "stampscan/acquisition/scan_plan.hpp"
+#include "stampscan/acquisition/cell_geometry.hpp"
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <numbers>
 
 #include <cmath>
@@ -79,6 +82,78 @@ TEST(ScanPlan, SimulatorPlansFitTheMachine) {
     const auto problems = checkPlan(plan, MachineLimits{});
     EXPECT_TRUE(problems.empty()) << problems.front();
     EXPECT_GT(motionSeconds(plan, MachineLimits{}), 10.0);
+  }
+}
+
+// A part plan is written in the part's datum frame; on a fixture elsewhere, the part's steps move
+// with the datum so that every sensor sees the part as the plan meant, and the calibration scenes stay.
+Eigen::Isometry3d isometryOf(const Placement& p) { return trace::toIsometry(toRigidPose(p)); }
+Eigen::Vector3d at(const HeadPose& h) { return {h.position[0], h.position[1], h.position[2]}; }
+
+TEST(ScanPlan, APartPlanMovesWithTheFixtureAndTheCalibrationScenesStay) {
+  sim::ScanParams p = sim::ScanParams::quick();
+  p.part = sim::PartKind::Dome;
+  const ScanPlan plan = sim::planScan(p);
+  CellGeometry cell;
+  EXPECT_EQ(placeOnFixture(plan, cell, 0), plan);  // the datum at the table's origin
+  cell.fixture.datum = {{40, -25, 3}, {0, 0, 30}};
+  const ScanPlan placed = placeOnFixture(plan, cell, 0);
+  ASSERT_EQ(placed.steps.size(), plan.steps.size());
+  const Eigen::Isometry3d machine_from_datum = isometryOf(cell.fixture.datum);
+  const Eigen::Isometry3d head_from_digitizer = isometryOf(cell.digitizer.mount);
+  std::size_t part_steps = 0;
+  for (std::size_t k = 0; k < plan.steps.size(); ++k) {
+    const auto poses = [](const PlanStep& s) {
+      if (const auto* w = std::get_if<SweepStep>(&s)) return std::vector<HeadPose>{w->start, w->end};
+      return std::vector<HeadPose>{std::get<StereoStep>(s).pose};
+    };
+    const std::string scene = std::visit([](const auto& s) { return s.scene; }, plan.steps[k]);
+    const std::vector<HeadPose> before = poses(plan.steps[k]), after = poses(placed.steps[k]);
+    for (std::size_t i = 0; i < before.size(); ++i) {
+      if (scene != kScenePart) {
+        expectSamePose(after[i], before[i]);
+        continue;
+      }
+      ++part_steps;
+      // A turn about z is carried exactly: the digitizer stands where the datum puts it.
+      const Eigen::Isometry3d want = machine_from_datum * trace::headPose(at(before[i]), before[i].a, before[i].b) * head_from_digitizer;
+      const Eigen::Isometry3d got = trace::headPose(at(after[i]), after[i].a, after[i].b) * head_from_digitizer;
+      EXPECT_LT((got.translation() - want.translation()).norm(), 1e-9);
+      EXPECT_LT((got.linear() - want.linear()).norm(), 1e-12);
+      EXPECT_NEAR(after[i].a, before[i].a, 1e-12);
+    }
+  }
+  EXPECT_GT(part_steps, 0u);
+}
+
+TEST(ScanPlan, OnATiltedFixtureTheDigitizerAimsAsPlannedAndAnIndexingHeadKeepsItsAngles) {
+  sim::ScanParams p = sim::ScanParams::quick();
+  p.part = sim::PartKind::Pan;
+  const ScanPlan plan = sim::planScan(p);
+  CellGeometry cell;
+  cell.fixture.datum = {{-30, 20, 8}, {2, -1.5, -100}};
+  const Eigen::Isometry3d machine_from_datum = isometryOf(cell.fixture.datum);
+  const Eigen::Isometry3d head_from_digitizer = isometryOf(cell.digitizer.mount);
+  const double step = 7.5 * std::numbers::pi / 180;
+  for (const double index_step : {0.0, step}) {
+    const ScanPlan placed = placeOnFixture(plan, cell, index_step);
+    for (std::size_t k = 0; k < plan.steps.size(); ++k) {
+      const auto* w = std::get_if<SweepStep>(&plan.steps[k]);
+      if (w == nullptr || w->scene != kScenePart) continue;
+      const auto& moved = std::get<SweepStep>(placed.steps[k]);
+      const Eigen::Isometry3d want = machine_from_datum * trace::headPose(at(w->start), w->start.a, w->start.b) * head_from_digitizer;
+      const Eigen::Isometry3d got = trace::headPose(at(moved.start), moved.start.a, moved.start.b) * head_from_digitizer;
+      // The mirror where the datum puts it; the beam within the tilt (or the half step) of the plan's.
+      EXPECT_LT((got.translation() - want.translation()).norm(), 1e-9);
+      const double beam_deg = std::acos(std::clamp(got.linear().col(2).dot(want.linear().col(2)), -1.0, 1.0)) * 180 / std::numbers::pi;
+      EXPECT_LT(beam_deg, index_step > 0 ? 7.5 : 1e-6);  // each angle within half a step
+      EXPECT_EQ(moved.start.a, moved.end.a);
+      EXPECT_EQ(moved.start.b, moved.end.b);
+      if (index_step > 0) {
+        for (const double angle : {moved.start.a, moved.start.b})
+          EXPECT_NEAR(std::remainder(angle, step), 0.0, 1e-9) << "an angle the indexing head cannot take: " << angle;
+      }
+    }
   }
 }
 

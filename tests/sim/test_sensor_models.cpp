@@ -174,6 +174,39 @@ TEST_P(SensorsSeeStrain, LaserIntensityRingHasTheTrueAxes) {
 INSTANTIATE_TEST_SUITE_P(DomeElements, SensorsSeeStrain,
                          ::testing::Values(Vec2(0, 0), Vec2(2.54 * 4, 2.54 * 3), Vec2(0, 2.54 * 10)));
 
+// The part stands where the fixture holds its datum frame: a ray of the machine meets it where the
+// same ray, carried into the datum frame, meets the part at the origin; the table stays put.
+TEST(PartScene, APartOnAFixtureIsThePartAtTheOriginMoved) {
+  const DomePart dome;
+  const GridSpec grid;
+  Eigen::Isometry3d machine_from_datum = Eigen::Isometry3d::Identity();
+  machine_from_datum.rotate(Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.04, Eigen::Vector3d::UnitX()));
+  machine_from_datum.pretranslate(Eigen::Vector3d(35, -20, 4));
+  const PartScene at_origin(dome, grid), on_fixture(dome, grid, machine_from_datum);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-60, 60);
+  int hits = 0;
+  for (int k = 0; k < 200; ++k) {
+    const Ray machine_ray{Vec3(u(rng), u(rng), 200), Vec3(0.1 * u(rng) / 60, 0.1 * u(rng) / 60, -1).normalized()};
+    const Ray datum_ray{machine_from_datum.inverse() * machine_ray.origin, machine_from_datum.linear().transpose() * machine_ray.direction};
+    const std::optional<Hit> got = on_fixture.cast(machine_ray, 0.001);
+    const std::optional<Hit> want = at_origin.cast(datum_ray, 0.001);
+    ASSERT_TRUE(got.has_value());
+    if (want && want->normal != Vec3::UnitZ()) {  // on the part (not the table)
+      ++hits;
+      EXPECT_NEAR(got->t, want->t, 1e-6);
+      EXPECT_LT((got->point - machine_from_datum * want->point).norm(), 1e-6);
+      EXPECT_LT((got->normal - machine_from_datum.linear() * want->normal).norm(), 1e-9);
+      EXPECT_NEAR(got->albedo, want->albedo, 1e-9);
+    }
+  }
+  EXPECT_GT(hits, 50);
+  // Past the part, the table is where it is in the machine (not tilted with the datum).
+  const std::optional<Hit> table = on_fixture.cast(Ray{Vec3(400, 400, 100), Vec3(0, 0, -1)}, 0.001);
+  ASSERT_TRUE(table.has_value());
+  EXPECT_EQ(table->normal, Vec3::UnitZ());
+}
+
 TEST(CmmTrajectory, RespectsSpeedAccelerationAndTravel) {
   CmmLimits limits;
   CmmTrajectory traj(limits, HeadState{Vec3(0, 0, 300), 0, 0, 0});

@@ -17,7 +17,7 @@ class VirtualCell::WorldScene final : public Scene {
  public:
   // Owns its part: a part loaded later replaces the whole scene.
   WorldScene(std::unique_ptr<FormedPart> part, const ScanParams& p)
-      : formed_(std::move(part)), part_(*formed_, p.grid), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p)),
+      : formed_(std::move(part)), part_(*formed_, p.grid, machineFromDatum(p)), sphere_(p.sphere), second_sphere_(p.second_sphere), plate_(p.plate, platePose(p)),
         has_second_sphere_(p.has_second_sphere) {}
 
   std::optional<Hit> cast(const Ray& ray, double footprint_per_mm, double t_hint) const override {

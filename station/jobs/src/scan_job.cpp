@@ -315,7 +315,7 @@ SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, con
     }
     if (!truth.thickness_strain_at || d < 0.4 * pitch || d > 0.6 * pitch || !found(nn[1].index)) continue;
     ++a.between;
-    between += std::pow(s - truth.thickness_strain_at(surface.positions[i].x(), surface.positions[i].y()), 2);
+    between += std::pow(s - truth.thickness_strain_at(surface.positions[i]), 2);
   }
   if (a.between) a.between_rms = std::sqrt(between / static_cast<double>(a.between));
   return a;

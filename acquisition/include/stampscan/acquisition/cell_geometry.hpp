@@ -9,6 +9,7 @@
 // says `_deg`.
 #pragma once
 
+#include "stampscan/acquisition/nominal_model.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
 
@@ -131,6 +132,20 @@ struct CellGeometry {
   Fixture fixture;
   bool operator==(const CellGeometry&) const = default;
 };
+
+// A plan's steps carried from the part's datum frame onto the cell's fixture. A part program's
+// plan is written in the datum frame (the frame of its nominal model), so that one plan serves every
+// cell; the fixture says where that frame is on the table. The part's sweeps and views (scene
+// "part") move with the datum: the head's reference point, and its angles turned with it. The other
+// scenes' steps (the calibration artefacts, already in the machine frame) and the park pose stay.
+// A turn of the datum about z is carried exactly (b turns with it). A tilted datum, or a turn an
+// indexing head cannot take (`index_step` > 0, rad), is matched by the nearest angles the head can
+// take, with the reference point moved so that the digitizer's mount point stays where the datum put
+// it (a two-axis head cannot roll about its own axis).
+ScanPlan placeOnFixture(const ScanPlan& plan, const CellGeometry& cell, double index_step);
+// A part's nominal model where the cell's fixture holds it: its vertices in the machine frame, the
+// frame the scan's cloud and surface are in.
+NominalModel placeOnFixture(const NominalModel& model, const CellGeometry& cell);
 
 // The session description's part about the cell (digitizer, cameras, plate, sphere): what a trace
 // of a session on this cell records as drawn. The part's fields are left to the caller.

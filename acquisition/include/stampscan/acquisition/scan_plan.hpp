@@ -28,6 +28,11 @@
 //   pose = [0, 0, 420]
 //   head = [0, 0]
 //
+// Frames: a plan file gives the part's steps (scene = "part") in the part's datum frame, the frame of
+// its nominal model, and the calibration artefacts' steps in the machine frame.
+// acquisition::placeOnFixture (cell_geometry.hpp) carries the part's steps onto the cell's fixture;
+// the executors play plans so placed. With the fixture's datum at the table's origin the two agree.
+//
 // Errors name the file, the line and the field.
 #pragma once
 
@@ -42,7 +47,7 @@
 
 namespace stampscan::acquisition {
 
-// Where the CMM puts its head: the reference point (mm, machine frame) and the articulating head's
+// Where the CMM puts its head: the reference point (mm, machine frame; see Frames above) and the articulating head's
 // angles (rad): tilt a about the ram's x axis, turn b about z.
 struct HeadPose {
   std::array<double, 3> position{0, 0, 0};

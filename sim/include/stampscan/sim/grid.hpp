@@ -5,6 +5,8 @@
 #include "stampscan/fitting/cloud.hpp"
 #include "stampscan/sim/formed_part.hpp"
 
+#include <Eigen/Geometry>
+
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -36,8 +38,11 @@ BlankRect printedArea(const GridSpec& grid, const BlankRect& blank);
 std::vector<Vec2> gridElements(const GridSpec& grid, const BlankRect& blank);
 
 // Ground truth at every grid element of a formed part: positions, normals, thickness strain and the
-// scalars major_strain, minor_strain, major_dir_x/y/z (unit, tangent) and material_u/v.
-fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid);
+// scalars major_strain, minor_strain, major_dir_x/y/z (unit, tangent) and material_u/v. Positions,
+// normals and directions are in the part's datum frame, or carried by `machine_from_datum` (where the
+// fixture holds the part: machineFromDatum in scan_scenario.hpp) into the machine frame.
+fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid,
+                           const Eigen::Isometry3d& machine_from_datum = Eigen::Isometry3d::Identity());
 void writeGroundTruth(const std::filesystem::path& file, const fitting::Cloud& truth);
 
 }  // namespace stampscan::sim

@@ -123,6 +123,10 @@ acquisition::ScanPlan planScan(const ScanParams& params);
 // the session description use until calibration says better.
 Eigen::Isometry3d nominalDigitizerMount(const ScanParams& params);
 
+// Where the fixture holds the part's datum frame on the table (the cell's [fixture]): the simulated
+// part, modelled in its datum frame, stands there.
+Eigen::Isometry3d machineFromDatum(const ScanParams& params);
+
 // Where the calibration plate stands on the table (machine_from_plate).
 Eigen::Isometry3d platePose(const ScanParams& params);
 

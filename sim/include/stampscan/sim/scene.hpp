@@ -40,20 +40,28 @@ struct Table {
   double albedo = 0.08;
 };
 
-// The formed part with its grid; the flange rests on a fixture above the table.
+// The formed part with its grid; the flange rests on a fixture above the table. The part is modelled
+// in its datum frame; `machine_from_datum` is where the fixture holds that frame (the cell file's
+// [fixture]). Rays and hits are in the machine frame.
 class PartScene final : public Scene {
  public:
-  PartScene(const FormedPart& part, const GridSpec& grid, Table table = {});
+  PartScene(const FormedPart& part, const GridSpec& grid, const Eigen::Isometry3d& machine_from_datum = Eigen::Isometry3d::Identity(),
+            Table table = {});
   std::optional<Hit> cast(const Ray& ray, double footprint_per_mm, double t_hint = -1) const override;
   const FormedPart& part() const { return part_; }
   const GridSpec& grid() const { return grid_; }
+  const Eigen::Isometry3d& machineFromDatum() const { return machine_from_datum_; }
   // Diffuse reflectance of the coated sheet, and of the printed ink.
   static constexpr double kSheetAlbedo = 0.75, kInkAlbedo = 0.10;
 
  private:
+  std::optional<Hit> castOnPart(const Ray& ray_in_datum, double footprint_per_mm, double t_hint) const;
+
   const FormedPart& part_;
   GridSpec grid_;
   BlankRect printed_;
+  Eigen::Isometry3d machine_from_datum_, datum_from_machine_;
+  bool at_origin_ = true;
   Table table_;
   double max_slope_ = 1;  // bound on |grad h|, for the safe marching step
 };

@@ -57,8 +57,9 @@ struct ElementVisibility {
   std::vector<std::uint8_t> visibleOr() const;
 };
 
-// `truth` is groundTruth(makePart(world), world.grid) (its material_u/v scalars give each element's
-// printed outline); the plan's part sweeps and part views are the poses considered.
+// `truth` is groundTruth(makePart(world), world.grid, machineFromDatum(world)): the elements on the
+// fixture (its material_u/v scalars give each element's printed outline). The plan is as the machine
+// runs it (placeOnFixture): its part sweeps and part views are the poses considered.
 ElementVisibility visibleElements(const ScanParams& world, const acquisition::ScanPlan& plan,
                                   const fitting::Cloud& truth, const VisibilityParams& params = {});
 

@@ -42,8 +42,8 @@ struct SimulationTruth {
   // Per element of `elements`: 1 when a sensor sees it whole from a pose of the plan
   // (sim/visibility.hpp); empty when not known.
   std::vector<std::uint8_t> visible{};
-  // The part's true thickness strain at machine (x, y) on its surface; empty when not known.
-  std::function<double(double x, double y)> thickness_strain_at{};
+  // The part's true thickness strain at a point of its surface (machine frame); empty when not known.
+  std::function<double(const fitting::Vec3& point)> thickness_strain_at{};
 };
 
 // The part program a scan runs (acquisition/part_program.hpp): its name (the part number) and folder.

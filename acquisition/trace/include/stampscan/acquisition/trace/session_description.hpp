@@ -45,7 +45,7 @@ struct SessionDescription {
   std::string part;           // the part's kind or number, e.g. "dome", "pan"
   std::string part_id;        // the operator's id of this part; may be empty
   std::string plan;           // the scan plan's name; may be empty
-  std::string plan_toml;      // the whole plan as a plan file (TOML), so that a replay can run it again; may be empty
+  std::string plan_toml;      // the whole plan as the machine ran it (placed on the fixture), so that a replay can run it again; may be empty
   std::string fixture;        // the fixture the part sits in; may be empty
   std::string grid = "circle";  // the printed grid: "circle" or "square"
   double grid_pitch_mm = 2.54;
