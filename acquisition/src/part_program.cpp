@@ -179,9 +179,16 @@ PartProgram parseProgramFile(const std::string& text, const std::string& source)
   }
 
   if (const toml::table* sim = in.section(top, "simulation", false)) {
-    in.onlyKeys(*sim, "[simulation]", {"part"});
+    in.onlyKeys(*sim, "[simulation]", {"part", "scale", "depth_mm", "peak_strain"});
     p.simulated_part = *in.text(*sim, "[simulation]", "part", true);
     if (p.simulated_part != "dome" && p.simulated_part != "pan") in.fail("[simulation]", "part", "must be \"dome\" or \"pan\"");
+    // Within these the families stay parts a press makes and the virtual cell's sensors can scan.
+    p.simulation.scale = in.positive(*sim, "[simulation]", "scale", false).value_or(1.0);
+    if (p.simulation.scale < 0.5 || p.simulation.scale > 2) in.fail("[simulation]", "scale", "must be within 0.5 .. 2");
+    p.simulation.depth_mm = in.positive(*sim, "[simulation]", "depth_mm", false).value_or(0.0);
+    if (p.simulation.depth_mm > 60) in.fail("[simulation]", "depth_mm", "must be at most 60 mm");
+    p.simulation.peak_strain = in.positive(*sim, "[simulation]", "peak_strain", false).value_or(0.0);
+    if (p.simulation.peak_strain > 0.5) in.fail("[simulation]", "peak_strain", "must be at most 0.5");
   }
   return p;
 }
@@ -248,7 +255,12 @@ std::string toToml(const PartProgram& p) {
   for (const RegionOfInterest& r : p.regions)
     o << "\n[[region]]\nname = " << quoted(r.name) << "\nmin_mm = [" << number(r.min_mm[0]) << ", " << number(r.min_mm[1])
       << "]\nmax_mm = [" << number(r.max_mm[0]) << ", " << number(r.max_mm[1]) << "]\n";
-  if (!p.simulated_part.empty()) o << "\n[simulation]\npart = " << quoted(p.simulated_part) << "\n";
+  if (!p.simulated_part.empty()) {
+    o << "\n[simulation]\npart = " << quoted(p.simulated_part) << "\n";
+    if (p.simulation.scale != 1) o << "scale = " << number(p.simulation.scale) << "\n";
+    if (p.simulation.depth_mm > 0) o << "depth_mm = " << number(p.simulation.depth_mm) << "\n";
+    if (p.simulation.peak_strain > 0) o << "peak_strain = " << number(p.simulation.peak_strain) << "\n";
+  }
   return o.str();
 }
 

@@ -4,6 +4,7 @@
 #include "stampscan/sim/scan_scenario.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 namespace stampscan::sim {
@@ -40,6 +41,34 @@ std::string simulatedProgramName(PartKind part, GridKind grid, bool sample_regio
          (sample_region ? "-sample" : "");
 }
 
+void applySimulation(ScanParams& world, const acquisition::SimulationParameters& parameters) {
+  const double s = parameters.scale;
+  DomeParams& dome = world.dome;
+  dome.blank_half_size *= s;
+  dome.die_radius *= s;
+  dome.depth = parameters.depth_mm > 0 ? parameters.depth_mm : dome.depth * s;
+  if (parameters.peak_strain > 0) dome.pole_strain = parameters.peak_strain;
+  StampedPanParams& pan = world.pan;
+  for (double* length : {&pan.half_length, &pan.half_width, &pan.pocket_a, &pan.pocket_b, &pan.wall_width,
+                         &pan.dome_radius, &pan.dome_height})
+    *length *= s;
+  pan.depth = parameters.depth_mm > 0 ? parameters.depth_mm : pan.depth * s;
+  if (parameters.peak_strain > 0) pan.peak_strain = parameters.peak_strain;
+}
+
+ScanParams worldForProgram(ScanParams world, const acquisition::PartProgram& program) {
+  if (program.simulated_part.empty())
+    throw std::runtime_error(program.folder.string() + ": the virtual cell simulates only its own part families, and "
+                             "this program gives none ([simulation] part)");
+  world.part = program.simulated_part == "dome" ? PartKind::Dome : PartKind::Pan;
+  world.grid.kind = gridKindFromString(program.grid.kind);
+  world.grid.pitch = program.grid.pitch_mm;
+  world.grid.circle_diameter = program.grid.circle_diameter_mm;
+  world.grid.line_width = program.grid.line_width_mm;
+  applySimulation(world, program.simulation);
+  return world;
+}
+
 acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, const fs::path& dir,
                                                const SimulatedProgramOptions& options) {
   ScanParams params;
@@ -54,10 +83,12 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
     params.stereo_rows = quick.stereo_rows;
     params.stereo_columns = quick.stereo_columns;
   }
+  applySimulation(params, options.simulation);
   const std::unique_ptr<FormedPart> part = makePart(params);
 
   acquisition::PartProgram program;
-  program.name = simulatedProgramName(kind, grid, options.sample_region);
+  program.name = options.name.empty() ? simulatedProgramName(kind, grid, options.sample_region) : options.name;
+  program.simulation = options.simulation;
   program.folder = dir;
   program.simulated_part = part->name();
   program.grid = {toString(grid), params.grid.pitch, params.grid.circle_diameter, params.grid.line_width};
@@ -74,6 +105,14 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
     program.description = "The simulator's stamped pan (" + toString(grid) + " grid), nominal model a binary STL mesh";
     if (options.sample_region) program.description += "; the plan scans its sample region";
     program.regions.push_back({"pocket", {-params.pan.pocket_a, -params.pan.pocket_b}, {params.pan.pocket_a, params.pan.pocket_b}});
+  }
+
+  if (options.simulation != acquisition::SimulationParameters{}) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "; scale %g, depth %g mm, peak strain %g", options.simulation.scale,
+                  kind == PartKind::Dome ? params.dome.depth : params.pan.depth,
+                  kind == PartKind::Dome ? params.dome.pole_strain : params.pan.peak_strain);
+    program.description += buf;
   }
 
   std::error_code ec;

@@ -85,17 +85,9 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
     scan.press_program = program.press_program;
     scan.program = {program.name, program.folder.string()};
     if (hosted != nullptr && *hosted) {
-      if (program.simulated_part.empty())
-        throw std::runtime_error(program.folder.string() + ": the virtual cell simulates only its own parts, and this "
-                                 "program gives none ([simulation] part)");
-      sim::ScanParams part_world = world;
-      part_world.part = program.simulated_part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-      part_world.grid.kind = sim::gridKindFromString(program.grid.kind);
-      part_world.grid.pitch = program.grid.pitch_mm;
-      part_world.grid.circle_diameter = program.grid.circle_diameter_mm;
-      part_world.grid.line_width = program.grid.line_width_mm;
+      const sim::ScanParams part_world = sim::worldForProgram(world, program);
       HostedVirtualCell& cell = **hosted;
-      cell.cell().loadPart(part_world.part, part_world.grid);
+      cell.cell().loadPart(part_world);
       scan.truth = cell.truthOfScan(part_world, scan.plan);
     }
     return scan;
@@ -119,7 +111,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
   };
   if (hosted != nullptr)
     p.restore = [=] {
-      if (*hosted) (*hosted)->cell().loadPart(world.part, world.grid);
+      if (*hosted) (*hosted)->cell().loadPart(world);
     };
   return p;
 }

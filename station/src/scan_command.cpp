@@ -97,9 +97,6 @@ CommandRunner addScanCommand(CLI::App& app) {
     std::optional<acquisition::PartProgram> program;
     if (!opt->part_program.empty()) {
       program = programToScan(opt->part_program, config, virtual_cell, opt->runs);
-      if (virtual_cell && program->simulated_part.empty())
-        throw std::runtime_error(program->folder.string() + ": the virtual cell simulates only its own parts, and this "
-                                 "program gives none ([simulation] part)");
       if (opt->material.empty()) opt->material = program->material;
       if (opt->press_program.empty()) opt->press_program = program->press_program;
       if (!opt->material.empty()) (void)materials.find(opt->material);
@@ -109,13 +106,7 @@ CommandRunner addScanCommand(CLI::App& app) {
     sim::ScanParams world = worldOnCell(quick ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
     world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     world.grid.kind = sim::gridKindFromString(opt->grid);
-    if (program) {
-      world.part = program->simulated_part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-      world.grid.kind = sim::gridKindFromString(program->grid.kind);
-      world.grid.pitch = program->grid.pitch_mm;
-      world.grid.circle_diameter = program->grid.circle_diameter_mm;
-      world.grid.line_width = program->grid.line_width_mm;
-    }
+    if (program && virtual_cell) world = sim::worldForProgram(world, *program);
     opt->world.applyTo(world);
     world.calibration = !opt->calibrated;
     ScanJobOptions job;

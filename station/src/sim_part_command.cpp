@@ -17,6 +17,8 @@ struct PartOptions {
   std::string grid = "circle";
   std::string output;
   std::string cell;
+  std::string name;
+  acquisition::SimulationParameters simulation;
 };
 
 std::string kilobytes(const std::filesystem::path& file) {
@@ -37,18 +39,30 @@ CommandRunner addSimPartSubcommand(CLI::App* sim) {
   cmd->add_option("-o,--output", opt->output, "The program's folder (created if missing)")->required();
   cmd->add_option("--cell", opt->cell, "The cell the plan is made for (its sensors, head and artefacts); default: the "
                                        "built-in virtual cell");
+  cmd->add_option("--name", opt->name, "The program's name, its part number (default: sim-PART-GRID)");
+  cmd->add_option("--scale", opt->simulation.scale, "The part's size against the family's own")
+      ->check(CLI::Range(0.5, 2.0))
+      ->default_val(1.0);
+  cmd->add_option("--depth", opt->simulation.depth_mm, "How deep it is drawn, mm (default: the family's, scaled)")
+      ->check(CLI::Range(0.1, 60.0));
+  cmd->add_option("--peak-strain", opt->simulation.peak_strain,
+                  "Its largest major true strain: the dome's pole, the pan's wall band (default: the family's)")
+      ->check(CLI::Range(0.01, 0.5));
   return [opt]() {
     const sim::PartKind kind = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
     const std::filesystem::path dir(opt->output);
     const acquisition::CellConfig cell = opt->cell.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(opt->cell);
     sim::SimulatedProgramOptions options;
     options.cell = &cell;
+    options.simulation = opt->simulation;
+    options.name = opt->name;
     sim::writeSimulatedProgram(kind, sim::gridKindFromString(opt->grid), dir, options);
     // Read back as the cell will read it: what is printed is what the folder holds (the STEP
     // model's own tessellation, not the samples its surface was fitted to).
     const acquisition::PartProgram p = acquisition::loadPartProgram(dir);
     const acquisition::Box3 box = p.model.bounds();
     std::printf("station sim part: %s, the simulated %s with a %s grid\n", p.name.c_str(), opt->part.c_str(), opt->grid.c_str());
+    std::printf("  part        %s\n", p.description.c_str());
     std::printf("  program     %s\n", (dir / acquisition::kProgramFile).string().c_str());
     std::printf("  model       %s: %s, %zu triangles, %.0f x %.0f x %.1f mm\n", (dir / p.model_file).string().c_str(),
                 kilobytes(dir / p.model_file).c_str(), p.model.triangles.size(), box.max[0] - box.min[0],

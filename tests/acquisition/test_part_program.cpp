@@ -311,6 +311,10 @@ TEST(PartProgram, EachMistakeIsRefusedNamingTheFileTheSectionAndTheKey) {
       {"max_mm = [-40, -20.5]", "max_mm = [-90, -20.5]", "[[region]] 1 max_mm must be greater than min_mm"},
       {"min_mm = [-80, -60]", "min_mm = [-80]", "[[region]] 1 min_mm must be a list of 2 numbers"},
       {"part = \"pan\"", "part = \"cube\"", "[simulation] part must be \"dome\" or \"pan\""},
+      {"part = \"pan\"", "part = \"pan\"\nscale = 3", "[simulation] scale must be within 0.5 .. 2"},
+      {"part = \"pan\"", "part = \"pan\"\ndepth_mm = -4", "[simulation] depth_mm must be a positive number"},
+      {"part = \"pan\"", "part = \"pan\"\ndepth = 4", "[simulation] depth is not a known key"},
+      {"part = \"pan\"", "part = \"pan\"\npeak_strain = 0.9", "[simulation] peak_strain must be at most 0.5"},
       {"press_program = \"P-88\"", "press_programme = \"P-88\"", "press_programme is not a known key"},
       {"[sheet]", "[sheet", "program.toml:13:"},  // TOML syntax: the line
   };
@@ -318,6 +322,11 @@ TEST(PartProgram, EachMistakeIsRefusedNamingTheFileTheSectionAndTheKey) {
     SCOPED_TRACE(c.message);
     expectOneLineNaming(errorOf([&] { parseProgramFile(replaced(kProgram, c.from, c.to), file); }), file, c.message);
   }
+  // A simulated part family's parameters; those left out are the family's own.
+  const PartProgram scaled = parseProgramFile(replaced(kProgram, "part = \"pan\"", "part = \"pan\"\nscale = 0.8\ndepth_mm = 14"), file);
+  EXPECT_EQ(scaled.simulation, (SimulationParameters{0.8, 14, 0}));
+  EXPECT_EQ(parseProgramFile(toToml(scaled), file).simulation, scaled.simulation);
+  EXPECT_EQ(parseProgramFile(kProgram, file).simulation, SimulationParameters{});
   // A square grid needs no circle diameter.
   const std::string square = replaced(replaced(kProgram, "kind = \"circle\"", "kind = \"square\""), "circle_diameter_mm = 2.54\n", "");
   EXPECT_EQ(parseProgramFile(square, file).grid.kind, "square");
@@ -353,6 +362,7 @@ TEST(PartProgram, WrittenProgramsRoundTrip) {
   EXPECT_EQ(back.press_program, p.press_program);
   EXPECT_EQ(back.regions, p.regions);
   EXPECT_EQ(back.simulated_part, p.simulated_part);
+  EXPECT_EQ(back.simulation, p.simulation);
   EXPECT_EQ(back.plan, p.plan);
   EXPECT_EQ(toToml(back), toToml(p));
   // Nothing but the program file and what was copied: the temporary is gone.

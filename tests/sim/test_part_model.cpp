@@ -125,6 +125,56 @@ TEST(PartModel, TheDomesStepSurfaceReadsBackOnTheDome) {
   EXPECT_LT(worst, 0.03);
 }
 
+// A part family with parameters is a new part: its program's model, plan and regions are of that
+// part, and the virtual cell simulates that part from the program.
+TEST(PartModel, AFamilysParametersMakeANewPartAndItsProgram) {
+  ScratchDir dir;
+  acquisition::SimulationParameters parameters;
+  parameters.scale = 0.8;
+  parameters.depth_mm = 14;
+  parameters.peak_strain = 0.2;
+  SimulatedProgramOptions options;
+  options.simulation = parameters;
+  options.name = "pan-small-4711";
+  const fs::path folder = dir.path / "pan-small";
+  writeSimulatedProgram(PartKind::Pan, GridKind::Square, folder, options);
+  const acquisition::PartProgram p = acquisition::loadPartProgram(folder);
+  EXPECT_EQ(p.name, "pan-small-4711");
+  EXPECT_EQ(p.simulation, parameters);
+  // The world the virtual cell builds from the program is that part.
+  const ScanParams world = worldForProgram(ScanParams{}, p);
+  EXPECT_EQ(world.part, PartKind::Pan);
+  EXPECT_EQ(world.grid.kind, GridKind::Square);
+  EXPECT_DOUBLE_EQ(world.pan.depth, 14);
+  EXPECT_DOUBLE_EQ(world.pan.peak_strain, 0.2);
+  EXPECT_DOUBLE_EQ(world.pan.half_length, 0.8 * StampedPanParams{}.half_length);
+  const std::unique_ptr<FormedPart> part = makePart(world);
+  // The nominal model is of that part: its footprint and depth, within the mesh's sampling.
+  const acquisition::Box3 box = p.model.bounds();
+  const BlankRect footprint = part->footprint();
+  EXPECT_NEAR(box.min[0], footprint.min.x(), 1e-4);  // STL stores floats
+  EXPECT_NEAR(box.max[1], footprint.max.y(), 1e-4);
+  EXPECT_NEAR(box.min[2], -14, 0.05);
+  EXPECT_NEAR(box.max[2], 0, 1e-9);
+  EXPECT_LT(box.max[0] - box.min[0], 0.85 * (StampedPanPart{}.footprint().max.x() - StampedPanPart{}.footprint().min.x()));
+  // Its plan is the planner's for that part; its strain peaks where asked.
+  ScanParams planned = world;
+  planned.calibration = false;
+  EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(planScan(planned)));
+  const auto peakOf = [&](const FormedPart& formed) {
+    double peak = 0;
+    for (const Vec3& q : groundTruth(formed, world.grid).positions) peak = std::max(peak, formed.deformationAt(q.x(), q.y()).major_strain);
+    return peak;
+  };
+  const double peak = peakOf(*part), family_peak = peakOf(StampedPanPart{});  // the family's own: 0.3
+  EXPECT_GE(peak, 0.2);
+  EXPECT_LT(peak, family_peak - 0.07) << "the family's own peaks at " << family_peak;
+  // Without a simulated part the virtual cell has nothing to put on its fixture.
+  acquisition::PartProgram real = p;
+  real.simulated_part.clear();
+  EXPECT_THROW(worldForProgram(ScanParams{}, real), std::runtime_error);
+}
+
 TEST(PartModel, SimulatedProgramsLoadAsPartPrograms) {
   ScratchDir dir;
   for (const PartKind kind : {PartKind::Dome, PartKind::Pan}) {

@@ -173,10 +173,12 @@ VirtualCell::~VirtualCell() { stop(); }
 
 const FormedPart& VirtualCell::part() const { return scene_.load()->formed(); }
 
-std::shared_ptr<const FormedPart> VirtualCell::loadPart(PartKind part, const GridSpec& grid) {
+std::shared_ptr<const FormedPart> VirtualCell::loadPart(const ScanParams& part_world) {
   ScanParams world = options_.world;
-  world.part = part;
-  world.grid = grid;
+  world.part = part_world.part;
+  world.dome = part_world.dome;
+  world.pan = part_world.pan;
+  world.grid = part_world.grid;
   auto scene = std::make_shared<const WorldScene>(makePart(world), world);
   scene_.store(scene);
   {

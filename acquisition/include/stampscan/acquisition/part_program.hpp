@@ -24,7 +24,10 @@
 //   min_mm = [-80, -60]
 //   max_mm = [-40, -20]
 //   [simulation]                  # optional: read by the virtual cell only
-//   part = "pan"                  # which simulated part this is: dome or pan
+//   part = "pan"                  # which of the simulator's part families this is: dome or pan
+//   scale = 1.0                   # optional: its size against the family's own, 0.5 .. 2
+//   depth_mm = 20                 # optional: how deep it is drawn (default: the family's, scaled)
+//   peak_strain = 0.3             # optional: its largest major true strain, up to 0.5 (default: the family's)
 //
 // Every value is checked when read; unknown keys are refused (a misspelt key would otherwise be
 // ignored). Errors throw ProgramError with one line naming the file, the section and the key:
@@ -69,6 +72,14 @@ struct RegionOfInterest {
   bool operator==(const RegionOfInterest&) const = default;
 };
 
+// The parameters of a simulated part ([simulation]); 0 is the family's own value.
+struct SimulationParameters {
+  double scale = 1;        // lengths against the family's own
+  double depth_mm = 0;     // the dome's pole or the pan's pocket below (above) its flange
+  double peak_strain = 0;  // the dome's pole strain, the pan's wall band strain
+  bool operator==(const SimulationParameters&) const = default;
+};
+
 struct PartProgram {
   std::string name;         // the part number
   std::string description;
@@ -81,6 +92,7 @@ struct PartProgram {
   std::string press_program;
   std::vector<RegionOfInterest> regions;
   std::string simulated_part;  // "dome" or "pan" when the virtual cell is to simulate it; "" when none
+  SimulationParameters simulation;
   ScanPlan plan;
   NominalModel model;
 };

@@ -8,6 +8,7 @@
 #include "stampscan/acquisition/part_program.hpp"
 #include "stampscan/sim/formed_part.hpp"
 #include "stampscan/sim/grid.hpp"
+#include "stampscan/sim/scan_scenario.hpp"
 
 #include <filesystem>
 #include <string>
@@ -34,7 +35,19 @@ struct SimulatedProgramOptions {
   // The plan covers only the quick sessions' sample region of the part (ScanParams::quick(): 40 x
   // 30 mm, two stereo views), and the program is named sim-<part>-<grid>-sample.
   bool sample_region = false;
+  // The part family's parameters (scale, depth, strain level); the defaults are the family's own.
+  acquisition::SimulationParameters simulation;
+  std::string name;  // the program's name (its part number); "": simulatedProgramName's
 };
+
+// The world's part with a program's family parameters applied: lengths scaled, and its depth and
+// peak strain when given (0 keeps the family's own, scaled).
+void applySimulation(ScanParams& world, const acquisition::SimulationParameters& parameters);
+
+// The virtual world that simulates a program's part: the family and parameters of its [simulation]
+// section and its printed grid, on `world`'s cell. Throws std::runtime_error naming the program's
+// folder when it gives no simulated part.
+ScanParams worldForProgram(ScanParams world, const acquisition::PartProgram& program);
 
 // The name of a simulated part's program: sim-<part>-<grid>, with -sample for the sample region.
 std::string simulatedProgramName(PartKind part, GridKind grid, bool sample_region = false);

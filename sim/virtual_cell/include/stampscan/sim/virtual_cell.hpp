@@ -108,7 +108,8 @@ class VirtualCell {
   const FormedPart& part() const;
   // Puts another part on the fixture, as an operator loads the next part: the digitizer and the
   // cameras see it from now on. Between scans. The part stays alive as long as the returned pointer.
-  std::shared_ptr<const FormedPart> loadPart(PartKind part, const GridSpec& grid);
+  // `part_world` gives the part (its family, parameters and grid); the cell stays as it is.
+  std::shared_ptr<const FormedPart> loadPart(const ScanParams& part_world);
 
  private:
   class WorldScene;
