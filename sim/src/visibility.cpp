@@ -85,8 +85,10 @@ bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, c
   const double range = local.norm();
   if (range < d.standoff - 0.5 * d.measuring_range || range > d.standoff + 0.5 * d.measuring_range) return false;
   if (std::abs(std::atan2(local.x(), -local.z())) > d.half_angle) return false;
+  // Whole only where every point comes back: beyond steep_from the digitizer drops points at random
+  // (digitizer_model.cpp), and a ring with holes in it is not measured.
   const double cos_incidence = normal.dot((mirror - q) / range);
-  if (cos_incidence <= std::cos(d.max_incidence)) return false;
+  if (cos_incidence <= std::cos(d.steep_from)) return false;
   const std::optional<Hit> hit = sightOf(scene, mirror, q, tolerance);
   // Glare: on a polished spot lit near normal incidence the triangulation camera is saturated and
   // sees neither the sheet nor the printed line (digitizer_model.cpp).
@@ -150,10 +152,13 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
       bool all = true;
       for (int c = 0; c < 2 && all; ++c) {
         const Vec3 eye = poses[static_cast<std::size_t>(c)].translation();
-        all = normal.dot((eye - centre).normalized()) >= cos_camera;
+        const double cos_view = normal.dot((eye - centre).normalized());
+        all = cos_view >= cos_camera;
         const Eigen::Isometry3d camera_from_machine = poses[static_cast<std::size_t>(c)].inverse();
         const double depth = (camera_from_machine * centre).z();
-        all = all && depth > 0 && world.grid.line_width * cameras[c]->fx / depth >= params.min_line_px;
+        // The line across the direction the element tilts away in is foreshortened by the view's
+        // obliquity: the ring's thinnest line in the image.
+        all = all && depth > 0 && world.grid.line_width * cos_view * cameras[c]->fx / depth >= params.min_line_px;
         for (std::size_t k = 0; k < ring.size() && all; ++k) {
           const Vec3 in_camera = camera_from_machine * ring[k];
           if (in_camera.z() <= 0) {

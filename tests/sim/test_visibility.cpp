@@ -62,6 +62,45 @@ TEST(Visibility, TheLaserSeesTheElementsUnderItsSweepsAndNoneFarAway) {
   for (std::size_t i = 0; i < truth.size(); ++i) EXPECT_LE(v.laser[i], without_glare.laser[i]);
 }
 
+// The pan's walls, seen from straight above: lit where the digitizer starts to lose points at random
+// (beyond DigitizerSpec::steep_from), their rings come back with holes and are not seen whole; a
+// camera that sees them obliquely sees their lines foreshortened, too thin to locate.
+TEST(Visibility, SteepWallsAreNotSeenWholeWhereTheSensorsLoseThem) {
+  sim::ScanParams p;
+  p.part = sim::PartKind::Pan;
+  p.calibration = false;
+  const acquisition::ScanPlan plan = sim::planScan(p);
+  const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
+  const sim::ElementVisibility v = sim::visibleElements(p, plan, truth);
+  sim::ScanParams no_dropouts = p;
+  no_dropouts.digitizer.steep_from = no_dropouts.digitizer.max_incidence;
+  const sim::ElementVisibility lenient = sim::visibleElements(no_dropouts, plan, truth);
+  std::size_t walls_lost = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    EXPECT_LE(v.laser[i], lenient.laser[i]);
+    if (lenient.laser[i] && !v.laser[i]) {
+      ++walls_lost;
+      // Only where the wall is steeper than the sensor returns every point.
+      EXPECT_GT(std::acos(truth.normals[i].z()), p.digitizer.steep_from - 0.2) << "element " << i;
+    }
+  }
+  EXPECT_GT(walls_lost, 50u);
+  // A camera of half the focal length sees every line half as wide: the oblique walls drop out first.
+  sim::ScanParams short_lens = p;
+  short_lens.camera.fx *= 0.5;
+  short_lens.camera.fy *= 0.5;
+  const sim::ElementVisibility coarse = sim::visibleElements(short_lens, plan, truth);
+  std::size_t flat_kept = 0, flat = 0, oblique_kept = 0, oblique = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    if (!v.stereo[i]) continue;
+    const bool steep = truth.normals[i].z() < 0.7;
+    (steep ? oblique : flat) += 1;
+    (steep ? oblique_kept : flat_kept) += coarse.stereo[i];
+  }
+  ASSERT_GT(oblique, 0u);
+  EXPECT_LT(static_cast<double>(oblique_kept) / static_cast<double>(oblique), static_cast<double>(flat_kept) / static_cast<double>(flat));
+}
+
 TEST(Visibility, ASweepMeasuresNothingInItsRunUps) {
   // The same sweeps, each shortened at both ends by its run-up: what the shorter sweeps' middles
   // cannot reach, the longer ones' run-ups do not count either.

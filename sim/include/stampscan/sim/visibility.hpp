@@ -5,15 +5,17 @@
 //
 // - the laser digitizer, in one part sweep of the plan: every point of the outline is crossed by
 //   the fan within its angle and its measuring range, with nothing of the part in between, and lit
-//   within the sensor's incidence limit (DigitizerSpec::max_incidence, where its triangulation
-//   camera sees nothing any more) but not so near normal incidence on a polished spot that glare
+//   at an incidence where the sensor returns every point (DigitizerSpec::steep_from: beyond it,
+//   towards its limit max_incidence, it loses more and more points at random, and an outline with
+//   holes in it is not seen whole) but not so near normal incidence on a polished spot that glare
 //   saturates that camera (DigitizerSpec::glare_incidence), away from the sweep's run-ups at either
 //   end, where the head's track from the CMM's position reports is not to be trusted
 //   (acquisition::sweepRunUp);
 // - the stereo pair, in one part view of the plan: every point of the outline is inside both
 //   images (clear of a border), neither camera's line of sight to it meets the part first, both
 //   cameras see the element within `camera_max_incidence` of its normal, and its printed line is at
-//   least `min_line_px` wide in both images.
+//   least `min_line_px` wide in both images where it is thinnest (foreshortened by the obliquity of
+//   the view).
 //
 // The sensors are placed through the cell's true mounts and intrinsics (drawCellTruth), the plan's
 // head poses as commanded. Nothing here looks at what was measured.
