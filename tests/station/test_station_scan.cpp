@@ -7,6 +7,7 @@
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
+#include "stampscan/sim/part_model.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/scan_job.hpp"
 
@@ -410,6 +411,36 @@ TEST_F(StationTest, APartProgramIsScannedAndNamedInTheRun) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("no-such-part"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("sim-pan-square"), std::string::npos) << r.err;  // what the library has
+}
+
+// A new part of one of the simulator's families: its program says how big, how deep and how strained
+// it is, and the virtual cell simulates that part (the scan is scored against it).
+TEST_F(StationTest, ANewPartOfAFamilyIsScannedAsTheProgramDescribesIt) {
+  const fs::path runs = work() / "runs", program = work() / "pan-4711";
+  RunResult r = run("sim part pan --scale 0.8 --depth 14 --peak-strain 0.2 --name pan-4711 -o " + quote(program));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("scale 0.8, depth 14 mm, peak strain 0.2"), std::string::npos) << r.out;
+  // Its pocket's floor, to keep the test short: the program's plan replaced by the quick session's.
+  const acquisition::PartProgram written = acquisition::loadPartProgram(program);
+  sim::ScanParams region = sim::worldForProgram(sim::ScanParams::quick(), written);
+  region.calibration = false;
+  writeFile(program / "plan.toml", acquisition::toToml(sim::planScan(region)));
+  r = run("scan -q --program " + quote(program) + " --laser-only --part-id P-1 -o " + quote(runs));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::ifstream in(onlyRunFolder(runs) / "run.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("part_program").at("name"), "pan-4711");
+  EXPECT_GT(j.at("measurement").at("elements").get<int>(), 100);
+  // Matched to that part's elements: the floor 14 mm down, not the family's 20.
+  EXPECT_EQ(j.at("accuracy").at("matched"), j.at("measurement").at("elements"));
+  EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.02);
+  EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.004);  // 0.0031 measured: a dome of 9.6 mm radius in it
+  EXPECT_GE(j.at("accuracy").at("visible").at("found").get<double>(),
+            0.99 * j.at("accuracy").at("visible").at("elements").get<double>());
+  const fitting::Cloud cloud = fitting::readPly(onlyRunFolder(runs) / "cloud4d.ply");
+  double deepest = 0;
+  for (const auto& q : cloud.positions) deepest = std::min(deepest, q.z());
+  EXPECT_NEAR(deepest, -14, 0.5);
 }
 
 TEST_F(StationTest, DryRunPrintsTheBuiltInPlan) {
