@@ -373,6 +373,10 @@ TEST_F(StationTest, ASecondCellFromItsFileScansThePartToTheSameGoals) {
   EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
               j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);
   EXPECT_GT(j.at("accuracy").at("true_latency_ms").get<double>(), 4.0);
+  // Its fixture holds the part off the origin and turned: the plan moved with it (the elements above
+  // matched the part where it stands), and the run says where the part's datum frame is.
+  EXPECT_EQ(j.at("fixture").at("datum_mm"), nlohmann::json::parse("[25.0, 15.0, 0.0]"));
+  EXPECT_EQ(j.at("fixture").at("datum_rotation_deg").at(2).get<double>(), 20.0);
 }
 
 // A part program scanned from its folder: the program's plan after the calibration scenes, its grid

@@ -79,7 +79,76 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
     run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
   if (!r.completed) run["abort_reason"] = r.abort_reason;
   if (!r.safety_events.empty()) run["safety_events"] = r.safety_events;
+  // The cloud, the surface and the maps are in the machine frame; the part's datum frame (its nominal
+  // model's) is here on the table.
+  const acquisition::Fixture& fixture = cell.config().geometry.fixture;
+  run["fixture"] = {{"name", fixture.name},
+                    {"datum_mm", fixture.datum.position_mm},
+                    {"datum_rotation_deg", fixture.datum.rotation_deg}};
   return run;
+}
+
+// run.json's "measurement": what was measured and how fast, one measurement's uncertainty per path.
+nlohmann::json measurementRecord(const ScanJobResult& result, const registration::ScanMeasurement& m,
+                                 const nlohmann::json& surface) {
+  nlohmann::json record = {{"elements", result.elements},
+                           {"seconds_after_scan", result.measure_seconds},
+                           {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
+                           {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6},
+                           {"measurements", m.elements.size()}};
+  // One measurement's standard uncertainty per sensor path, and its part shared by the path's
+  // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
+  const auto noise = [](const registration::PathNoise& p) {
+    const auto number = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); };
+    return p.strain ? nlohmann::json{{"strain", *p.strain},
+                                     {"strain_shared", number(p.strain_shared)},
+                                     {"position_mm", *p.position_mm},
+                                     {"position_shared_mm", number(p.position_shared_mm)},
+                                     {"twin_pairs", p.twin_pairs}}
+                    : nlohmann::json(nullptr);
+  };
+  record["uncertainty"] = {{"laser", noise(m.merged.laser)}, {"stereo", noise(m.merged.stereo)}};
+  if (m.sphere) record["sphere_residual_mm"] = m.sphere->rms_mm;
+  if (!surface.is_null()) record["surface"] = surface;
+  return record;
+}
+
+// run.json's "accuracy": the scan against the simulator's truth (a virtual cell).
+nlohmann::json accuracyRecord(const ScanJobResult& result, const SimulationTruth& truth) {
+  const ScanAccuracy& a = *result.accuracy;
+  nlohmann::json record = {{"matched", a.matched},
+                           {"position_rms_mm", a.position_rms_mm},
+                           {"strain_rms", a.strain_rms},
+                           {"strain_within_expanded_uncertainty", a.within_expanded_uncertainty},
+                           {"true_latency_ms", static_cast<double>(truth.digitizer_latency_ns) * 1e-6}};
+  if (!truth.visible.empty())
+    record["visible"] = {{"elements", a.visible}, {"found", a.visible_found}, {"found_not_visible", a.found_not_visible}};
+  if (const auto& f = result.surface_accuracy)
+    record["surface_strain"] = {{"elements", f->elements},
+                                {"at_elements_rms", f->at_elements_rms},
+                                {"elements_own_rms", f->elements_own_rms},
+                                {"between_points", f->between},
+                                {"between_rms", f->between_rms},
+                                {"within_grid_points", f->within_grid},
+                                {"within_grid_without_strain", f->without_strain}};
+  return record;
+}
+
+// A replay's check: the recording measured as `station process` measures it must give the same
+// measurements. (Compared measurement by measurement: a sweep's end that the replay measures one
+// element less would shift a merged element by half its twins' distance.) Fills the result's
+// figures and returns run.json's "replay".
+nlohmann::json compareWithRecording(const fs::path& recording, const registration::MeasureParams& measure,
+                                    const registration::ScanMeasurement& m, ScanJobResult& result) {
+  const registration::ScanTrace recorded = registration::loadScanTrace(recording, {}, measure.with_stereo);
+  const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, measure, nullptr).elements);
+  result.recording_measurements = reference.size();
+  result.against_recording = accuracyAgainst(registration::toCloud(m.elements), reference);
+  return {{"recording", recording.string()},
+          {"reference_measurements", reference.size()},
+          {"matched", result.against_recording->matched},
+          {"position_rms_mm", result.against_recording->position_rms_mm},
+          {"strain_rms", result.against_recording->strain_rms}};
 }
 
 // The runner's messages to the recorder (the file) and to the live trace (the measuring thread).
@@ -217,6 +286,37 @@ void checkAgainstSensors(const CalibrationInUse& in_use, const std::string& cell
   };
   if (in_use.digitizer) check(in_use.digitizer_file, in_use.digitizer->created, in_use.digitizer->provenance, "digitizer");
   if (in_use.cameras) check(in_use.cameras_file, in_use.cameras->created, in_use.cameras->provenance, "cameras");
+}
+
+// The surface: the elements' strain on the shape fitted to the laser's returns, written as
+// fitted.ply and mesh.ply, and the Cloud4D again with the surface's strain at each element beside
+// the element's own. Without a shape (a plan without part sweeps) the surface of the elements
+// alone. Returns run.json's "measurement.surface" (null for the elements' own surface).
+nlohmann::json writeSurface(const fitting::ShapeSurface* shape, const SimulationTruth* truth, const fitting::PlyWriteOptions& w,
+                            fitting::Cloud& cloud, ScanJobResult& result, ScanJobObserver& observer) {
+  if (shape == nullptr) {
+    FitOutcome fit = runFit(cloud, fitting::FitParams{}, FitRun{.with_mesh = true});
+    colorByStrain(fit.surface);
+    colorByStrain(fit.mesh.vertices);
+    fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
+    fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+    return nullptr;
+  }
+  const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
+  fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
+  fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
+  cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
+  fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
+  if (truth) result.surface_accuracy = surfaceAccuracyAgainst(cloud, fit.surface, *truth);
+  observer.stageDone("surface", std::to_string(fit.surface.size()) + " points, " +
+                                    std::to_string(fit.mesh.triangles.size()) + " triangles");
+  return {{"laser_returns", fit.shape_points},
+          {"points", fit.surface.size()},
+          {"points_without_strain", fit.without_strain},
+          {"mesh_triangles", fit.mesh.triangles.size()},
+          {"shape_bandwidth_median_mm", fit.shape_stats.bandwidth.median},
+          {"strain_bandwidth_median_mm", fit.strain_bandwidth.median},
+          {"seconds", fit.seconds}};
 }
 
 }  // namespace
@@ -463,91 +563,18 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   stopped("while its surface was fitted");
   forget_measuring();
   measuring.reset();
-  nlohmann::json surface_record;
-  if (shape) {
-    const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
-    fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
-    fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
-    // The Cloud4D again, with the surface's strain at each element beside the element's own.
-    cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
-    fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
-    if (o.truth) result.surface_accuracy = surfaceAccuracyAgainst(cloud, fit.surface, *o.truth);
-    surface_record = {{"laser_returns", fit.shape_points},
-                      {"points", fit.surface.size()},
-                      {"points_without_strain", fit.without_strain},
-                      {"mesh_triangles", fit.mesh.triangles.size()},
-                      {"shape_bandwidth_median_mm", fit.shape_stats.bandwidth.median},
-                      {"strain_bandwidth_median_mm", fit.strain_bandwidth.median},
-                      {"seconds", fit.seconds}};
-    observer.stageDone("surface", std::to_string(fit.surface.size()) + " points, " +
-                                      std::to_string(fit.mesh.triangles.size()) + " triangles");
-  } else {
-    // No returns kept (a plan without part sweeps): the surface of the elements alone.
-    FitOutcome fit = runFit(cloud, fitting::FitParams{}, FitRun{.with_mesh = true});
-    colorByStrain(fit.surface);
-    colorByStrain(fit.mesh.vertices);
-    fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
-    fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
-  }
+  const nlohmann::json surface_record = writeSurface(shape.get(), o.truth ? &*o.truth : nullptr, w, cloud, result, observer);
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.elements = cloud.size();
   result.measurements = m.elements.size();
   result.digitizer = m.digitizer;
   if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
-  record["measurement"] = {{"elements", cloud.size()},
-                           {"seconds_after_scan", result.measure_seconds},
-                           {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
-                           {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6}};
-  record["measurement"]["measurements"] = m.elements.size();
-  // One measurement's standard uncertainty per sensor path, and its part shared by the path's
-  // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
-  const auto noise = [](const registration::PathNoise& p) {
-    const auto number = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); };
-    return p.strain ? nlohmann::json{{"strain", *p.strain},
-                                     {"strain_shared", number(p.strain_shared)},
-                                     {"position_mm", *p.position_mm},
-                                     {"position_shared_mm", number(p.position_shared_mm)},
-                                     {"twin_pairs", p.twin_pairs}}
-                    : nlohmann::json(nullptr);
-  };
-  record["measurement"]["uncertainty"] = {{"laser", noise(m.merged.laser)}, {"stereo", noise(m.merged.stereo)}};
-  if (m.sphere) record["measurement"]["sphere_residual_mm"] = m.sphere->rms_mm;
-  if (!surface_record.is_null()) record["measurement"]["surface"] = surface_record;
+  record["measurement"] = measurementRecord(result, m, surface_record);
   if (o.truth) {
     result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
-    record["accuracy"] = {{"matched", result.accuracy->matched},
-                          {"position_rms_mm", result.accuracy->position_rms_mm},
-                          {"strain_rms", result.accuracy->strain_rms},
-                          {"strain_within_expanded_uncertainty", result.accuracy->within_expanded_uncertainty},
-                          {"true_latency_ms", static_cast<double>(o.truth->digitizer_latency_ns) * 1e-6}};
-    if (!o.truth->visible.empty())
-      record["accuracy"]["visible"] = {{"elements", result.accuracy->visible},
-                                       {"found", result.accuracy->visible_found},
-                                       {"found_not_visible", result.accuracy->found_not_visible}};
-    if (const auto& f = result.surface_accuracy)
-      record["accuracy"]["surface_strain"] = {{"elements", f->elements},
-                                              {"at_elements_rms", f->at_elements_rms},
-                                              {"elements_own_rms", f->elements_own_rms},
-                                              {"between_points", f->between},
-                                              {"between_rms", f->between_rms},
-                                              {"within_grid_points", f->within_grid},
-                                              {"within_grid_without_strain", f->without_strain}};
+    record["accuracy"] = accuracyRecord(result, *o.truth);
   }
-  if (!o.replayed_trace.empty()) {
-    // The recording measured as `station process` measures it: a replay must give the same
-    // measurements. (Compared measurement by measurement: a sweep's end that the replay measures
-    // one element less would shift a merged element by half its twins' distance.)
-    registration::MeasureParams params = measure;
-    const registration::ScanTrace recorded = registration::loadScanTrace(o.replayed_trace, {}, params.with_stereo);
-    const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, params, nullptr).elements);
-    result.recording_measurements = reference.size();
-    result.against_recording = accuracyAgainst(registration::toCloud(m.elements), reference);
-    record["replay"] = {{"recording", o.replayed_trace.string()},
-                        {"reference_measurements", reference.size()},
-                        {"matched", result.against_recording->matched},
-                        {"position_rms_mm", result.against_recording->position_rms_mm},
-                        {"strain_rms", result.against_recording->strain_rms}};
-  }
+  if (!o.replayed_trace.empty()) record["replay"] = compareWithRecording(o.replayed_trace, measure, m, result);
   result.data_loss = dataLoss(result.run);
   // Data that arrived whole but measured much less than the plan predicts is as damaged a result.
   if (const auto shortfall = measurementShortfall(o.plan, m.elements)) {
