@@ -25,26 +25,25 @@ Eigen::Isometry3d isometry(const Placement& p) {
   return T;
 }
 
-// `pose` of the datum frame carried onto the machine frame by machine_from_datum (see placeOnFixture).
-HeadPose placePose(const HeadPose& pose, const Eigen::Isometry3d& machine_from_datum, const Eigen::Vector3d& mount,
+// `pose` of the datum frame carried onto the machine frame by machine_from_datum (see placeOnFixture);
+// `pivot` (head frame) is the point kept where the datum puts it when the angles are not exact.
+HeadPose placePose(const HeadPose& pose, const Eigen::Isometry3d& machine_from_datum, const Eigen::Vector3d& pivot,
                    double index_step) {
   const Eigen::Isometry3d target =
       machine_from_datum * trace::headPose({pose.position[0], pose.position[1], pose.position[2]}, pose.a, pose.b);
-  // trace::headPose is Rz(b) Rx(a): its z axis is (sin a sin b, -sin a cos b, cos a).
-  const Eigen::Vector3d z = target.linear().col(2), x = target.linear().col(0);
-  double a = std::acos(std::clamp(z.z(), -1.0, 1.0));
-  double b = std::sin(a) > 1e-9 ? std::atan2(z.x(), -z.y()) : std::atan2(x.y(), x.x());
-  if (pose.a < 0) {  // (a, b) and (-a, b + pi) point the head alike: keep the plan's side
-    a = -a;
-    b += std::numbers::pi;
-  }
-  b = std::remainder(b, 2 * std::numbers::pi);
+  // trace::headPose is Rz(b) Rx(a): its x axis (cos b, sin b, 0) is level and gives the turn; the
+  // tilt is then the z axis's about that x axis. Exact for a turn of the datum about z, with no
+  // degenerate case at a = 0; for a tilted datum the nearest two-axis pose (no roll of the fan).
+  const Eigen::Vector3d x = target.linear().col(0);
+  double b = std::atan2(x.y(), x.x());
+  const Eigen::Vector3d z = Eigen::AngleAxisd(-b, Eigen::Vector3d::UnitZ()) * target.linear().col(2);
+  double a = std::atan2(-z.y(), z.z());
   if (index_step > 0) {
     a = std::round(a / index_step) * index_step;
     b = std::round(b / index_step) * index_step;
   }
   const Eigen::Matrix3d R = trace::headPose(Eigen::Vector3d::Zero(), a, b).linear();
-  const Eigen::Vector3d position = target.translation() + (target.linear() - R) * mount;
+  const Eigen::Vector3d position = target.translation() + (target.linear() - R) * pivot;
   return HeadPose{{position.x(), position.y(), position.z()}, a, b};
 }
 
@@ -54,14 +53,16 @@ ScanPlan placeOnFixture(const ScanPlan& plan, const CellGeometry& cell, double i
   ScanPlan placed = plan;
   if (cell.fixture.datum == Placement{}) return placed;
   const Eigen::Isometry3d machine_from_datum = isometry(cell.fixture.datum);
+  // A sweep keeps the digitizer's mirror in place, a view the point the cameras' axes cross at.
   const auto& m = cell.digitizer.mount.position_mm;
-  const Eigen::Vector3d mount(m[0], m[1], m[2]);
+  const Eigen::Vector3d mirror(m[0], m[1], m[2]);
+  const Eigen::Vector3d aim(0, 0, -(cell.cameras.drop_mm + cell.cameras.convergence_mm));
   for (PlanStep& step : placed.steps) {
     if (auto* sweep = std::get_if<SweepStep>(&step); sweep && sweep->scene == kScenePart) {
-      sweep->start = placePose(sweep->start, machine_from_datum, mount, index_step);
-      sweep->end = placePose(sweep->end, machine_from_datum, mount, index_step);
+      sweep->start = placePose(sweep->start, machine_from_datum, mirror, index_step);
+      sweep->end = placePose(sweep->end, machine_from_datum, mirror, index_step);
     } else if (auto* view = std::get_if<StereoStep>(&step); view && view->scene == kScenePart) {
-      view->pose = placePose(view->pose, machine_from_datum, mount, index_step);
+      view->pose = placePose(view->pose, machine_from_datum, aim, index_step);
     }
   }
   return placed;

@@ -41,7 +41,9 @@ CommandRunner addScanCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("scan", "Scan a part on the cell: checks, the plan's sweeps, then the measured "
                                              "strain (default: the sample pan on the built-in virtual cell)");
   opt->cell.addTo(cmd);
-  cmd->add_option("--plan", opt->plan, "Scan plan (TOML); default: the part program's");
+  cmd->add_option("--plan", opt->plan,
+                  "Scan plan (TOML), the part's steps in its datum frame (placed on the cell's fixture); with "
+                  "--replay, the plan as the machine ran it; default: the part program's");
   cmd->add_option("--part", opt->part,
                   "Virtual cell without --program: its own part on the fixture (scanned as the program "
                   "sim-PART-GRID, or sim-PART-GRID-sample for its sample region)")

@@ -165,12 +165,13 @@ HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisi
 }
 
 SimulationTruth HostedVirtualCell::truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan) {
-  const sim::FormedPart& part = cell_->part();
+  // The truth keeps the part it was made of, whatever part the cell loads next.
+  const std::shared_ptr<const sim::FormedPart> part = cell_->sharedPart();
   const Eigen::Isometry3d machine_from_datum = sim::machineFromDatum(world);
-  SimulationTruth truth{sim::groundTruth(part, world.grid, machine_from_datum), cell_->truth().digitizer_latency_ns};
-  truth.thickness_strain_at = [&part, datum_from_machine = machine_from_datum.inverse()](const fitting::Vec3& point) {
+  SimulationTruth truth{sim::groundTruth(*part, world.grid, machine_from_datum), cell_->truth().digitizer_latency_ns};
+  truth.thickness_strain_at = [part, datum_from_machine = machine_from_datum.inverse()](const fitting::Vec3& point) {
     const fitting::Vec3 on_part = datum_from_machine * point;
-    return part.deformationAt(on_part.x(), on_part.y()).thickness_strain;
+    return part->deformationAt(on_part.x(), on_part.y()).thickness_strain;
   };
   const sim::ElementVisibility visibility = sim::visibleElements(world, plan, truth.elements);
   truth.visible = visibility.visibleOr();

@@ -173,6 +173,12 @@ VirtualCell::~VirtualCell() { stop(); }
 
 const FormedPart& VirtualCell::part() const { return scene_.load()->formed(); }
 
+std::shared_ptr<const FormedPart> VirtualCell::sharedPart() const {
+  std::shared_ptr<const WorldScene> scene = scene_.load();
+  const FormedPart* formed = &scene->formed();
+  return {std::move(scene), formed};
+}
+
 std::shared_ptr<const FormedPart> VirtualCell::loadPart(const ScanParams& part_world) {
   ScanParams world = options_.world;
   world.part = part_world.part;

@@ -139,9 +139,9 @@ struct CellGeometry {
 // "part") move with the datum: the head's reference point, and its angles turned with it. The other
 // scenes' steps (the calibration artefacts, already in the machine frame) and the park pose stay.
 // A turn of the datum about z is carried exactly (b turns with it). A tilted datum, or a turn an
-// indexing head cannot take (`index_step` > 0, rad), is matched by the nearest angles the head can
-// take, with the reference point moved so that the digitizer's mount point stays where the datum put
-// it (a two-axis head cannot roll about its own axis).
+// indexing head cannot follow exactly (`index_step` > 0, rad), is matched by the nearest angles the
+// head can take (the fan not rolled, the beam within the tilt), with the reference point moved so
+// that a sweep's digitizer mirror, or the point a view's cameras aim at, stays where the datum puts it.
 ScanPlan placeOnFixture(const ScanPlan& plan, const CellGeometry& cell, double index_step);
 // A part's nominal model where the cell's fixture holds it: its vertices in the machine frame, the
 // frame the scan's cloud and surface are in.

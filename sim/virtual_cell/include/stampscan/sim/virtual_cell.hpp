@@ -104,8 +104,9 @@ class VirtualCell {
   const VirtualCellOptions& options() const { return options_; }
   // What the station must find out by calibrating: tests compare with it.
   const CellTruth& truth() const { return truth_; }
-  // The part on the fixture (as loaded last).
+  // The part on the fixture (as loaded last); shared: alive as long as the pointer, whatever is loaded next.
   const FormedPart& part() const;
+  std::shared_ptr<const FormedPart> sharedPart() const;
   // Puts another part on the fixture, as an operator loads the next part: the digitizer and the
   // cameras see it from now on. Between scans. The part stays alive as long as the returned pointer.
   // `part_world` gives the part (its family, parameters and grid); the cell stays as it is.
