@@ -173,7 +173,7 @@ TEST(ScanPlan, EveryHeadPoseTurnsExactlyWithTheDatum) {
       StereoStep view;
       view.pose = {{10, -20, 300}, a_deg * std::numbers::pi / 180, b_deg * std::numbers::pi / 180};
       plan.steps.emplace_back(view);
-      const HeadPose& got = std::get<StereoStep>(placeOnFixture(plan, cell, 0).steps[0]).pose;
+      const HeadPose got = std::get<StereoStep>(placeOnFixture(plan, cell, 0).steps[0]).pose;
       const Eigen::Isometry3d want = machine_from_datum * trace::headPose(at(view.pose), view.pose.a, view.pose.b);
       const Eigen::Isometry3d placed = trace::headPose(at(got), got.a, got.b);
       EXPECT_LT((placed.linear() - want.linear()).norm(), 1e-9) << a_deg << ", " << b_deg;
