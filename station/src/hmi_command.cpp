@@ -5,7 +5,6 @@
 #include "stampscan/hmi/hmi_server.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
-#include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/calibrate_job.hpp"

@@ -7,7 +7,6 @@
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
-#include "stampscan/sim/visibility.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
