@@ -64,7 +64,7 @@ class EventReader {
 };
 
 TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
   auto page = client_->Get("/");
   ASSERT_TRUE(page);
   EXPECT_EQ(page->status, 200);
@@ -102,7 +102,7 @@ TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
 }
 
 TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
   EventReader events(station_->port());
   ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
   const std::string token = csrf();
@@ -176,7 +176,7 @@ TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
 // program's nominal model served as binary STL for the 3D view, and a scan of a program started with
 // its plan; a name that is not a program's is refused.
 TEST_F(HmiTest, ThePanelListsThePartProgramsShowsAModelAndScansOne) {
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
   const json list = body(client_->Get("/api/programs"));
   std::vector<std::string> names;
   for (const json& p : list["programs"]) names.push_back(p["name"]);
@@ -220,7 +220,7 @@ TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
   std::ofstream(run / "fld.png") << "not really a png";
   fs::create_symlink("/etc/passwd", run / "evil.png");
   std::ofstream(root_ / "secret.txt") << "TOP-SECRET-CONTENT";
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
   const std::string token = csrf();
 
   const auto expectError = [&](const httplib::Result& r, int status, const std::string& what) {
@@ -283,7 +283,7 @@ TEST_F(HmiTest, TheAnalysisViewsOfTwoRunsOfOneProgram) {
   writeSyntheticRun(root_ / "runs" / "20261125-080000-a", "a", "OP20", -0.05, 0);
   writeSyntheticRun(root_ / "runs" / "20261125-090000-b", "b", "OP20", -0.08, 0.3);
   writeSyntheticRun(root_ / "runs" / "20261125-100000-c", "c", "OP30", -0.05, 0);
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
 
   // The elements, with the measurement's major direction for the arrows.
   const json e = body(client_->Get("/api/runs/20261125-080000-a/elements"));
@@ -346,7 +346,7 @@ TEST_F(HmiTest, TheAnalysisViewsOfTwoRunsOfOneProgram) {
 }
 
 TEST_F(HmiTest, MaintenanceSettingsAreCheckedAppliedAndLogged) {
-  startPanel();
+  ASSERT_NO_FATAL_FAILURE(startPanel());
   const std::string token = csrf();
   // On loopback the local user has the maintenance role.
   const json before = body(client_->Get("/api/settings"));
@@ -392,7 +392,7 @@ TEST_F(HmiTest, SettingsGoIntoTheCellFileWhenThereIsOne) {
   const fs::path cell = root_ / "cell.toml";
   std::ofstream(cell) << "name = \"press line 4\"\n[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\n"
                          "right_address = \"127.0.0.4\"\n\n[calibration]  # the rules\nvalidity_days = 7   # a week\n";
-  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  ASSERT_NO_FATAL_FAILURE(startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()}));
   const json before = body(client_->Get("/api/settings"));
   EXPECT_TRUE(before["persisted"].get<bool>()) << before.dump();
   EXPECT_EQ(before["cell_file"], cell.string());
@@ -407,7 +407,7 @@ TEST_F(HmiTest, SettingsGoIntoTheCellFileWhenThereIsOne) {
       << "the actions log names the file changed";
   // A panel started again on that file starts with the new rules.
   station_->stop();
-  startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()});
+  ASSERT_NO_FATAL_FAILURE(startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()}));
   EXPECT_EQ(body(client_->Get("/api/settings"))["settings"]["validity_days"], 3);
 }
 

@@ -31,7 +31,7 @@ class HmiAuthTest : public HmiTest {
     std::ofstream(root_ / "users.toml") << "[[user]]\nname = \"olga\"\nrole = \"operator\"\npassword_hash = \"" << op
                                          << "\"\n\n[[user]]\nname = \"max\"\nrole = \"maintenance\"\npassword_hash = \""
                                          << mt << "\"\n";
-    startPanel({"--listen", "0.0.0.0:0", "--users", (root_ / "users.toml").string()});
+    ASSERT_NO_FATAL_FAILURE(startPanel({"--listen", "0.0.0.0:0", "--users", (root_ / "users.toml").string()}));
   }
   // Logs in; returns the CSRF token and keeps the session cookie for the next requests.
   std::string login(const std::string& user, const std::string& password, int expected = 200) {
@@ -56,7 +56,7 @@ TEST_F(HmiAuthTest, OffLoopbackAUsersFileIsRequired) {
 }
 
 TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRefused) {
-  startWithUsers();
+  ASSERT_NO_FATAL_FAILURE(startWithUsers());
   EXPECT_TRUE(body(client_->Get("/api/session"))["login_required"].get<bool>());
   // The page itself is public (it shows the login); the API is not.
   EXPECT_EQ(client_->Get("/")->status, 200);
