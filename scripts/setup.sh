@@ -13,7 +13,7 @@ packages=(build-essential cmake ninja-build pkg-config
           libcgal-demo nlohmann-json3-dev libusb-1.0-0-dev libumockdev-dev umockdev
           libtomlplusplus-dev libaravis-dev aravis-tools aravis-tools-cli iproute2 libcairo2-dev
           fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql
-          libcpp-httplib-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng
+          libcpp-httplib-dev libssl-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng nginx openssl
           libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev)
 missing=()
 for p in "${packages[@]}"; do
@@ -25,6 +25,12 @@ if [ ${#missing[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  # nginx is the panel's TLS front (station hmi --front-config); the tests run their own. Debian
+  # starts its default site on port 80 when installing it: stopped here, the integrator enables the
+  # front with its site file.
+  if [[ " ${missing[*]} " == *" nginx "* ]]; then
+    $sudo systemctl disable --now nginx >/dev/null 2>&1 || $sudo service nginx stop >/dev/null 2>&1 || true
+  fi
 fi
 
 # The MCAP interoperability test (tests/acquisition/test_mcap_interop.cpp) reads our traces with the

@@ -48,6 +48,7 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
       {"results", {"database"}},
       {"report", {"materials"}},
       {"programs", {"library"}},
+      {"hmi", {"listen", "users", "server_names", "tls_certificate", "tls_key", "https_port", "http_port"}},
   };
   return keys;
 }
@@ -91,6 +92,19 @@ class SectionReader {
     if (n == nullptr) return fallback;
     if (const auto v = n->value<std::string>()) return *v;
     fail(key, "has the wrong type: expected a string, found " + typeName(*n));
+  }
+  std::vector<std::string> texts(const char* key) const {
+    const toml::node* n = found(key);
+    if (n == nullptr) return {};
+    const toml::array* a = n->as_array();
+    if (a == nullptr) fail(key, "has the wrong type: expected a list of strings, found " + typeName(*n));
+    std::vector<std::string> out;
+    for (const toml::node& item : *a) {
+      const auto v = item.value<std::string>();
+      if (!v) fail(key, "must be a list of strings, not of " + typeName(item) + "s");
+      out.push_back(*v);
+    }
+    return out;
   }
   bool flag(const char* key, bool fallback) const {
     const toml::node* n = found(key);
@@ -173,6 +187,43 @@ SectionReader section(const toml::table& t, const std::string& name, const std::
 
 void checkPort(const SectionReader& s, int port) {
   if (port < 1 || port > 65535) s.fail("port", std::to_string(port) + " is not 1-65535");
+}
+
+// A path relative to the cell file is taken from its folder.
+std::string besideCellFile(const std::filesystem::path& folder, const std::string& path) {
+  return path.empty() || std::filesystem::path(path).is_absolute() ? path : (folder / path).string();
+}
+
+// A name the plant's network reaches the panel under: a host name or an IPv4 address (letters,
+// digits, dots, dashes), as it is written into the front's configuration.
+bool isServerName(const std::string& name) {
+  if (name.empty() || name.size() > 253 || name.front() == '.' || name.front() == '-') return false;
+  return std::all_of(name.begin(), name.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' || ch == '-';
+  });
+}
+
+// [hmi]: the operator's panel. The certificate and key paths go into the front's configuration
+// quoted: characters that would end the quote or start a variable there are refused.
+void readPanel(const SectionReader& s, const std::filesystem::path& folder, CellConfig::Panel& p) {
+  p.listen = s.text("listen", p.listen);
+  p.users_file = besideCellFile(folder, s.text("users", ""));
+  p.server_names = s.texts("server_names");
+  for (const std::string& name : p.server_names)
+    if (!isServerName(name))
+      s.fail("server_names", "'" + name + "' is not a host name or an IPv4 address (letters, digits, '.' and '-')");
+  p.tls_certificate = besideCellFile(folder, s.text("tls_certificate", ""));
+  p.tls_key = besideCellFile(folder, s.text("tls_key", ""));
+  for (const auto& [key, path] : {std::pair{"tls_certificate", p.tls_certificate}, std::pair{"tls_key", p.tls_key}})
+    if (path.find_first_of("\"$;{}'\\\n\r\t") != std::string::npos)
+      s.fail(key, "'" + path + "' holds a character a path here may not have (quotes, '$', ';', braces, '\\', control)");
+  if (p.tls_certificate.empty() != p.tls_key.empty())
+    s.fail(p.tls_key.empty() ? "tls_key" : "tls_certificate", "is missing: the TLS front needs both the certificate and its key");
+  if (p.behindTlsFront() && p.server_names.empty())
+    s.fail("server_names", "is missing: the TLS front serves the panel under the names listed there");
+  p.https_port = static_cast<int>(s.integer("https_port", p.https_port, 1, 65535));
+  p.http_port = static_cast<int>(s.integer("http_port", p.http_port, 1, 65535));
+  if (p.https_port == p.http_port) s.fail("http_port", "is the https_port: the two need their own ports");
 }
 
 // [plc.registers]: where the cell's PLC program puts each signal, by the signal's name in the register
@@ -364,7 +415,7 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   std::vector<std::string>* defaulted = &c.defaulted;
   for (const auto& [key, value] : t) {
     const std::string name(key.str());
-    if (name == "name" || knownKeys().count(name) != 0 || name == "hmi") continue;  // [hmi]: the panel's (hmi_command)
+    if (name == "name" || knownKeys().count(name) != 0) continue;
     throw std::runtime_error(file + ": [" + name + "] is not a section of a cell file");
   }
   if (const toml::node* n = t.get("name"); n != nullptr && !n->is_string())
@@ -430,6 +481,7 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   c.program_library = sectionNamed("programs").text("library", "");
   if (!c.program_library.empty() && std::filesystem::path(c.program_library).is_relative())
     c.program_library = (folder / c.program_library).string();
+  readPanel(sectionNamed("hmi"), folder, c.panel);
   std::sort(c.defaulted.begin(), c.defaulted.end());
   c.defaulted.erase(std::unique(c.defaulted.begin(), c.defaulted.end()), c.defaulted.end());
   return c;
@@ -644,6 +696,16 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("materials", c.materials_file);
   l.section("programs");
   l.text("library", c.program_library);
+  l.section("hmi");
+  l.text("listen", c.panel.listen);
+  l.text("users", c.panel.users_file);
+  std::string names;
+  for (const std::string& n : c.panel.server_names) names += (names.empty() ? "" : ", ") + CellListing::quoted(n);
+  l.value("server_names", "[" + names + "]");
+  l.text("tls_certificate", c.panel.tls_certificate);
+  l.text("tls_key", c.panel.tls_key);
+  l.integer("https_port", c.panel.https_port);
+  l.integer("http_port", c.panel.http_port);
   return l.str();
 }
 

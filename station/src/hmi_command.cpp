@@ -3,6 +3,7 @@
 // `station scan` does), prepares the scan and the verification the panel may start, and serves.
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
+#include "stampscan/hmi/tls_front.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
 #include "stampscan/station/commands.hpp"
@@ -12,8 +13,6 @@
 #include "program_library.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
-
-#include <toml++/toml.h>
 
 #include <atomic>
 #include <csignal>
@@ -118,7 +117,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
 struct HmiCommandOptions {
   CellChoice cell;
   std::string listen = "127.0.0.1:8080", users, runs = "stampscan-runs", calibration_dir, web, ready_file;
-  bool hash_password = false;
+  bool hash_password = false, front_config = false;
   std::uint64_t seed = 1;
 };
 
@@ -128,20 +127,6 @@ extern "C" void onHmiStop(int sig) { g_hmi_stop = sig; }
 // can be rehearsed (and tested) on the panel. The handler only records which; the watcher acts.
 std::atomic<int> g_virtual_door{0};
 extern "C" void onVirtualDoor(int sig) { g_virtual_door = sig; }
-
-// [hmi] users = "FILE" in the cell config, relative to the config's folder.
-std::string usersFromCellConfig(const std::string& cell_file) {
-  try {
-    const toml::table doc = toml::parse_file(cell_file);
-    if (const auto users = doc["hmi"]["users"].value<std::string>()) {
-      const std::filesystem::path p(*users);
-      return p.is_absolute() ? p.string() : (std::filesystem::path(cell_file).parent_path() / p).string();
-    }
-  } catch (const toml::parse_error&) {
-    // loadCellConfig has already named what is wrong with the file.
-  }
-  return "";
-}
 
 int hashPasswordFromStdin() {
   std::string password;
@@ -161,10 +146,11 @@ CommandRunner addHmiCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("hmi", "The operator's panel in the browser: cell view, scan, results, history, "
                                             "calibration (default: the built-in virtual cell on http://127.0.0.1:8080/)");
   opt->cell.addTo(cmd);
-  cmd->add_option("--listen", opt->listen, "HOST:PORT to serve on (port 0: any free one); any address but loopback "
-                                           "requires a login");
+  CLI::Option* listen = cmd->add_option("--listen", opt->listen, "HOST:PORT to serve on (port 0: any free one); any "
+                                                                "address but loopback requires a login; default: [hmi] "
+                                                                "listen in the cell file, or 127.0.0.1:8080");
   cmd->add_option("--users", opt->users, "Users file (TOML: [[user]] name, role, password_hash); default: [hmi] users "
-                                         "in the cell config");
+                                         "in the cell file");
   cmd->add_option("-o,--runs", opt->runs, "Folder of run folders and the results database");
   cmd->add_option("--calibration-dir", opt->calibration_dir, "The cell's calibration folder (default: RUNS/calibration)");
   cmd->add_option("--web", opt->web, "Serve the page from this folder instead of the built-in copy (development)");
@@ -173,14 +159,35 @@ CommandRunner addHmiCommand(CLI::App& app) {
   cmd->footer("On the built-in virtual cell, SIGUSR1 opens the cell door and SIGUSR2 closes it (to rehearse a fault).");
   cmd->add_flag("--hash-password", opt->hash_password,
                 "Read a password on standard input, print its hash for the users file, and exit");
-  return [opt]() {
+  cmd->add_flag("--front-config", opt->front_config,
+                "Print the site file of the panel's TLS front (Debian's nginx) for the cell file's [hmi] section, "
+                "and exit");
+  return [opt, listen]() {
     if (opt->hash_password) return hashPasswordFromStdin();
     const bool virtual_cell = opt->cell.hosted();
     acquisition::CellConfig config = opt->cell.load();
+    const acquisition::CellConfig::Panel& panel = config.panel;
     hmi::HmiOptions options;
-    options.listen = opt->listen;
-    options.users_file = !opt->users.empty() ? opt->users : opt->cell.file.empty() ? "" : usersFromCellConfig(opt->cell.file);
+    options.listen = listen->count() > 0 ? opt->listen : panel.listen;
+    options.users_file = !opt->users.empty() ? opt->users : panel.users_file;
     options.web_dir = opt->web;
+    options.server_names = panel.server_names;
+    options.behind_tls_front = panel.behindTlsFront();
+    if (opt->front_config) {
+      if (!panel.behindTlsFront())
+        throw std::runtime_error(config.source + ": [hmi] has no tls_certificate and tls_key: the panel has no TLS "
+                                                 "front to configure");
+      hmi::TlsFront front;
+      front.cell_name = config.name;
+      front.upstream = options.listen;
+      front.server_names = panel.server_names;
+      front.certificate = fs::absolute(panel.tls_certificate).string();
+      front.key = fs::absolute(panel.tls_key).string();
+      front.https_port = panel.https_port;
+      front.http_port = panel.http_port;
+      std::fputs(hmi::nginxSite(front).c_str(), stdout);
+      return 0;
+    }
     // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
     hmi::HmiServer::checkOptions(options);
 
@@ -248,7 +255,14 @@ CommandRunner addHmiCommand(CLI::App& app) {
     hmi::HmiServer server(std::move(setup), options);
     server.bind();
     std::printf("station hmi: %s%s on %s%s\n", config.name.c_str(), hosted ? " (hosted in this process)" : "",
-                server.url().c_str(), server.loginRequired() ? " (login required)" : "");
+                server.url().c_str(),
+                options.behind_tls_front ? " (login required; served through its TLS front)"
+                : server.loginRequired() ? " (login required)"
+                                         : "");
+    if (server.loginRequired() && !options.behind_tls_front)
+      std::fprintf(stderr, "station hmi: warning: served off loopback without TLS: passwords and session cookies travel "
+                           "in clear text; serve it through its TLS front ([hmi] tls_certificate and tls_key in the "
+                           "cell file, `station hmi --front-config`)\n");
     std::fflush(stdout);
     if (!opt->ready_file.empty()) std::ofstream(opt->ready_file) << server.url() << '\n';
 

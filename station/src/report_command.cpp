@@ -43,8 +43,14 @@ CommandRunner addReportCommand(CLI::App& app) {
                   "The cell file: its [report] materials are added to the built-in ones, and the run is recorded in "
                   "its [results] database");
   return [opt]() {
-    const acquisition::CellConfig cell = opt->cell.empty() ? acquisition::CellConfig{} : acquisition::loadCellConfig(opt->cell);
-    const report::MaterialLibrary materials = report::materialsWith(cell.materials_file);
+    // What the report takes of the cell file: the plant's materials and the results database.
+    std::string materials_file, results_database;
+    if (!opt->cell.empty()) {
+      const acquisition::CellConfig cell = acquisition::loadCellConfig(opt->cell);
+      materials_file = cell.materials_file;
+      results_database = cell.results_database;
+    }
+    const report::MaterialLibrary materials = report::materialsWith(materials_file);
     if (opt->list_materials) {
       printMaterials(materials);
       return 0;
@@ -75,9 +81,9 @@ CommandRunner addReportCommand(CLI::App& app) {
     std::printf("  verdict     %s: %s\n", report::toString(s.verdict), s.verdict_reason.c_str());
     std::printf("  time        %.2f s (images, PDF and HTML %.2f s)\n", s.seconds, s.drawing_seconds);
     // In the cell's results database, else in the results.sqlite of the runs folder that holds the run.
-    const results::RunRecord recorded = cell.results_database.empty()
+    const results::RunRecord recorded = results_database.empty()
                                             ? results::recordRunInResults(s.run_dir)
-                                            : results::recordRunInResults(s.run_dir, cell.results_database);
+                                            : results::recordRunInResults(s.run_dir, results_database);
     std::printf("  recorded    %s\n", recorded.run_id.c_str());
     return 0;
   };

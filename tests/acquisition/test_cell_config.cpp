@@ -43,9 +43,13 @@ class CellFileTest : public ::testing::Test {
 TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   const CellConfig a = virtualCell();
   CellConfig b = loadCellConfig(kSecondCell);
-  // Only the optional places are left out (the calibration folder, the database, the materials).
-  EXPECT_EQ(b.defaulted, (std::vector<std::string>{"[calibration] dir", "[programs] library", "[report] materials",
-                                                   "[results] database"}));
+  // Only the optional places are left out (the calibration folder, the database, the materials, the
+  // panel's users and TLS front).
+  EXPECT_EQ(b.defaulted, (std::vector<std::string>{"[calibration] dir", "[hmi] http_port", "[hmi] https_port",
+                                                   "[hmi] tls_certificate", "[hmi] tls_key", "[hmi] users",
+                                                   "[programs] library", "[report] materials", "[results] database"}));
+  EXPECT_NE(b.panel.listen, a.panel.listen);
+  EXPECT_EQ(b.panel.server_names, std::vector<std::string>{"cell-b.plant.example"});
   EXPECT_NE(b.name, a.name);
   EXPECT_EQ(b.cmm.port, 11294);
   EXPECT_EQ(b.plc.port, 11502);
@@ -132,6 +136,30 @@ TEST_F(CellFileTest, PlcSignalsLeftOutKeepTheirStandardAddresses) {
   EXPECT_EQ(loadCellConfig(write("plain.toml", "[plc]\nport = 1503\n")).plc_registers, RegisterMap::standard());
 }
 
+// [hmi]: the panel's address, its users, its names and its TLS front, paths beside the cell file.
+TEST_F(CellFileTest, ThePanelsSectionIsReadWithItsPathsBesideTheFile) {
+  const CellConfig defaults = loadCellConfig(write("cell.toml", "name = \"c\"\n"));
+  EXPECT_EQ(defaults.panel.listen, "127.0.0.1:8080");
+  EXPECT_FALSE(defaults.panel.behindTlsFront());
+  const CellConfig c = loadCellConfig(write("cell.toml", "[hmi]\nlisten = \"127.0.0.1:9000\"\nusers = \"users.toml\"\n"
+                                                        "server_names = [\"cell7.plant.example\", \"10.1.2.3\"]\n"
+                                                        "tls_certificate = \"tls/c.crt\"\ntls_key = \"/etc/c.key\"\n"
+                                                        "https_port = 8443\nhttp_port = 8081\n"));
+  EXPECT_EQ(c.panel.listen, "127.0.0.1:9000");
+  EXPECT_EQ(c.panel.users_file, (dir_ / "users.toml").string());
+  EXPECT_EQ(c.panel.server_names, (std::vector<std::string>{"cell7.plant.example", "10.1.2.3"}));
+  EXPECT_EQ(c.panel.tls_certificate, (dir_ / "tls/c.crt").string());
+  EXPECT_EQ(c.panel.tls_key, "/etc/c.key");
+  EXPECT_EQ(c.panel.https_port, 8443);
+  EXPECT_EQ(c.panel.http_port, 8081);
+  EXPECT_TRUE(c.panel.behindTlsFront());
+  // The listing reads back to the same panel.
+  const CellConfig again = loadCellConfig(write("again.toml", describeCellConfig(c)));
+  EXPECT_EQ(again.panel.server_names, c.panel.server_names);
+  EXPECT_EQ(again.panel.tls_certificate, c.panel.tls_certificate);
+  EXPECT_EQ(again.panel.https_port, 8443);
+}
+
 TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
   const std::vector<std::pair<std::string, std::string>> cases{
       {"[digitizer]\nstandoff_mm = \"100 mm\"\n", "[digitizer] standoff_mm must be a positive number"},
@@ -165,6 +193,14 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
        "[plc.registers] clamp_request and motion_enable are both coil 30"},
       {"[plc.registers]\nfault_word = 200\n",
        "[plc.registers] input-register addresses from plc_heartbeat (0) to fault_word (200) span 201, more than the 100"},
+      {"[hmi]\nserver_names = \"cell7\"\n", "[hmi] server_names has the wrong type: expected a list of strings"},
+      {"[hmi]\nserver_names = [\"cell7; return 200\"]\n", "[hmi] server_names 'cell7; return 200' is not a host name"},
+      {"[hmi]\nserver_names = [\"cell7\"]\ntls_key = \"cell7.key\"\n", "[hmi] tls_certificate is missing"},
+      {"[hmi]\ntls_certificate = \"c.crt\"\ntls_key = \"c.key\"\n", "[hmi] server_names is missing"},
+      {"[hmi]\nserver_names = [\"a\"]\ntls_certificate = \"c\\\"x.crt\"\ntls_key = \"c.key\"\n",
+       "[hmi] tls_certificate '"},
+      {"[hmi]\nhttps_port = 8443\nhttp_port = 8443\n", "[hmi] http_port is the https_port"},
+      {"[hmi]\nlistn = \"127.0.0.1:8080\"\n", "[hmi] listn is not a key of this section"},
       {"[camera]\nwidth = 10\n", "[camera] is not a section of a cell file"},
       {"name = 3\n", "name has the wrong type"},
       {"[digitizer\n", "cell.toml:1:"},

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -30,6 +31,23 @@ using nlohmann::json;
 inline std::string readText(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// What a shell command prints on its standard output.
+inline std::string outputOf(const std::string& command) {
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string out;
+  char buffer[4096];
+  while (pipe != nullptr && fgets(buffer, sizeof buffer, pipe) != nullptr) out += buffer;
+  if (pipe != nullptr) pclose(pipe);
+  return out;
+}
+
+// The password's hash as `station hmi --hash-password` prints it.
+inline std::string hashOf(const std::string& password) {
+  std::string out = outputOf("echo " + password + " | " STATION_EXE " hmi --hash-password");
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
 }
 
 // Runs `station hmi ARGS --ready-file ... -o ROOT/runs` until destroyed.

@@ -254,9 +254,11 @@ TEST_F(HmiTest, BadInputGetsAClearJsonErrorNeverAFile) {
   expectError(client_->Get("/api/runs?last=many"), 400, "a count that is no number");
 
   // DNS rebinding: a name other than loopback's is refused by the loopback panel.
-  expectError(client_->Get("/api/cell", {{"Host", "evil.example:8080"}}), 403, "a Host that is not loopback");
-  expectError(client_->Get("/api/session", {{"Host", "127.0.0.1.evil.example:8080"}}), 403,
+  expectError(client_->Get("/api/cell", {{"Host", "evil.example:8080"}}), 421, "a Host that is not loopback");
+  expectError(client_->Get("/api/session", {{"Host", "127.0.0.1.evil.example:8080"}}), 421,
               "a name that only starts like a loopback address");
+  expectError(client_->Get("/", {{"Host", "evil.example"}}), 421, "the page under another name");
+  EXPECT_EQ(client_->Get("/api/session", {{"Host", "LOCALHOST:8080"}})->status, 200) << "names are not case-sensitive";
   // A body without a declared length (chunked: as much as the sender likes) is refused unread.
   // (A small one here: the client would take a signal writing on after the refusal.)
   auto chunked = client_->Post(

@@ -11,18 +11,6 @@
 namespace stampscan::hmi::test {
 namespace {
 
-// The password's hash as `station hmi --hash-password` prints it.
-std::string hashOf(const std::string& password) {
-  const std::string command = "echo " + password + " | " STATION_EXE " hmi --hash-password";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string out;
-  char buffer[256];
-  while (pipe != nullptr && fgets(buffer, sizeof buffer, pipe) != nullptr) out += buffer;
-  if (pipe != nullptr) pclose(pipe);
-  while (!out.empty() && out.back() == '\n') out.pop_back();
-  return out;
-}
-
 class HmiAuthTest : public HmiTest {
  protected:
   void startWithUsers() {
@@ -62,6 +50,10 @@ TEST_F(HmiAuthTest, UnauthenticatedAndOperatorRequestsToMaintenanceActionsAreRef
   EXPECT_EQ(client_->Get("/")->status, 200);
   EXPECT_EQ(client_->Get("/api/cell")->status, 401);
   EXPECT_EQ(client_->Get("/api/runs")->status, 401);
+  // Served under the plant's address: an address literal is no rebinding, a name it is not served
+  // under is refused before any token is handed out.
+  EXPECT_EQ(client_->Get("/", {{"Host", "192.0.2.7:8080"}})->status, 200);
+  EXPECT_EQ(client_->Get("/api/session", {{"Host", "evil.example:8080"}})->status, 421);
   EXPECT_EQ(post("/api/verify", "{}", "")->status, 401);
   EXPECT_EQ(post("/api/calibrate", "{}", "")->status, 401);
   EXPECT_EQ(post("/api/scan/start", R"({"part_id": "x"})", "")->status, 401);

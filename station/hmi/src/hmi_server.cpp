@@ -6,7 +6,10 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "web_assets.hpp"
 
+#include <arpa/inet.h>
+
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 
 namespace stampscan::hmi {
@@ -64,12 +67,38 @@ bool listensOnLoopbackOnly(const std::vector<std::string>& addresses) {
   return std::all_of(addresses.begin(), addresses.end(), [](const std::string& a) { return isLoopbackHost(a); });
 }
 
+// Behind the TLS front the panel listens on loopback only (the front is the way in) and every user
+// logs in; anywhere but loopback, too.
+bool loginRequiredFor(const HmiOptions& o, bool loopback_only) {
+  if (o.behind_tls_front && !loopback_only)
+    throw std::runtime_error("behind its TLS front the panel listens on a loopback address, not " + o.listen +
+                             " (the cell file's [hmi] listen)");
+  return o.behind_tls_front || !loopback_only;
+}
+
 std::vector<User> usersFor(const HmiOptions& o, bool login_required) {
   if (!login_required) return {};
   if (o.users_file.empty())
-    throw std::runtime_error("listening on " + o.listen + " (not loopback) needs a login: give a users file with "
-                             "--users (see `station hmi --help`)");
+    throw std::runtime_error(std::string(o.behind_tls_front ? "behind its TLS front" : "listening on " + o.listen + " (not loopback)") +
+                             " the panel needs a login: give a users file with --users or as [hmi] users in the cell "
+                             "file (see `station hmi --help`)");
   return loadUsers(o.users_file);
+}
+
+// The name of a Host header, without its port; lower case (names are compared so).
+std::string hostName(const std::string& host) {
+  std::string name = host.empty() ? host
+                     : host.front() == '[' ? host.substr(0, host.find(']') + 1)
+                                           : host.substr(0, std::min(host.rfind(':'), host.size()));
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  return name;
+}
+
+bool isAddressLiteral(const std::string& name) {
+  in_addr v4{};
+  in6_addr v6{};
+  const std::string bare = name.size() > 2 && name.front() == '[' ? name.substr(1, name.size() - 2) : name;
+  return inet_pton(AF_INET, bare.c_str(), &v4) == 1 || inet_pton(AF_INET6, bare.c_str(), &v6) == 1;
 }
 
 }  // namespace
@@ -92,24 +121,42 @@ HmiServer::Impl::Impl(CellSetup setup, HmiOptions o)
       bind_address(resolveListenAddress(host).front()),
       loopback_only(listensOnLoopbackOnly(resolveListenAddress(host))),
       port(parseListen(options.listen).second),
-      auth(!loopback_only, usersFor(options, !loopback_only), options.session_idle_timeout),
+      auth(loginRequiredFor(options, loopback_only), usersFor(options, loginRequiredFor(options, loopback_only)),
+           options.session_idle_timeout),
       jobs(std::move(setup), hub) {
   if (options.actions_log.empty()) options.actions_log = runsDir() / "hmi-actions.jsonl";
 }
 
 void HmiServer::checkOptions(const HmiOptions& options) {
   const std::string host = parseListen(options.listen).first;
-  usersFor(options, !listensOnLoopbackOnly(resolveListenAddress(host)));
+  usersFor(options, loginRequiredFor(options, listensOnLoopbackOnly(resolveListenAddress(host))));
 }
 
 std::optional<Session> HmiServer::Impl::sessionOf(const httplib::Request& req) {
   return auth.session(cookieValue(req, kSessionCookie));
 }
 
+bool HmiServer::Impl::viaTlsFront(const httplib::Request& req) const {
+  return options.behind_tls_front && isLoopbackHost(req.remote_addr) && req.has_header("X-Forwarded-For");
+}
+
+std::string HmiServer::Impl::clientAddress(const httplib::Request& req) const {
+  return viaTlsFront(req) ? req.get_header_value("X-Forwarded-For") : req.remote_addr;
+}
+
+bool HmiServer::Impl::servesName(const std::string& name) const {
+  if (isLoopbackHost(name)) return true;
+  if (!auth.loginRequired()) return false;
+  return isAddressLiteral(name) || std::any_of(options.server_names.begin(), options.server_names.end(), [&](std::string n) {
+           std::transform(n.begin(), n.end(), n.begin(), [](unsigned char ch) { return std::tolower(ch); });
+           return n == name;
+         });
+}
+
 void HmiServer::Impl::recordAction(const Session& who, const std::string& action, const json& detail,
                                    const httplib::Request& req) {
   const json line = {{"time", registration::utcNow()}, {"user", who.user}, {"role", toString(who.role)},
-                     {"action", action}, {"from", req.remote_addr}, {"detail", detail}};
+                     {"action", action}, {"from", clientAddress(req)}, {"detail", detail}};
   std::lock_guard lock(actions_mutex);
   std::error_code ec;
   fs::create_directories(options.actions_log.parent_path().empty() ? fs::path(".") : options.actions_log.parent_path(), ec);
@@ -157,20 +204,20 @@ httplib::Server::HandlerResponse gate(HmiServer::Impl& impl, const httplib::Requ
     sendError(res, 411, "refused: a request body needs a Content-Length (chunked bodies are not taken)");
     return R::Handled;
   }
-  if (req.path.rfind("/api/", 0) != 0) return R::Unhandled;
-  // Without a login, a page of another site could reach the loopback panel through a DNS name that
-  // resolves to 127.0.0.1 (DNS rebinding) and then be "same origin": only loopback names are served.
-  if (!impl.auth.loginRequired()) {
-    std::string host = req.get_header_value("Host");
-    host = host.empty() ? host : host.front() == '[' ? host.substr(0, host.find(']') + 1) : host.substr(0, host.rfind(':'));
-    if (!isLoopbackHost(host)) {
-      sendError(res, 403, "refused: this panel answers on its loopback address only (Host '" + host + "')");
-      return R::Handled;
-    }
+  // A page of another site could reach the panel through a DNS name of its own that resolves here
+  // (DNS rebinding) and then be "same origin": only the names the panel is served under are answered.
+  if (const std::string host = hostName(req.get_header_value("Host")); !impl.servesName(host)) {
+    sendError(res, 421,
+              "refused: this panel is not served under the name '" + host + "'" +
+                  (impl.auth.loginRequired() ? " (the cell file's [hmi] server_names lists its names)"
+                                             : " (without a login it answers on its loopback address only)"));
+    return R::Handled;
   }
+  if (req.path.rfind("/api/", 0) != 0) return R::Unhandled;
   if (isStateChanging(req)) {
     const std::string origin = req.get_header_value("Origin");
-    if (!origin.empty() && origin != "http://" + req.get_header_value("Host")) {
+    const std::string scheme = impl.viaTlsFront(req) && req.get_header_value("X-Forwarded-Proto") == "https" ? "https://" : "http://";
+    if (!origin.empty() && origin != scheme + req.get_header_value("Host")) {
       sendError(res, 403, "refused: the request comes from another site (" + origin + ")");
       return R::Handled;
     }
@@ -219,7 +266,8 @@ void addSessionRoutes(HmiServer::Impl& impl) {
                            std::to_string(Authenticator::kLockout.count()) + " minutes");
     }
     impl.recordAction(*s, "login", json::object(), req);
-    res.set_header("Set-Cookie", std::string(kSessionCookie) + "=" + s->token + "; Path=/; HttpOnly; SameSite=Strict");
+    res.set_header("Set-Cookie", std::string(kSessionCookie) + "=" + s->token + "; Path=/; HttpOnly; SameSite=Strict" +
+                                     (impl.options.behind_tls_front ? "; Secure" : ""));
     sendJson(res, {{"user", s->user}, {"role", toString(s->role)}, {"csrf", s->csrf}});
   });
   impl.server.Post("/api/logout", [&impl](const httplib::Request& req, httplib::Response& res) {
@@ -227,7 +275,8 @@ void addSessionRoutes(HmiServer::Impl& impl) {
       impl.recordAction(*s, "logout", json::object(), req);
       impl.auth.logout(s->token);
     }
-    res.set_header("Set-Cookie", std::string(kSessionCookie) + "=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict");
+    res.set_header("Set-Cookie", std::string(kSessionCookie) + "=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict" +
+                                     (impl.options.behind_tls_front ? "; Secure" : ""));
     sendJson(res, {{"logged_out", true}});
   });
 }

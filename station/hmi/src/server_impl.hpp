@@ -32,6 +32,12 @@ struct HmiServer::Impl {
   std::mutex actions_mutex;
   std::mutex settings_mutex;  // one change of the cell's settings (and its file) at a time
 
+  // Whether the request came through the TLS front (from a loopback peer, with the front's headers).
+  bool viaTlsFront(const httplib::Request& req) const;
+  // Who sent the request: the front's client when it came through the front.
+  std::string clientAddress(const httplib::Request& req) const;
+  // Whether the panel answers requests for this Host name (hmi_server.hpp, HmiOptions::server_names).
+  bool servesName(const std::string& host_name) const;
   // The session of a request (its cookie), or nothing.
   std::optional<Session> sessionOf(const httplib::Request& req);
   // Appends to the actions log: who, what, the details.

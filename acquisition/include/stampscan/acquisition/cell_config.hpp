@@ -90,6 +90,21 @@ struct CellConfig {
   // The cell's program library ([programs] library): a folder of part programs (part_program.hpp),
   // one folder each. A path relative to the cell file is taken from its folder. Empty: none given.
   std::string program_library;
+  // The operator's panel ([hmi]): where `station hmi` listens, who may log in, and the TLS front
+  // (Debian's nginx, configured by `station hmi --front-config`) that serves it on the plant's network.
+  struct Panel {
+    std::string listen = "127.0.0.1:8080";  // HOST:PORT of the panel itself
+    std::string users_file;                 // [hmi] users; relative to the cell file's folder
+    // The names the plant's network reaches the panel under (besides loopback): any other Host is
+    // refused, so that a web page cannot reach the panel through a name of its own (DNS rebinding).
+    std::vector<std::string> server_names;
+    // The front's certificate and key (PEM); set, the panel is served through its TLS front: it
+    // listens on loopback behind it and every user logs in.
+    std::string tls_certificate, tls_key;
+    int https_port = 443, http_port = 80;  // the front's; plain HTTP is redirected to HTTPS
+    bool behindTlsFront() const { return !tls_certificate.empty(); }
+  };
+  Panel panel;
   // The keys the file left out, which took their default ("[digitizer] latency_ms"), for
   // `station cell check`; empty for the built-in cell.
   std::vector<std::string> defaulted;

@@ -3,8 +3,9 @@
 // API of API.md, with live updates as Server-Sent Events. It is a client of the CLI's own jobs
 // (cell_jobs.hpp), results database and calibration store: no workflow lives here.
 //
-// Security (auth.hpp): on a loopback address there is no login; on any other, a users file is
-// required and every API call but the login needs a session. Every state-changing request must
+// Security (auth.hpp): on a loopback address there is no login; on any other, or behind the TLS
+// front, a users file is required and every API call but the login needs a session. Only the
+// names it is served under are answered (HmiOptions::server_names). Every state-changing request must
 // carry the session's CSRF token and, when the browser sends an Origin, come from this server's
 // own origin. Every action is appended to the actions log with who did it.
 //
@@ -17,6 +18,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace stampscan::hmi {
 
@@ -31,6 +33,15 @@ struct HmiOptions {
   std::filesystem::path web_dir;
   // Debian's packaged JavaScript, served under /lib/.
   std::filesystem::path javascript_dir = "/usr/share/javascript";
+  // The names the plant's network reaches the panel under, besides loopback ones. A request for any
+  // other Host is refused (421) before anything is handed out: a page of another site cannot drive
+  // the panel through a name of its own that resolves here (DNS rebinding). Without a login only
+  // loopback names are served; with one, also any IP address literal.
+  std::vector<std::string> server_names;
+  // Served through its TLS front (tls_front.hpp): the panel listens on loopback, every user logs in,
+  // its cookies are Secure, and the front's X-Forwarded-Proto and X-Forwarded-For are believed
+  // from a loopback peer.
+  bool behind_tls_front = false;
 };
 
 class HmiServer {
