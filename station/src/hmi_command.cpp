@@ -117,7 +117,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
 struct HmiCommandOptions {
   CellChoice cell;
   std::string listen = "127.0.0.1:8080", users, runs = "stampscan-runs", calibration_dir, web, ready_file;
-  bool hash_password = false, front_config = false;
+  bool hash_password = false, front_config = false, allow_plain_http = false;
   std::uint64_t seed = 1;
 };
 
@@ -159,6 +159,8 @@ CommandRunner addHmiCommand(CLI::App& app) {
   cmd->footer("On the built-in virtual cell, SIGUSR1 opens the cell door and SIGUSR2 closes it (to rehearse a fault).");
   cmd->add_flag("--hash-password", opt->hash_password,
                 "Read a password on standard input, print its hash for the users file, and exit");
+  cmd->add_flag("--allow-plain-http", opt->allow_plain_http,
+                "Serve off loopback without the TLS front, passwords in clear text (a closed test bench only)");
   cmd->add_flag("--front-config", opt->front_config,
                 "Print the site file of the panel's TLS front (Debian's nginx) for the cell file's [hmi] section, "
                 "and exit");
@@ -173,6 +175,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
     options.web_dir = opt->web;
     options.server_names = panel.server_names;
     options.behind_tls_front = panel.behindTlsFront();
+    options.allow_plain_http = opt->allow_plain_http;
     if (opt->front_config) {
       if (!panel.behindTlsFront())
         throw std::runtime_error(config.source + ": [hmi] has no tls_certificate and tls_key: the panel has no TLS "
@@ -260,9 +263,8 @@ CommandRunner addHmiCommand(CLI::App& app) {
                 : server.loginRequired() ? " (login required)"
                                          : "");
     if (server.loginRequired() && !options.behind_tls_front)
-      std::fprintf(stderr, "station hmi: warning: served off loopback without TLS: passwords and session cookies travel "
-                           "in clear text; serve it through its TLS front ([hmi] tls_certificate and tls_key in the "
-                           "cell file, `station hmi --front-config`)\n");
+      std::fprintf(stderr, "station hmi: warning: served off loopback without TLS (--allow-plain-http): passwords and "
+                           "session cookies travel in clear text\n");
     std::fflush(stdout);
     if (!opt->ready_file.empty()) std::ofstream(opt->ready_file) << server.url() << '\n';
 

@@ -59,6 +59,7 @@ class StationHmi {
     args.insert(args.begin(), {STATION_EXE, "hmi"});
     for (const char* a : {"--ready-file", ready_.c_str(), "-o"}) args.emplace_back(a);
     args.push_back((root / "runs").string());
+    std::fflush(nullptr);  // what this process has buffered is written once, not again by the child
     pid_ = fork();
     if (pid_ == 0) {
       std::vector<char*> argv;
@@ -99,6 +100,7 @@ class StationHmi {
   }
   std::string log() const { return readText(root_ / "station.log"); }
   int port() const { return port_; }
+  pid_t pid() const { return pid_; }
   int exit_code = -1;
 
  private:

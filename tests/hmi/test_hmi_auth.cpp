@@ -19,7 +19,8 @@ class HmiAuthTest : public HmiTest {
     std::ofstream(root_ / "users.toml") << "[[user]]\nname = \"olga\"\nrole = \"operator\"\npassword_hash = \"" << op
                                          << "\"\n\n[[user]]\nname = \"max\"\nrole = \"maintenance\"\npassword_hash = \""
                                          << mt << "\"\n";
-    ASSERT_NO_FATAL_FAILURE(startPanel({"--listen", "0.0.0.0:0", "--users", (root_ / "users.toml").string()}));
+    ASSERT_NO_FATAL_FAILURE(
+        startPanel({"--listen", "0.0.0.0:0", "--allow-plain-http", "--users", (root_ / "users.toml").string()}));
   }
   // Logs in; returns the CSRF token and keeps the session cookie for the next requests.
   std::string login(const std::string& user, const std::string& password, int expected = 200) {
@@ -37,7 +38,14 @@ class HmiAuthTest : public HmiTest {
 };
 
 TEST_F(HmiAuthTest, OffLoopbackAUsersFileIsRequired) {
+  // Off loopback the panel is served through its TLS front, or in clear text only when asked for.
   station_ = std::make_unique<StationHmi>(root_, std::vector<std::string>{"--listen", "0.0.0.0:0"});
+  EXPECT_EQ(station_->waitReady(), 0);
+  EXPECT_EQ(station_->exit_code, 1);
+  EXPECT_NE(station_->log().find("clear text"), std::string::npos) << station_->log();
+  EXPECT_NE(station_->log().find("--front-config"), std::string::npos) << station_->log();
+  // And with a login, whose users the panel must know.
+  station_ = std::make_unique<StationHmi>(root_, std::vector<std::string>{"--listen", "0.0.0.0:0", "--allow-plain-http"});
   EXPECT_EQ(station_->waitReady(), 0);
   EXPECT_EQ(station_->exit_code, 1);
   EXPECT_NE(station_->log().find("needs a login"), std::string::npos) << station_->log();

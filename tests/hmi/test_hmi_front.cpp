@@ -8,10 +8,13 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <sched.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
+#include <future>
 
 namespace stampscan::hmi::test {
 namespace {
@@ -40,6 +43,37 @@ bool accepts(int port) {
   const bool ok = connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
   close(fd);
   return ok;
+}
+
+// A TCP connection to 127.0.0.1:port; -1 when refused.
+int connectTcp(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// A process's resident memory in MB (its VmRSS), 0 when it is gone.
+double residentMb(pid_t pid) {
+  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+
+// Moves this process (and what it starts) into a network namespace of its own with lo up, so that
+// the probes' hundreds of connections meet no other test (root only; ctest runs each test case in a
+// process of its own).
+bool enterPrivateNetwork() {
+  if (::geteuid() != 0 || ::unshare(CLONE_NEWNET) != 0) return false;
+  return std::system("ip link set lo up >/dev/null 2>&1") == 0;
 }
 
 std::string found(const char* program) {
@@ -107,6 +141,7 @@ class HmiFrontTest : public HmiTest {
       conf << "  " << temp << "_temp_path " << (dir / temp).string() << ";\n";
     conf << "  include " << (dir / "site.conf").string() << ";\n}\n";
     conf.close();
+    std::fflush(nullptr);
     nginx_pid_ = fork();
     if (nginx_pid_ == 0) {
       const std::string log = (dir / "stderr.log").string();
@@ -224,6 +259,111 @@ TEST_F(HmiFrontTest, ThePanelIsServedOverTlsWithItsLimitsOnlyUnderItsNames) {
   EXPECT_EQ(front->Get("/")->status, 200);
   // The actions are recorded with the client's address, as the front saw it.
   EXPECT_NE(readText(root_ / "runs" / "hmi-actions.jsonl").find(R"("from":"127.0.0.1")"), std::string::npos);
+}
+
+// The panel probed through its front as an attacker on the plant's network would: names that are
+// not the panel's, slow and idle connections by the hundred, chunked floods and login floods. All
+// the while a normal client is answered within a second, and the panel's memory stays bounded.
+TEST_F(HmiFrontTest, UnderHostileClientsTheFrontKeepsAnsweringAndThePanelStaysSmall) {
+  const bool private_network = enterPrivateNetwork();
+  std::printf("[ probe    ] %s\n", private_network ? "in a private network namespace"
+                                                   : "on this machine's loopback (no private network namespace)");
+  ASSERT_NO_FATAL_FAILURE(writeCell());
+  ASSERT_NO_FATAL_FAILURE(startPanel({"--cell", (root_ / "cell.toml").string()}));
+  ASSERT_NO_FATAL_FAILURE(startFront());
+  auto normal = frontClient();
+  ASSERT_TRUE(normal->Get("/api/session"));
+  const double panel_mb_before = residentMb(station_->pid());
+  double slowest = 0, panel_mb_peak = panel_mb_before;
+  // A normal client's request through the front, timed; the panel's memory sampled with it.
+  const auto normalRequest = [&](const std::string& during) {
+    const auto start = std::chrono::steady_clock::now();
+    auto r = normal->Get("/api/session");
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_TRUE(r && r->status == 200) << "during " << during;
+    slowest = std::max(slowest, seconds);
+    panel_mb_peak = std::max(panel_mb_peak, residentMb(station_->pid()));
+    EXPECT_LT(seconds, 1.0) << "during " << during;
+  };
+
+  // Names that are not the panel's: refused by the front, and by the panel.
+  for (const std::string name : {"evil.example", "127.0.0.1.evil.example", "cell.test.evil.example", "localhost"}) {
+    auto r = frontClient()->Get("/api/session", {{"Host", name}});
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 421) << name;
+  }
+  normalRequest("names");
+
+  // 200 idle connections (no TLS hello) and 60 slow ones (a header line a second on plain HTTP).
+  std::vector<int> held;
+  for (int i = 0; i < 200; ++i) held.push_back(connectTcp(https_port_));
+  std::vector<int> slow;
+  for (int i = 0; i < 60; ++i) {
+    const int fd = connectTcp(http_port_);
+    const std::string head = "GET / HTTP/1.1\r\nHost: cell.test\r\n";
+    if (fd >= 0) (void)!::write(fd, head.data(), head.size());
+    slow.push_back(fd);
+  }
+  EXPECT_EQ(std::count(held.begin(), held.end(), -1) + std::count(slow.begin(), slow.end(), -1), 0);
+  for (int second = 0; second < 4; ++second) {
+    for (int fd : slow) (void)!::send(fd, "X-a: b\r\n", 8, MSG_NOSIGNAL);
+    normalRequest("260 idle and slow connections");
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+
+  // Chunked floods: three senders of 32 MiB each at once.
+  std::vector<std::future<int>> floods;
+  for (int i = 0; i < 3; ++i)
+    floods.push_back(std::async(std::launch::async, [this] {
+      auto c = frontClient();
+      std::size_t sent = 0;
+      auto r = c->Post("/api/login", {{"Host", host()}}, [&](std::size_t, httplib::DataSink& sink) {
+        static const std::string block(64 * 1024, 'a');
+        if (sent >= (32u << 20)) {
+          sink.done();
+          return true;
+        }
+        sent += block.size();
+        return sink.write(block.data(), block.size());
+      }, "application/json");
+      return r ? r->status : 0;
+    }));
+  for (int i = 0; i < 4; ++i) {
+    normalRequest("chunked floods");
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  for (auto& f : floods) {
+    const int status = f.get();
+    EXPECT_TRUE(status == 413 || status == 0) << status;  // refused, or cut off while sending
+  }
+
+  // 48 parallel wrong logins: slowed by the front (429), at most two hashes at once in the panel.
+  std::vector<std::future<int>> logins;
+  for (int i = 0; i < 48; ++i)
+    logins.push_back(std::async(std::launch::async, [this, i] {
+      auto r = frontClient()->Post("/api/login", json{{"user", "olga"}, {"password", "guess" + std::to_string(i)}}.dump(),
+                                   "application/json");
+      return r ? r->status : 0;
+    }));
+  normalRequest("a login flood");
+  int slowed = 0, refused = 0;
+  for (auto& f : logins) {
+    const int status = f.get();
+    slowed += status == 429;
+    refused += status == 401;
+  }
+  EXPECT_EQ(slowed + refused, 48);
+  EXPECT_GE(slowed, 40);
+  normalRequest("after the login flood");
+  for (int fd : held)
+    if (fd >= 0) close(fd);
+  for (int fd : slow)
+    if (fd >= 0) close(fd);
+
+  std::printf("[ probe    ] the normal client's slowest answer %.3f s; the panel's memory %.0f MB before, %.0f MB at "
+              "most\n", slowest, panel_mb_before, panel_mb_peak);
+  EXPECT_LT(panel_mb_peak, panel_mb_before + 200) << "the panel grew under the probes";
+  EXPECT_GT(residentMb(station_->pid()), 0) << "the panel is gone";
 }
 
 TEST_F(HmiFrontTest, TheFrontConfigurationNeedsTheCellsCertificateAndNames) {

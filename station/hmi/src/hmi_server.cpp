@@ -78,6 +78,11 @@ bool loginRequiredFor(const HmiOptions& o, bool loopback_only) {
 
 std::vector<User> usersFor(const HmiOptions& o, bool login_required) {
   if (!login_required) return {};
+  if (!o.behind_tls_front && !o.allow_plain_http)
+    throw std::runtime_error("listening on " + o.listen + " (not loopback) would send passwords and session cookies in "
+                             "clear text: on the plant's network the panel is served through its TLS front ([hmi] "
+                             "tls_certificate and tls_key in the cell file, `station hmi --front-config`); "
+                             "--allow-plain-http serves it so anyway (a closed test bench)");
   if (o.users_file.empty())
     throw std::runtime_error(std::string(o.behind_tls_front ? "behind its TLS front" : "listening on " + o.listen + " (not loopback)") +
                              " the panel needs a login: give a users file with --users or as [hmi] users in the cell "

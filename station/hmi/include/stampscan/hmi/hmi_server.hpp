@@ -42,6 +42,9 @@ struct HmiOptions {
   // its cookies are Secure, and the front's X-Forwarded-Proto and X-Forwarded-For are believed
   // from a loopback peer.
   bool behind_tls_front = false;
+  // Off loopback without the front, passwords and cookies would travel in clear text: refused
+  // unless asked for (a closed test bench).
+  bool allow_plain_http = false;
 };
 
 class HmiServer {
