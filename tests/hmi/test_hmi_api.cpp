@@ -98,6 +98,16 @@ TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
   EXPECT_EQ(cell["calibration"]["sensors"][0]["sensor"], "digitizer");
   EXPECT_FALSE(cell["calibration"]["sensors"][0]["in_use"].get<bool>());
   EXPECT_FALSE(cell["calibration"]["sensors"][1]["usable"].get<bool>());
+  // The health the plant's monitoring reads: the virtual cell can scan, nothing to mend.
+  auto health = client_->Get("/api/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200) << health->body;
+  const json h = body(health);
+  EXPECT_EQ(h["status"], "ok") << h.dump(2);
+  EXPECT_TRUE(h["findings"].empty()) << h.dump(2);
+  EXPECT_EQ(h["devices"].size(), 5u);
+  EXPECT_GT(h["disk"]["available_bytes"].get<double>(), 0);
+  EXPECT_TRUE(h["database"]["reachable"].get<bool>());
   EXPECT_FALSE(cell["job"]["busy"].get<bool>());
 }
 
@@ -386,6 +396,33 @@ TEST_F(HmiTest, MaintenanceSettingsAreCheckedAppliedAndLogged) {
   EXPECT_NE(log.find(R"("action":"settings change")"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("validity_days":{"from":7.0,"to":2.5})"), std::string::npos) << log;
   EXPECT_NE(log.find(R"("action":"settings refused")"), std::string::npos) << log;
+}
+
+// A cell whose devices are nowhere and whose results database is damaged: the health says so (503,
+// each finding named), and `station hmi` writes the findings into its log once.
+TEST_F(HmiTest, TheHealthNamesWhatKeepsTheCellFromScanning) {
+  const fs::path cell = root_ / "cell.toml";
+  std::ofstream(cell) << "name = \"press line 5\"\n[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\n"
+                         "right_address = \"127.0.0.4\"\n";
+  std::ofstream(root_ / "runs" / "results.sqlite") << "not a database";
+  ASSERT_NO_FATAL_FAILURE(startPanel({"--listen", "127.0.0.1:0", "--cell", cell.string()}));
+  auto health = client_->Get("/api/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 503) << health->body;
+  const json h = body(health);
+  EXPECT_EQ(h["status"], "fault");
+  std::string findings;
+  for (const auto& f : h["findings"]) findings += f["what"].get<std::string>() + ": " + f["text"].get<std::string>() + "\n";
+  EXPECT_NE(findings.find("database: the results database cannot be read"), std::string::npos) << findings;
+  EXPECT_NE(findings.find(" is disconnected"), std::string::npos) << findings;
+  EXPECT_FALSE(h["database"]["reachable"].get<bool>());
+  // Into the log after the devices' first ten seconds, once.
+  std::string log;
+  for (int i = 0; i < 150 && log.find("station hmi: fault: the results database") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    log = station_->log();
+  }
+  EXPECT_NE(log.find("station hmi: fault: the results database cannot be read"), std::string::npos) << log;
 }
 
 TEST_F(HmiTest, SettingsGoIntoTheCellFileWhenThereIsOne) {

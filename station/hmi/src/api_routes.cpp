@@ -1,8 +1,9 @@
-// The cell and its jobs: GET /api/cell, /api/status, /api/materials, /api/calibration,
+// The cell and its jobs: GET /api/cell, /api/status, /api/health, /api/materials, /api/calibration,
 // /api/scan/cloud; POST /api/scan/start, /api/scan/abort, /api/verify, /api/calibrate;
 // GET /api/actions. See API.md.
 #include "json_views.hpp"
 #include "server_impl.hpp"
+#include "stampscan/hmi/cell_health.hpp"
 #include "stampscan/report/material.hpp"
 
 #include <fstream>
@@ -69,6 +70,11 @@ void addApiRoutes(HmiServer::Impl& impl) {
   s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) { sendJson(res, cellJson(impl.jobs)); });
   s.Get("/api/status", [&impl](const httplib::Request&, httplib::Response& res) {
     sendJson(res, statusJson(impl.jobs.status()));
+  });
+  // For the plant's monitoring: 200 while the cell can scan (findings may warn), 503 when it cannot.
+  s.Get("/api/health", [&impl](const httplib::Request&, httplib::Response& res) {
+    const CellHealth health = cellHealth(impl.jobs);
+    sendJson(res, healthJson(health), health.level == HealthLevel::Fault ? 503 : 200);
   });
   s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
     json names = json::array();

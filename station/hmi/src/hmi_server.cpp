@@ -227,7 +227,8 @@ httplib::Server::HandlerResponse gate(HmiServer::Impl& impl, const httplib::Requ
       return R::Handled;
     }
   }
-  if (req.path == "/api/session" || req.path == "/api/login") return R::Unhandled;
+  // The session and the login, and the health the plant's monitoring reads, need no session.
+  if (req.path == "/api/session" || req.path == "/api/login" || req.path == "/api/health") return R::Unhandled;
   const auto session = impl.sessionOf(req);
   if (!session) {
     sendError(res, 401, "log in first (or the session has expired)");
@@ -374,5 +375,7 @@ std::string HmiServer::url() const {
 }
 
 bool HmiServer::loginRequired() const { return impl_->auth.loginRequired(); }
+
+CellHealth HmiServer::health() const { return cellHealth(impl_->jobs); }
 
 }  // namespace stampscan::hmi

@@ -115,6 +115,17 @@ async function pollCell() {
   if (r.ok) renderCell(r.body);
 }
 
+// The cell's health (GET /api/health): what someone should act on (a calibration about to expire, the
+// runs' disk nearly full, a device down) in the banner under the header, until it is mended.
+async function pollHealth() {
+  const r = await api('/api/health');
+  const findings = r.body && Array.isArray(r.body.findings) ? r.body.findings : [];
+  const banner = $('banner');
+  banner.classList.toggle('hidden', findings.length === 0);
+  banner.classList.toggle('fault', findings.some((f) => f.level === 'fault'));
+  banner.innerHTML = findings.map((f) => `<div>${f.level === 'fault' ? 'Fault' : 'Warning'}: ${esc(f.text)}</div>`).join('');
+}
+
 // ---- scan ------------------------------------------------------------------------------------
 function setBusy(busy, job) {
   jobBusy = busy;
@@ -362,6 +373,8 @@ async function start() {
   connectEvents();
   await pollCell();
   setInterval(pollCell, 1500);
+  pollHealth();
+  setInterval(pollHealth, 30000);
   loadHistory();
   stats.loadMs = Math.round(performance.now());
   document.body.dataset.ready = '1';

@@ -12,6 +12,7 @@
 // Thread safety: construct and run() on one thread; stop() from any thread.
 #pragma once
 
+#include "stampscan/hmi/cell_health.hpp"
 #include "stampscan/hmi/cell_jobs.hpp"
 
 #include <chrono>
@@ -68,6 +69,8 @@ class HmiServer {
   // http://host:port/ once bound.
   std::string url() const;
   bool loginRequired() const;
+  // The cell's health now (cell_health.hpp): what GET /api/health answers.
+  CellHealth health() const;
 
  // The server's state, defined in the library's sources (its route files share it).
   struct Impl;
