@@ -14,6 +14,7 @@ packages=(build-essential cmake ninja-build pkg-config
           libtomlplusplus-dev libaravis-dev aravis-tools aravis-tools-cli iproute2 libcairo2-dev
           fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql
           libcpp-httplib-dev libssl-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng nginx openssl
+          systemd lintian
           libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev)
 missing=()
 for p in "${packages[@]}"; do

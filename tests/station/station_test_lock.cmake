@@ -8,7 +8,7 @@ set(_needs_no_cell
   "^StationTest\\.(Help|FitHelp|SampleAndDemoHelp|VersionFlag|NoSubcommandFails|UnknownSubcommandFails)"
   "^StationTest\\.(Fit|Sample|Demo|Trace|Sim|Process|NonexistentInput|InputsThatAreNot|BadBandwidth)"
   "^StationTest\\.(UnknownOptionValues|OutputIntoMissing|DevicesReportsAMissingCell|DevicesRejectsABadCellFile)"
-  "^StationTest\\.(DryRunPrintsTheBuiltInPlan|CalibrationHistoryNamesAMissingOrCorruptRecord)"
+  "^StationTest\\.(DryRunPrintsTheBuiltInPlan|CalibrationHistoryNamesAMissingOrCorruptRecord|ThePanelsService)"
   "^(StationCells|ScanShortfall|ScanDataLoss)\\." "^Inputs/StationMalformedTest\\." "^Methods/StationMethodTest\\.")
 set(_served_cell_tests)
 foreach(_test IN LISTS test_station_TESTS)
