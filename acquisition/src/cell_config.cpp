@@ -421,6 +421,9 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   if (const toml::node* n = t.get("name"); n != nullptr && !n->is_string())
     throw std::runtime_error(file + ": name has the wrong type: expected a string, found " + typeName(*n));
   c.name = t["name"].value_or(std::string("cell"));
+  // It goes into reports, logs and configuration files, one line each.
+  if (std::any_of(c.name.begin(), c.name.end(), [](char ch) { return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f; }))
+    throw std::runtime_error(file + ": name holds a line break or another control character");
   auto sectionNamed = [&](const char* name) {
     SectionReader s = section(t, name, file, defaulted);
     s.refuseUnknown(knownKeys().at(name));

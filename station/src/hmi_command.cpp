@@ -14,6 +14,7 @@
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -131,9 +132,11 @@ extern "C" void onVirtualDoor(int sig) { g_virtual_door = sig; }
 
 // A line of the panel's log on standard error. Under systemd (JOURNAL_STREAM is set) it carries its
 // syslog level as a "<N>" prefix, so that the journal files it as a warning or an error.
-void logLine(int syslog_level, const std::string& text) {
-  if (std::getenv("JOURNAL_STREAM") != nullptr) std::fprintf(stderr, "<%d>", syslog_level);
-  std::fprintf(stderr, "station hmi: %s\n", text.c_str());
+void logLine(int syslog_level, std::string text) {
+  std::replace(text.begin(), text.end(), '\n', ' ');  // one entry, one line: the level holds for all of it
+  const std::string level = std::getenv("JOURNAL_STREAM") != nullptr ? "<" + std::to_string(syslog_level) + ">" : "";
+  const std::string line = level + "station hmi: " + text + "\n";
+  std::fputs(line.c_str(), stderr);  // one write, not split by other threads' output
   std::fflush(stderr);
 }
 

@@ -203,6 +203,7 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
       {"[hmi]\nlistn = \"127.0.0.1:8080\"\n", "[hmi] listn is not a key of this section"},
       {"[camera]\nwidth = 10\n", "[camera] is not a section of a cell file"},
       {"name = 3\n", "name has the wrong type"},
+      {"name = \"cell\\nserver { }\"\n", "name holds a line break"},
       {"[digitizer\n", "cell.toml:1:"},
   };
   for (const auto& [text, expected] : cases) {

@@ -19,19 +19,23 @@
 namespace stampscan::hmi::test {
 namespace {
 
-// A port nothing listens on now (the kernel's pick; free again once closed).
-int freePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t size = sizeof a;
-  int port = 0;
-  if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
-      getsockname(fd, reinterpret_cast<sockaddr*>(&a), &size) == 0)
-    port = ntohs(a.sin_port);
-  close(fd);
-  return port;
+// `count` different ports nothing listens on now (the kernel's picks, all held until each is
+// known, then let go for the servers to take).
+std::vector<int> freePorts(int count) {
+  std::vector<int> fds, ports;
+  for (int i = 0; i < count; ++i) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof a;
+    if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+        getsockname(fd, reinterpret_cast<sockaddr*>(&a), &size) == 0)
+      ports.push_back(ntohs(a.sin_port));
+    fds.push_back(fd);
+  }
+  for (int fd : fds) close(fd);
+  return ports;
 }
 
 bool accepts(int port) {
@@ -115,9 +119,11 @@ class HmiFrontTest : public HmiTest {
     ASSERT_TRUE(fs::exists(root_ / "tls/cell.crt")) << made;
     std::ofstream(root_ / "users.toml") << "[[user]]\nname = \"olga\"\nrole = \"operator\"\npassword_hash = \""
                                          << hashOf("op-secret") << "\"\n";
-    panel_port_ = freePort();
-    https_port_ = freePort();
-    http_port_ = freePort();
+    const std::vector<int> ports = freePorts(3);
+    ASSERT_EQ(ports.size(), 3u);
+    panel_port_ = ports[0];
+    https_port_ = ports[1];
+    http_port_ = ports[2];
     std::ofstream(root_ / "cell.toml")
         << "name = \"front test cell\"\n"
         << "[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\nright_address = \"127.0.0.4\"\n"
@@ -195,10 +201,20 @@ TEST_F(HmiFrontTest, ThePanelIsServedOverTlsWithItsLimitsOnlyUnderItsNames) {
   ASSERT_TRUE(other);
   EXPECT_EQ(other->status, 421);
   httplib::Client direct("127.0.0.1", panel_port_);
-  EXPECT_EQ(direct.Get("/api/session", {{"Host", "evil.example"}})->status, 421);
+  auto direct_other = direct.Get("/api/session", {{"Host", "evil.example"}});
+  ASSERT_TRUE(direct_other);
+  EXPECT_EQ(direct_other->status, 421);
   // Behind the front every user logs in, on loopback too.
   EXPECT_TRUE(body(front->Get("/api/session"))["login_required"].get<bool>());
-  EXPECT_EQ(direct.Get("/api/cell")->status, 401);
+  auto direct_cell = direct.Get("/api/cell");
+  ASSERT_TRUE(direct_cell);
+  EXPECT_EQ(direct_cell->status, 401);
+  // Without a session the health says only how the cell is and why, none of its details.
+  auto health = front->Get("/api/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 503) << health->body;  // its devices are nowhere
+  EXPECT_FALSE(body(health)["findings"].empty());
+  EXPECT_FALSE(body(health).contains("devices")) << health->body;
 
   // The login's cookie is Secure; a small chunked body reaches the panel (the front gives it a length).
   auto login = front->Post("/api/login", {}, [](std::size_t, httplib::DataSink& sink) {
@@ -215,13 +231,24 @@ TEST_F(HmiFrontTest, ThePanelIsServedOverTlsWithItsLimitsOnlyUnderItsNames) {
   const std::string session = cookie.substr(0, cookie.find(';'));
   const std::string csrf = body(login)["csrf"].get<std::string>();
   const httplib::Headers as_olga = {{"Host", host()}, {"Cookie", session}, {"X-CSRF-Token", csrf}};
-  EXPECT_EQ(front->Get("/api/cell", as_olga)->status, 200);
+  auto cell = front->Get("/api/cell", as_olga);
+  ASSERT_TRUE(cell);
+  EXPECT_EQ(cell->status, 200);
+  auto detailed = front->Get("/api/health", as_olga);
+  ASSERT_TRUE(detailed);
+  EXPECT_TRUE(body(detailed).contains("devices")) << detailed->body;
   // The Origin of a page served by the front is https: the plain one is another site's.
   httplib::Headers from_page = as_olga, from_plain = as_olga;
   from_page.emplace("Origin", "https://" + host());
   from_plain.emplace("Origin", "http://" + host());
-  EXPECT_EQ(front->Post("/api/scan/abort", from_page, "{}", "application/json")->status, 409);  // nothing runs
-  EXPECT_EQ(front->Post("/api/scan/abort", from_plain, "{}", "application/json")->status, 403);
+  // (A forged X-Forwarded-For is replaced by the front with the client's address.)
+  from_page.emplace("X-Forwarded-For", "203.0.113.9");
+  auto aborted = front->Post("/api/scan/abort", from_page, "{}", "application/json");
+  ASSERT_TRUE(aborted);
+  EXPECT_EQ(aborted->status, 409);  // nothing runs, but not refused
+  auto foreign = front->Post("/api/scan/abort", from_plain, "{}", "application/json");
+  ASSERT_TRUE(foreign);
+  EXPECT_EQ(foreign->status, 403);
 
   // The live events come through as they are sent.
   std::string events;
@@ -256,9 +283,14 @@ TEST_F(HmiFrontTest, ThePanelIsServedOverTlsWithItsLimitsOnlyUnderItsNames) {
   }
   EXPECT_GE(slowed, 4);
   // And the panel answers its page all along.
-  EXPECT_EQ(front->Get("/")->status, 200);
-  // The actions are recorded with the client's address, as the front saw it.
-  EXPECT_NE(readText(root_ / "runs" / "hmi-actions.jsonl").find(R"("from":"127.0.0.1")"), std::string::npos);
+  auto page_again = front->Get("/");
+  ASSERT_TRUE(page_again);
+  EXPECT_EQ(page_again->status, 200);
+  // The actions are recorded with the client's address as the front saw it, not as a client claimed.
+  const std::string actions = readText(root_ / "runs" / "hmi-actions.jsonl");
+  EXPECT_NE(actions.find(R"("action":"abort")"), std::string::npos) << actions;
+  EXPECT_NE(actions.find(R"("from":"127.0.0.1")"), std::string::npos) << actions;
+  EXPECT_EQ(actions.find("203.0.113.9"), std::string::npos) << actions;
 }
 
 // The panel probed through its front as an attacker on the plant's network would: names that are

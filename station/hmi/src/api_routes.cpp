@@ -72,9 +72,11 @@ void addApiRoutes(HmiServer::Impl& impl) {
     sendJson(res, statusJson(impl.jobs.status()));
   });
   // For the plant's monitoring: 200 while the cell can scan (findings may warn), 503 when it cannot.
-  s.Get("/api/health", [&impl](const httplib::Request&, httplib::Response& res) {
+  // Without a session (a monitoring probe on a panel with a login) only the status and findings.
+  s.Get("/api/health", [&impl](const httplib::Request& req, httplib::Response& res) {
     const CellHealth health = cellHealth(impl.jobs);
-    sendJson(res, healthJson(health), health.level == HealthLevel::Fault ? 503 : 200);
+    const bool with_detail = !impl.auth.loginRequired() || impl.sessionOf(req).has_value();
+    sendJson(res, healthJson(health, with_detail), health.level == HealthLevel::Fault ? 503 : 200);
   });
   s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
     json names = json::array();

@@ -53,19 +53,21 @@ void checkCalibration(const CellJobs& jobs, const HealthLimits& limits, CellHeal
   json sensors = json::array();
   for (const station::SensorCalibrationStatus& s : station::calibrationStatus(jobs.setup().calibration_dir, config).sensors) {
     json j = {{"sensor", s.sensor}, {"in_use", s.in_use}, {"usable", s.usable()}};
+    // A file a scan would refuse (unreadable, another cell's, failed, expired) stops the scans.
+    if (s.problem) {
+      j["problem"] = *s.problem;
+      add(h, "calibration of the " + s.sensor, HealthLevel::Fault,
+          "the " + s.sensor + "'s calibration is not usable: " + *s.problem);
+    }
     if (!s.in_use) {
       sensors.push_back(j);
       continue;  // none stored: the scans calibrate the digitizer themselves, or the cameras are not calibrated
     }
     const double hours_left = (config.calibration.validity_days - s.age_days) * 24;
     j["hours_left"] = hours_left;
-    if (s.problem) {
-      j["problem"] = *s.problem;
-      add(h, "calibration", HealthLevel::Warning, "the " + s.sensor + "'s calibration is not usable: " + *s.problem);
-    } else if (hours_left < limits.calibration_warning_hours) {
-      add(h, "calibration", HealthLevel::Warning,
+    if (!s.problem && hours_left < limits.calibration_warning_hours)
+      add(h, "calibration of the " + s.sensor, HealthLevel::Warning,
           "the " + s.sensor + "'s calibration expires in " + format("%.1f hours", hours_left) + ": calibrate it");
-    }
     sensors.push_back(j);
   }
   h.detail["calibration"] = sensors;
@@ -95,7 +97,7 @@ void checkDisk(const CellJobs& jobs, const HealthLimits& limits, CellHealth& h) 
 void checkDatabase(const CellJobs& jobs, CellHealth& h) {
   const std::string database = jobs.setup().scan.results_database.empty() ? jobs.setup().scan.runs_dir.string()
                                                                           : jobs.setup().scan.results_database;
-  json j = {{"location", database}};
+  json j = {{"location", results::locationForMessages(database)}};  // never its password
   const bool sqlite = !results::isDatabaseUrl(database);
   std::error_code ec;
   if (sqlite && !fs::exists(fs::path(database) / results::kSqliteFileName, ec)) {
@@ -106,7 +108,6 @@ void checkDatabase(const CellJobs& jobs, CellHealth& h) {
       results::StoreOptions options;
       options.read_only = true;
       const auto store = results::openResultsStore(database, options);
-      j["location"] = store->location();  // without a password
       j["schema_version"] = store->schemaVersion();
       j["reachable"] = true;
     } catch (const std::exception& e) {
@@ -130,11 +131,11 @@ CellHealth cellHealth(const CellJobs& jobs, const HealthLimits& limits) {
   return h;
 }
 
-json healthJson(const CellHealth& health) {
+json healthJson(const CellHealth& health, bool with_detail) {
   json findings = json::array();
   for (const HealthFinding& f : health.findings)
     findings.push_back({{"what", f.what}, {"level", toString(f.level)}, {"text", f.text}});
-  json j = health.detail;
+  json j = with_detail ? health.detail : json::object();
   j["status"] = toString(health.level);
   j["findings"] = findings;
   return j;

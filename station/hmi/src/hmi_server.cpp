@@ -90,11 +90,17 @@ std::vector<User> usersFor(const HmiOptions& o, bool login_required) {
   return loadUsers(o.users_file);
 }
 
-// The name of a Host header, without its port; lower case (names are compared so).
+// The name of a Host header, without its port; lower case (names are compared so). An IPv6
+// literal keeps its brackets; anything after them but a port makes no name ("").
 std::string hostName(const std::string& host) {
-  std::string name = host.empty() ? host
-                     : host.front() == '[' ? host.substr(0, host.find(']') + 1)
-                                           : host.substr(0, std::min(host.rfind(':'), host.size()));
+  std::string name;
+  if (!host.empty() && host.front() == '[') {
+    const auto close = host.find(']');
+    if (close == std::string::npos || (close + 1 < host.size() && host[close + 1] != ':')) return "";
+    name = host.substr(0, close + 1);
+  } else {
+    name = host.substr(0, std::min(host.rfind(':'), host.size()));
+  }
   std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return std::tolower(ch); });
   return name;
 }

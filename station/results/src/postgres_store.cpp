@@ -33,6 +33,13 @@ std::string withoutPassword(const std::string& url) {
   return std::regex_replace(std::regex_replace(url, authority, "$1:***@"), parameter, "$1***");
 }
 
+// A server that does not answer (a host down, a firewall that drops) is given up after a few
+// seconds, not after the system's TCP timeout of minutes: the URL's own connect_timeout otherwise.
+std::string withConnectTimeout(const std::string& url) {
+  if (url.find("connect_timeout=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + "connect_timeout=5";
+}
+
 std::string literal(const std::optional<double>& v) {
   if (!v || !std::isfinite(*v)) return "NULL";
   char text[40];
@@ -64,7 +71,7 @@ class PostgresStore final : public ResultsStore {
   PostgresStore(const std::string& url, const StoreOptions& options)
       : ResultsStore(withoutPassword(url)), options_(options) {
     try {
-      connection_ = std::make_unique<pqxx::connection>(url);
+      connection_ = std::make_unique<pqxx::connection>(withConnectTimeout(url));
       pqxx::nontransaction session(*connection_);
       // A write waits at most this long for a lock another cell holds; then the statement fails.
       session.exec("SET lock_timeout = " + std::to_string(options.lock_timeout.count()));
@@ -248,6 +255,10 @@ class PostgresStore final : public ResultsStore {
 
 std::unique_ptr<ResultsStore> openPostgresStore(const std::string& url, const StoreOptions& options) {
   return std::make_unique<PostgresStore>(url, options);
+}
+
+std::string locationForMessages(const std::string& runs_dir_or_url) {
+  return isDatabaseUrl(runs_dir_or_url) ? withoutPassword(runs_dir_or_url) : runs_dir_or_url;
 }
 
 }  // namespace stampscan::results

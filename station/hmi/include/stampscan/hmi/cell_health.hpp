@@ -19,7 +19,7 @@ enum class HealthLevel { Ok, Warning, Fault };
 const char* toString(HealthLevel level);
 
 struct HealthFinding {
-  std::string what;  // "disk", "calibration", "database", a device's name
+  std::string what;  // "disk", "calibration of the digitizer", "database", a device's name
   HealthLevel level = HealthLevel::Ok;
   std::string text;  // what was found, in a sentence
 };
@@ -39,6 +39,8 @@ struct HealthLimits {
 };
 
 CellHealth cellHealth(const CellJobs& jobs, const HealthLimits& limits = {});
-nlohmann::json healthJson(const CellHealth& health);
+// The status and the findings; with the detail, also the figures (devices' identities, paths):
+// those only for a caller with a session.
+nlohmann::json healthJson(const CellHealth& health, bool with_detail);
 
 }  // namespace stampscan::hmi

@@ -127,6 +127,8 @@ class ResultsStore {
 
 // True for postgresql:// and postgres:// URLs.
 bool isDatabaseUrl(const std::string& runs_dir_or_url);
+// A runs folder as it is, a URL with its password replaced by ***: what messages may show.
+std::string locationForMessages(const std::string& runs_dir_or_url);
 // A runs folder (its results.sqlite, created when writing) or a PostgreSQL URL.
 std::unique_ptr<ResultsStore> openResultsStore(const std::string& runs_dir_or_url, const StoreOptions& options = {});
 std::unique_ptr<ResultsStore> openSqliteStore(const std::filesystem::path& file, const StoreOptions& options = {});
