@@ -91,11 +91,13 @@ class StationHmi {
     }
     return 0;
   }
+  // SIGTERM (as systemd stops the panel's service), then waits; exit_code then says how it ended.
   void stop() {
     if (pid_ <= 0) return;
     kill(pid_, SIGTERM);
     int status = 0;
     waitpid(pid_, &status, 0);
+    exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     pid_ = -1;
   }
   std::string log() const { return readText(root_ / "station.log"); }

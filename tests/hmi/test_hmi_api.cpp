@@ -118,6 +118,37 @@ TEST_F(HmiTest, ServesThePageDebiansScriptsAndTheCell) {
   EXPECT_FALSE(cell["job"]["busy"].get<bool>());
 }
 
+// The panel stopped as its service is (SIGTERM) in the middle of a scan: the scan is aborted with
+// the reason, its trace ended and readable, and the panel exits cleanly within seconds.
+TEST_F(HmiTest, AStopSignalDuringAScanAbortsItAndEndsItsTrace) {
+  ASSERT_NO_FATAL_FAILURE(startPanel());
+  EventReader events(station_->port());
+  ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
+  auto started = post("/api/scan/start", R"({"part_id": "sig-1"})", csrf());
+  ASSERT_TRUE(started);
+  ASSERT_EQ(started->status, 202) << started->body;
+  ASSERT_TRUE(events.waitFor("progress", std::chrono::seconds(60))) << events.text();
+  const auto start = std::chrono::steady_clock::now();
+  station_->stop();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(station_->exit_code, 0) << station_->log();
+  EXPECT_LT(seconds, 10.0);
+  EXPECT_NE(station_->log().find("station hmi: stopped"), std::string::npos) << station_->log();
+  fs::path run;
+  for (const auto& entry : fs::directory_iterator(root_ / "runs"))
+    if (entry.path().filename().string().find("sig-1") != std::string::npos) run = entry.path();
+  ASSERT_FALSE(run.empty());
+  const json record = json::parse(readText(run / "run.json"));
+  EXPECT_FALSE(record["completed"].get<bool>()) << record.dump(2);
+  EXPECT_EQ(record["abort_reason"], "the panel is shutting down") << record.dump(2);
+  // The trace is whole: its summary at the end, as `station trace info` checks.
+  const std::string info = outputOf(std::string(STATION_EXE) + " trace info " + (run / "trace.mcap").string() +
+                                    " 2>&1; echo exit=$?");
+  EXPECT_NE(info.find("/plc/state"), std::string::npos) << info;
+  EXPECT_EQ(info.find("TRUNCATED"), std::string::npos) << info;
+  EXPECT_NE(info.find("exit=0"), std::string::npos) << info;
+}
+
 TEST_F(HmiTest, AScanStreamsEventsRefusesASecondStartAndAborts) {
   ASSERT_NO_FATAL_FAILURE(startPanel());
   EventReader events(station_->port());
