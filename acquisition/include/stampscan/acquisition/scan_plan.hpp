@@ -5,7 +5,7 @@
 // plan the cell runs.
 //
 // Plans come from the simulator's planner for the built-in parts (sim::planScan) or from a TOML
-// file (loadScanPlan; station/plans/ has examples):
+// file (loadScanPlan; `station sim part dome -o DIR` writes one, DIR/plan.toml):
 //
 //   name = "pan, laser"
 //   travel_speed = 200            # mm/s between steps
