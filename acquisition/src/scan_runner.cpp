@@ -306,10 +306,8 @@ struct ScanRunner::Impl {
     const bool stereo = plan.stereoCount() > 0;
     if (stereo && (!dev.left_camera || !dev.right_camera))
       throw ScanError("the plan has " + std::to_string(plan.stereoCount()) + " stereo views, but the cell has no cameras");
-    {
-      std::lock_guard lock(abort_mutex);
-      abort_reason.reset();
-    }
+    // An abort that came before the run (an operator pressing Abort as the job starts) is kept: it
+    // ends the run at its first step. A runner plays one plan.
     connect(dev.cmm, "the CMM");
     connect(dev.plc, "the PLC");
     connect(dev.digitizer, "the digitizer");

@@ -223,6 +223,19 @@ TEST_F(ScanRunnerTest, AnOperatorAbortStopsTheScan) {
   EXPECT_FALSE(shutterOpen());
 }
 
+// An abort that arrives before the run starts (Abort pressed as the job starts) is not lost.
+TEST_F(ScanRunnerTest, AnAbortBeforeTheRunStartsEndsItAtItsFirstStep) {
+  ScanRunner runner(devices(), sink_, clock_);
+  runner.abort("operator abort, early");
+  auto running = std::async(std::launch::async, [&] { return runner.run(shortPlan(), params()); });
+  ASSERT_EQ(running.wait_for(10s), std::future_status::ready);
+  const ScanRunResult r = running.get();
+  EXPECT_FALSE(r.completed);
+  EXPECT_EQ(r.abort_reason, "operator abort, early");
+  EXPECT_EQ(sink_.profiles(), 0u);
+  EXPECT_FALSE(shutterOpen());
+}
+
 TEST_F(ScanRunnerTest, ASweepThatLostProfilesIsRunAgain) {
   ScanRunner runner(devices(), sink_, clock_);
   auto running = std::async(std::launch::async, [&] { return runner.run(shortPlan(), params()); });

@@ -131,7 +131,8 @@ class ScanRunner {
   // Throws ScanError for a plan or a check that fails before motion. Returns completed = false when
   // the run was aborted after motion began (the reason says why).
   ScanRunResult run(const ScanPlan& plan, const ScanRunParams& params);
-  // Stops the run: the CMM aborts its move, the run ends Aborted with `reason`. Any thread.
+  // Stops the run: the CMM aborts its move, the run ends Aborted with `reason`. Any thread. Called
+  // before run(), the run ends at its first step (a runner plays one plan).
   void abort(const std::string& reason);
 
  private:
