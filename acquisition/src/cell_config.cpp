@@ -194,15 +194,6 @@ std::string besideCellFile(const std::filesystem::path& folder, const std::strin
   return path.empty() || std::filesystem::path(path).is_absolute() ? path : (folder / path).string();
 }
 
-// A name the plant's network reaches the panel under: a host name or an IPv4 address (letters,
-// digits, dots, dashes), as it is written into the front's configuration.
-bool isServerName(const std::string& name) {
-  if (name.empty() || name.size() > 253 || name.front() == '.' || name.front() == '-') return false;
-  return std::all_of(name.begin(), name.end(), [](char ch) {
-    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' || ch == '-';
-  });
-}
-
 // [hmi]: the operator's panel. The certificate and key paths go into the front's configuration
 // quoted: characters that would end the quote or start a variable there are refused.
 void readPanel(const SectionReader& s, const std::filesystem::path& folder, CellConfig::Panel& p) {
@@ -215,7 +206,7 @@ void readPanel(const SectionReader& s, const std::filesystem::path& folder, Cell
   p.tls_certificate = besideCellFile(folder, s.text("tls_certificate", ""));
   p.tls_key = besideCellFile(folder, s.text("tls_key", ""));
   for (const auto& [key, path] : {std::pair{"tls_certificate", p.tls_certificate}, std::pair{"tls_key", p.tls_key}})
-    if (path.find_first_of("\"$;{}'\\\n\r\t") != std::string::npos)
+    if (!isQuotablePath(path))
       s.fail(key, "'" + path + "' holds a character a path here may not have (quotes, '$', ';', braces, '\\', control)");
   if (p.tls_certificate.empty() != p.tls_key.empty())
     s.fail(p.tls_key.empty() ? "tls_key" : "tls_certificate", "is missing: the TLS front needs both the certificate and its key");
@@ -491,6 +482,15 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
 }
 
 }  // namespace
+
+bool isServerName(const std::string& name) {
+  if (name.empty() || name.size() > 253 || name.front() == '.' || name.front() == '-') return false;
+  return std::all_of(name.begin(), name.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' || ch == '-';
+  });
+}
+
+bool isQuotablePath(const std::string& path) { return path.find_first_of("\"$;{}'\\\n\r\t") == std::string::npos; }
 
 CellConfig virtualCell() {
   // station/cells/virtual.toml, built in (virtual_cell_file.cpp is generated from it), read once.

@@ -1,5 +1,6 @@
 #include "stampscan/hmi/tls_front.hpp"
 
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/hmi/auth.hpp"
 
 #include <algorithm>
@@ -14,12 +15,11 @@ void check(const TlsFront& f) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument("the panel's TLS front: " + what); };
   if (f.server_names.empty()) fail("no server name: list the names the panel is reached under ([hmi] server_names)");
   for (const std::string& name : f.server_names)
-    if (name.empty() || name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") !=
-                            std::string::npos)
+    if (!acquisition::isServerName(name))
       fail("'" + name + "' is not a host name or an IPv4 address");
   for (const auto& [what, path] : {std::pair{"certificate", f.certificate}, std::pair{"key", f.key}}) {
     if (path.empty() || path.front() != '/') fail(std::string("the ") + what + " needs an absolute path, not '" + path + "'");
-    if (path.find_first_of("\"$;{}'\\\n\r\t") != std::string::npos)
+    if (!acquisition::isQuotablePath(path))
       fail(std::string("the ") + what + "'s path '" + path + "' holds quotes, '$', ';', braces, '\\' or a control character");
   }
   // An address literal: nginx would try every address a name resolves to, the panel listens on one.

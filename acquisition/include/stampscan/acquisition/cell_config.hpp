@@ -110,6 +110,12 @@ struct CellConfig {
   std::vector<std::string> defaulted;
 };
 
+// [hmi]'s rules for what goes into the TLS front's configuration (hmi/tls_front.hpp): a server
+// name is a host name or an IPv4 address (letters, digits, '.' and '-'); a certificate or key
+// path holds no quote, '$', ';', brace, backslash or control character (it is written quoted).
+bool isServerName(const std::string& name);
+bool isQuotablePath(const std::string& path);
+
 // The built-in virtual cell (the same as station/cells/virtual.toml).
 CellConfig virtualCell();
 // Throws std::runtime_error naming the file, the section and the key.
