@@ -31,7 +31,7 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
       {"cmm", {"host", "port", "device_time"}},
       {"machine", {"travel_min", "travel_max", "min_speed", "max_speed", "acceleration"}},
       {"head", {"kind", "index_step_deg", "a_max_deg", "b_max_deg", "rate_deg_s", "acceleration_deg_s2", "body"}},
-      {"plc", {"host", "port", "unit_id", "registers"}},
+      {"plc", {"host", "port", "unit_id", "line_start", "registers"}},
       {"cameras", {"left_serial", "left_address", "right_serial", "right_address", "width", "height", "pixel_size_um",
                    "focal_length_mm", "k1", "k2", "bits", "exposure_us", "baseline_mm", "drop_mm", "convergence_mm"}},
       {"digitizer", {"vendor_id", "product_id", "serial", "virtual", "required", "points_per_profile", "profile_rate_hz",
@@ -435,6 +435,7 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   c.plc.port = static_cast<int>(plc.integer("port", c.plc.port, INT32_MIN, INT32_MAX));
   checkPort(plc, c.plc.port);
   c.plc_unit_id = static_cast<int>(plc.integer("unit_id", c.plc_unit_id, 0, 255));
+  c.plc_line_start = plc.flag("line_start", c.plc_line_start);
   c.plc_registers = readPlcRegisters(t, plc, file, defaulted);
 
   const SectionReader cameras = sectionNamed("cameras");
@@ -619,6 +620,7 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("host", c.plc.host);
   l.integer("port", c.plc.port);
   l.integer("unit_id", c.plc_unit_id);
+  l.flag("line_start", c.plc_line_start);
   l.section("plc.registers");
   for (std::size_t row = 0; row < drivers::plc::registerTable().size(); ++row)
     l.integer(std::string(drivers::plc::registerTable()[row].name), c.plc_registers.addresses[row]);

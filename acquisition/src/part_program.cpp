@@ -60,6 +60,18 @@ class ProgramReader {
     return v;
   }
 
+  // An optional integer in [low, high].
+  std::optional<std::int64_t> integer(const toml::table& t, const std::string& section, const char* key,
+                                      std::int64_t low, std::int64_t high) const {
+    const toml::node* n = t.get(key);
+    if (!n) return std::nullopt;
+    const std::optional<std::int64_t> v = n->as_integer() ? n->value<std::int64_t>() : std::nullopt;
+    const std::string range = "must be a whole number from " + std::to_string(low) + " to " + std::to_string(high);
+    if (!v) fail(section, key, range + ", found " + typeOf(*n));
+    if (*v < low || *v > high) fail(section, key, range);
+    return v;
+  }
+
   std::array<double, 2> pair(const toml::table& t, const std::string& section, const char* key) const {
     const toml::node* n = t.get(key);
     if (!n) fail(section, key, "is missing");
@@ -132,12 +144,13 @@ PartProgram parseProgramFile(const std::string& text, const std::string& source)
                        ": " + std::string(e.description()));
   }
   const ProgramReader in(source);
-  in.onlyKeys(top, "", {"name", "description", "model", "plan", "press_program", "grid", "sheet", "region", "simulation"});
+  in.onlyKeys(top, "", {"name", "description", "model", "plan", "press_program", "line_number", "grid", "sheet", "region", "simulation"});
   PartProgram p;
   p.name = *in.text(top, "", "name", true);
   if (p.name.empty()) in.fail("", "name", "must not be empty");
   p.description = in.text(top, "", "description", false).value_or("");
   p.press_program = in.text(top, "", "press_program", false).value_or("");
+  if (const auto number = in.integer(top, "", "line_number", 1, 65535)) p.line_number = static_cast<std::uint16_t>(*number);
   p.model_file = relativeFile(in, top, "model");
   std::string ext = p.model_file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -248,6 +261,7 @@ std::string toToml(const PartProgram& p) {
   o << "model = " << quoted(p.model_file.generic_string()) << "\n";
   o << "plan = " << quoted(p.plan_file.generic_string()) << "\n";
   if (!p.press_program.empty()) o << "press_program = " << quoted(p.press_program) << "\n";
+  if (p.line_number) o << "line_number = " << *p.line_number << "\n";
   o << "\n[grid]\nkind = " << quoted(p.grid.kind) << "\npitch_mm = " << number(p.grid.pitch_mm)
     << "\ncircle_diameter_mm = " << number(p.grid.circle_diameter_mm) << "\nline_width_mm = " << number(p.grid.line_width_mm)
     << "\n";
@@ -308,6 +322,29 @@ fs::path findProgram(const fs::path& library, const std::string& name_or_dir) {
   for (std::size_t i = 0; i < known.size(); ++i) list += (i ? ", " : "") + known[i];
   throw ProgramError("no part program \"" + name_or_dir + "\" in " + library.string() +
                      (known.empty() ? " (it holds none)" : " (it holds: " + list + ")"));
+}
+
+std::optional<std::string> findProgramByLineNumber(const fs::path& library, std::uint16_t number) {
+  std::optional<std::string> found;
+  fs::path found_dir;
+  for (const fs::path& dir : listPrograms(library)) {
+    std::ifstream stream(dir / kProgramFile, std::ios::binary);
+    std::ostringstream text;
+    text << stream.rdbuf();
+    PartProgram program;
+    try {
+      program = parseProgramFile(text.str(), (dir / kProgramFile).string());
+    } catch (const ProgramError&) {
+      continue;  // one unreadable program must not keep the line from starting the others
+    }
+    if (program.line_number != number) continue;
+    if (found)
+      throw ProgramError(library.string() + ": two programs have line_number " + std::to_string(number) + ": " +
+                         found_dir.string() + " and " + dir.string());
+    found = program.name;
+    found_dir = dir;
+  }
+  return found;
 }
 
 }  // namespace stampscan::acquisition

@@ -88,6 +88,7 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
 
   acquisition::PartProgram program;
   program.name = options.name.empty() ? simulatedProgramName(kind, grid, options.sample_region) : options.name;
+  program.line_number = options.line_number;
   program.simulation = options.simulation;
   program.folder = dir;
   program.simulated_part = part->name();

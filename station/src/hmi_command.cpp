@@ -60,9 +60,9 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
         const acquisition::PartProgram program = acquisition::parseProgramFile(text.str(), (dir / acquisition::kProgramFile).string());
         names.insert(program.name);
         out.push_back({program.name, program.description, program.grid.kind, program.material, program.grid.pitch_mm,
-                       program.sheet_thickness_mm, ""});
+                       program.sheet_thickness_mm, "", program.line_number});
       } catch (const std::exception& e) {
-        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what()});
+        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what(), std::nullopt});
       }
     }
     if (virtual_cell)
@@ -71,7 +71,8 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
           out.push_back({simulated.name,
                          "the virtual cell's simulated " + simulated.part + " (" + simulated.grid + " grid)" +
                              (simulated.sample_region ? ", its sample region" : ""),
-                         simulated.grid, "DC04", 2.54, 0.8, "written into the library on first use"});
+                         simulated.grid, "DC04", 2.54, 0.8, "written into the library on first use",
+                         simulated.line_number});
     return out;
   };
   p.prepare = [=](const std::string& name) {
@@ -108,6 +109,9 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
         acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
     std::lock_guard lock(cache->mutex);
     return cache->stl.emplace(name, std::move(bytes)).first->second;
+  };
+  p.by_line_number = [=](std::uint16_t line_number) {
+    return programByLineNumber(line_number, config, virtual_cell, runs);
   };
   if (hosted != nullptr)
     p.restore = [=] {
@@ -284,6 +288,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
                                          hosted->cell().truth().digitizer_latency_ns};
     }
     setup.programs = panelPrograms(config, virtual_cell, opt->runs, world, virtual_cell ? &hosted : nullptr);
+    setup.line_start = config.plc_line_start;
     acquisition::Cell cell(config);
     setup.cell = &cell;
     hmi::HmiServer server(std::move(setup), options);
@@ -296,6 +301,10 @@ CommandRunner addHmiCommand(CLI::App& app) {
     if (server.loginRequired() && !options.behind_tls_front)
       std::fprintf(stderr, "station hmi: warning: served off loopback without TLS (--allow-plain-http): passwords and "
                            "session cookies travel in clear text\n");
+    if (config.plc_line_start)
+      std::printf("station hmi: the line's PLC may start scans: the handshake registers of the PLC at %s:%d (unit %d) "
+                  "are watched\n",
+                  config.plc.host.c_str(), config.plc.port, config.plc_unit_id);
     std::fflush(stdout);
     if (!opt->ready_file.empty()) std::ofstream(opt->ready_file) << server.url() << '\n';
 

@@ -23,7 +23,7 @@ std::vector<SimulatedProgramName> simulatedProgramNames() {
     for (const sim::PartKind part : {sim::PartKind::Dome, sim::PartKind::Pan})
       for (const sim::GridKind grid : {sim::GridKind::Circle, sim::GridKind::Square})
         names.push_back({sim::simulatedProgramName(part, grid, sample), part == sim::PartKind::Dome ? "dome" : "pan",
-                         sim::toString(grid), sample});
+                         sim::toString(grid), sample, static_cast<std::uint16_t>(names.size() + 1)});
   return names;
 }
 
@@ -49,6 +49,7 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
         sim::SimulatedProgramOptions options;
         options.cell = &cell;
         options.sample_region = simulated.sample_region;
+        options.line_number = simulated.line_number;
         const fs::path dir = library / name_or_dir;
         std::printf("  program     writing the virtual cell's %s with a %s grid%s into %s\n", simulated.part.c_str(),
                     simulated.grid.c_str(), simulated.sample_region ? " (its sample region)" : "", dir.c_str());
@@ -59,6 +60,18 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
   const fs::path dir = library / name;
   if (fs::exists(dir / acquisition::kProgramFile, ec)) return acquisition::loadPartProgram(dir);
   return acquisition::loadPartProgram(acquisition::findProgram(library, name));  // its error lists the library
+}
+
+std::optional<std::string> programByLineNumber(std::uint16_t line_number, const acquisition::CellConfig& cell,
+                                               bool virtual_cell, const fs::path& runs) {
+  const fs::path library = programLibrary(cell, virtual_cell, runs);
+  std::error_code ec;
+  if (fs::is_directory(library, ec))
+    if (auto name = acquisition::findProgramByLineNumber(library, line_number)) return name;
+  if (virtual_cell)
+    for (const SimulatedProgramName& simulated : simulatedProgramNames())
+      if (simulated.line_number == line_number && !fs::exists(library / simulated.name, ec)) return simulated.name;
+  return std::nullopt;
 }
 
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,

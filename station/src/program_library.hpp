@@ -7,7 +7,9 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_program.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,10 +30,17 @@ acquisition::PartProgram programToScan(const std::string& name_or_dir, const acq
 acquisition::PartProgram programFromLibrary(const std::string& name, const acquisition::CellConfig& cell,
                                             bool virtual_cell, const std::filesystem::path& runs);
 
+// The name of the library's program the line's PLC starts by `line_number`; nothing when none has
+// it. On a virtual cell its own simulated parts have the numbers of simulatedProgramNames() where
+// the library has no program of their name. Throws naming what is wrong (two programs with one number).
+std::optional<std::string> programByLineNumber(std::uint16_t line_number, const acquisition::CellConfig& cell,
+                                               bool virtual_cell, const std::filesystem::path& runs);
+
 // The virtual cell's own simulated parts' programs (sim-dome-circle, ..., sim-pan-square-sample).
 struct SimulatedProgramName {
   std::string name, part, grid;  // e.g. sim-pan-circle-sample, pan, circle
   bool sample_region = false;
+  std::uint16_t line_number = 0;  // the number the line starts it by: 1, 2, ... in this list's order
 };
 std::vector<SimulatedProgramName> simulatedProgramNames();
 

@@ -316,6 +316,10 @@ TEST(PartProgram, EachMistakeIsRefusedNamingTheFileTheSectionAndTheKey) {
       {"part = \"pan\"", "part = \"pan\"\ndepth = 4", "[simulation] depth is not a known key"},
       {"part = \"pan\"", "part = \"pan\"\npeak_strain = 0.9", "[simulation] peak_strain must be at most 0.5"},
       {"press_program = \"P-88\"", "press_programme = \"P-88\"", "press_programme is not a known key"},
+      {"press_program = \"P-88\"", "line_number = 0", "line_number must be a whole number from 1 to 65535"},
+      {"press_program = \"P-88\"", "line_number = 70000", "line_number must be a whole number from 1 to 65535"},
+      {"press_program = \"P-88\"", "line_number = \"12\"", "line_number must be a whole number from 1 to 65535, found a string"},
+      {"press_program = \"P-88\"", "line_number = 1.5", "line_number must be a whole number from 1 to 65535, found a floating-point"},
       {"[sheet]", "[sheet", "program.toml:13:"},  // TOML syntax: the line
   };
   for (const Case& c : cases) {
@@ -367,6 +371,29 @@ TEST(PartProgram, WrittenProgramsRoundTrip) {
   EXPECT_EQ(toToml(back), toToml(p));
   // Nothing but the program file and what was copied: the temporary is gone.
   EXPECT_EQ(std::distance(fs::directory_iterator(copy), fs::directory_iterator()), 3);
+}
+
+TEST(PartProgram, TheLineFindsAProgramByItsLineNumber) {
+  TempDir dir;
+  const fs::path library = dir.path() / "programs";
+  writeFolder(library / "a", replaced(kProgram, "press_program = \"P-88\"", "press_program = \"P-88\"\nline_number = 12"));
+  writeFolder(library / "b", replaced(replaced(kProgram, "pan-4711", "pan-4712"), "press_program = \"P-88\"",
+                                      "press_program = \"P-88\"\nline_number = 13"));
+  writeFolder(library / "c", replaced(kProgram, "pan-4711", "pan-4713"));  // no number: the line cannot start it
+  fs::create_directories(library / "broken");
+  writeText(library / "broken" / "program.toml", "name = ");  // passed over
+  EXPECT_EQ(findProgramByLineNumber(library, 12), "pan-4711");
+  EXPECT_EQ(findProgramByLineNumber(library, 13), "pan-4712");
+  EXPECT_EQ(findProgramByLineNumber(library, 14), std::nullopt);
+  EXPECT_EQ(loadPartProgram(library / "a").line_number, 12);
+  EXPECT_EQ(parseProgramFile(toToml(loadPartProgram(library / "b")), "b").line_number, 13);
+  EXPECT_EQ(loadPartProgram(library / "c").line_number, std::nullopt);
+  // Two programs with one number: which one the line means is unknowable; refused naming both.
+  writeFolder(library / "d", replaced(replaced(kProgram, "pan-4711", "pan-4714"), "press_program = \"P-88\"",
+                                      "press_program = \"P-88\"\nline_number = 13"));
+  const std::string error = errorOf([&] { findProgramByLineNumber(library, 13); });
+  EXPECT_NE(error.find("two programs have line_number 13"), std::string::npos) << error;
+  EXPECT_NE(error.find((library / "d").string()), std::string::npos) << error;
 }
 
 TEST(PartProgram, AFolderWithABrokenPartIsRefusedNamingTheFile) {

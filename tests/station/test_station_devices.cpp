@@ -220,6 +220,7 @@ TEST(StationCells, VirtualCellFileIsTheBuiltInCell) {
   EXPECT_EQ(file.geometry, built_in.geometry);
   EXPECT_TRUE(built_in.digitizer_virtual);
   EXPECT_TRUE(built_in.cmm_device_time);
+  EXPECT_TRUE(built_in.plc_line_start);  // the line's PLC may start scans on the virtual cell
   ASSERT_TRUE(built_in.geometry.ball_bar.has_value());
 }
 

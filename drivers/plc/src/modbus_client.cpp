@@ -201,4 +201,8 @@ void ModbusClient::writeRegister(std::uint16_t address, std::uint16_t value) {
   run("write holding register", address, [&] { return modbus_write_register(context_, address, value); });
 }
 
+void ModbusClient::writeRegisters(std::uint16_t address, std::uint16_t count, const std::uint16_t* values) {
+  run("write holding registers", address, [&] { return modbus_write_registers(context_, address, count, values); });
+}
+
 }  // namespace stampscan::drivers::plc::detail

@@ -85,6 +85,7 @@ class ModbusClient {
   void writeBit(std::uint16_t address, bool on);
   void writeBits(std::uint16_t address, std::uint16_t count, const std::uint8_t* values);
   void writeRegister(std::uint16_t address, std::uint16_t value);
+  void writeRegisters(std::uint16_t address, std::uint16_t count, const std::uint16_t* values);
 
  private:
   // Runs one libmodbus request under the whole-request deadline. Throws ModbusFailure naming the

@@ -241,6 +241,67 @@ std::uint16_t ModbusPlc::writeHeartbeat() {
   return value;
 }
 
+namespace {
+
+// The cell_* registers, in the order of CellAnswer's fields.
+constexpr std::array<HoldingRegister, 5> kAnswerRegisters{HoldingRegister::CellReady, HoldingRegister::CellBusy,
+                                                          HoldingRegister::CellDone, HoldingRegister::CellVerdict,
+                                                          HoldingRegister::CellErrorCode};
+
+std::array<std::uint16_t, 5> answerValues(const CellAnswer& a) {
+  return {std::uint16_t{a.ready}, std::uint16_t{a.busy}, std::uint16_t{a.done}, static_cast<std::uint16_t>(a.verdict),
+          static_cast<std::uint16_t>(a.error)};
+}
+
+}  // namespace
+
+LineRequest ModbusPlc::readLineRequest() {
+  const RegisterMap& map = options_.registers;
+  const AddressSpan span = map.span(RegisterKind::HoldingRegister, SignalGroup::Line);
+  std::array<std::uint16_t, kMaxAddressSpan> regs{};
+  request("read line request", [&](detail::ModbusClient& client) { client.readRegisters(span.first, span.count, regs.data()); });
+  const auto at = [&](HoldingRegister r) { return regs[map.address(r) - span.first]; };
+  LineRequest line;
+  line.start = at(HoldingRegister::LineStartRequest) != 0;
+  line.program_number = at(HoldingRegister::LineProgramNumber);
+  const std::size_t first = map.address(HoldingRegister::LinePartId) - span.first;
+  line.part_id = decodePartId(std::span<const std::uint16_t, kPartIdRegisters>(regs.data() + first, kPartIdRegisters));
+  return line;
+}
+
+CellAnswer ModbusPlc::readCellAnswer() {
+  const RegisterMap& map = options_.registers;
+  const AddressSpan span = map.span(RegisterKind::HoldingRegister, SignalGroup::Line);
+  std::array<std::uint16_t, kMaxAddressSpan> regs{};
+  request("read cell answer", [&](detail::ModbusClient& client) { client.readRegisters(span.first, span.count, regs.data()); });
+  const auto at = [&](HoldingRegister r) { return regs[map.address(r) - span.first]; };
+  CellAnswer a;
+  a.ready = at(HoldingRegister::CellReady) != 0;
+  a.busy = at(HoldingRegister::CellBusy) != 0;
+  a.done = at(HoldingRegister::CellDone) != 0;
+  // A value outside the enums is kept as it is: the caller compares, it does not describe.
+  a.verdict = static_cast<LineVerdict>(at(HoldingRegister::CellVerdict));
+  a.error = static_cast<LineError>(at(HoldingRegister::CellErrorCode));
+  return a;
+}
+
+void ModbusPlc::writeCellAnswer(const CellAnswer& answer) {
+  // One write per run of consecutive addresses, in address order; an address between them is
+  // never written (on a real PLC it may be another signal).
+  std::array<std::pair<std::uint16_t, std::uint16_t>, kAnswerRegisters.size()> cells{};
+  const auto values = answerValues(answer);
+  for (std::size_t i = 0; i < cells.size(); ++i) cells[i] = {options_.registers.address(kAnswerRegisters[i]), values[i]};
+  std::sort(cells.begin(), cells.end());
+  std::vector<std::pair<std::uint16_t, std::vector<std::uint16_t>>> runs;
+  for (const auto& [address, value] : cells) {
+    if (runs.empty() || runs.back().first + runs.back().second.size() != address) runs.push_back({address, {}});
+    runs.back().second.push_back(value);
+  }
+  request("write cell answer", [&](detail::ModbusClient& client) {
+    for (const auto& [first, run] : runs) client.writeRegisters(first, static_cast<std::uint16_t>(run.size()), run.data());
+  });
+}
+
 void ModbusPlc::setPlcWatchdogTimeout(milliseconds timeout) {
   if (timeout.count() < 0 || timeout.count() > 0xFFFF)
     throw DeviceError(name(), "invalid-argument",

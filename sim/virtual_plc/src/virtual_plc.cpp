@@ -375,6 +375,36 @@ void VirtualPlc::setInput(DiscreteInput input, bool on) {
   impl_->logic->evaluate(Clock::now());
 }
 
+void VirtualPlc::requestStart(std::uint16_t program_number, std::string_view part_id) {
+  const auto registers = drivers::plc::encodePartId(part_id);
+  std::lock_guard lock(impl_->image_mutex);
+  const detail::RegisterImage& image = impl_->logic->image();
+  image.at(HoldingRegister::LineProgramNumber) = program_number;
+  // line_part_id's registers follow its first one in the image (the map keeps them together).
+  std::uint16_t* id = &image.at(HoldingRegister::LinePartId);
+  for (std::size_t i = 0; i < registers.size(); ++i) id[i] = registers[i];
+  image.at(HoldingRegister::LineStartRequest) = 1;
+  impl_->logic->evaluate(Clock::now());
+}
+
+void VirtualPlc::dropStartRequest() {
+  std::lock_guard lock(impl_->image_mutex);
+  impl_->logic->image().at(HoldingRegister::LineStartRequest) = 0;
+  impl_->logic->evaluate(Clock::now());
+}
+
+drivers::plc::CellAnswer VirtualPlc::cellAnswer() const {
+  std::lock_guard lock(impl_->image_mutex);
+  const detail::RegisterImage& image = impl_->logic->image();
+  drivers::plc::CellAnswer a;
+  a.ready = image.at(HoldingRegister::CellReady) != 0;
+  a.busy = image.at(HoldingRegister::CellBusy) != 0;
+  a.done = image.at(HoldingRegister::CellDone) != 0;
+  a.verdict = static_cast<drivers::plc::LineVerdict>(image.at(HoldingRegister::CellVerdict));
+  a.error = static_cast<drivers::plc::LineError>(image.at(HoldingRegister::CellErrorCode));
+  return a;
+}
+
 bool VirtualPlc::input(DiscreteInput input) const { return impl_->read(input) != 0; }
 
 bool VirtualPlc::coil(Coil coil) const { return impl_->read(coil) != 0; }

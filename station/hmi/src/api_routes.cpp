@@ -30,12 +30,6 @@ std::optional<std::string> textField(const json& body, const char* name, std::si
 }
 
 // Part ids become folder names: letters, digits and - _ . only.
-bool isPartId(const std::string& id) {
-  return !id.empty() && id.front() != '.' && std::all_of(id.begin(), id.end(), [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
-  });
-}
-
 void startScan(HmiServer::Impl& impl, const httplib::Request& req, httplib::Response& res) {
   const json body = json::parse(req.body, nullptr, false);
   if (body.is_discarded() || !body.is_object())
@@ -67,7 +61,11 @@ void startScan(HmiServer::Impl& impl, const httplib::Request& req, httplib::Resp
 
 void addApiRoutes(HmiServer::Impl& impl) {
   auto& s = impl.server;
-  s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) { sendJson(res, cellJson(impl.jobs)); });
+  s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) {
+    json cell = cellJson(impl.jobs);
+    if (impl.line_handshake) cell["line"] = lineJson(impl.line_handshake->state());
+    sendJson(res, cell);
+  });
   s.Get("/api/status", [&impl](const httplib::Request&, httplib::Response& res) {
     sendJson(res, statusJson(impl.jobs.status()));
   });
@@ -103,7 +101,8 @@ void addApiRoutes(HmiServer::Impl& impl) {
       if (programs.list)
         for (const ProgramSummary& p : programs.list())
           list.push_back({{"name", p.name}, {"description", p.description}, {"grid", p.grid}, {"pitch_mm", p.pitch_mm},
-                          {"material", p.material}, {"sheet_thickness_mm", p.sheet_thickness_mm}, {"note", p.note}});
+                          {"material", p.material}, {"sheet_thickness_mm", p.sheet_thickness_mm}, {"note", p.note},
+                          {"line_number", p.line_number ? json(*p.line_number) : json(nullptr)}});
     } catch (const std::exception& e) {
       return sendError(res, 500, std::string("the program library cannot be read: ") + e.what());
     }

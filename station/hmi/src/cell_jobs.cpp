@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 
 namespace stampscan::hmi {
@@ -83,6 +84,24 @@ class HubObserver final : public station::ScanJobObserver {
 
 }  // namespace
 
+bool isPartId(const std::string& id) {
+  return !id.empty() && id.front() != '.' && std::all_of(id.begin(), id.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+  });
+}
+
+const char* toString(JobOutcome::End end) {
+  switch (end) {
+    case JobOutcome::End::Verdict: return "verdict";
+    case JobOutcome::End::Refused: return "refused";
+    case JobOutcome::End::Stopped: return "stopped";
+    case JobOutcome::End::Failed: return "failed";
+    case JobOutcome::End::Incomplete: return "incomplete";
+    case JobOutcome::End::Done: return "done";
+  }
+  return "unknown";
+}
+
 std::string faultAdvice(const std::string& reason) {
   const auto has = [&](const char* word) { return reason.find(word) != std::string::npos; };
   if (has("door")) return "Close the cell door, then press Start again.";
@@ -131,7 +150,13 @@ std::optional<std::string> CellJobs::begin(const std::string& kind, const std::s
     return "a " + status_.kind + " is running (started by " + status_.user + " at " + status_.started_utc +
            "): wait for it to end or abort it first";
   if (worker_.joinable()) worker_.join();  // the last job has ended; its thread is done
-  status_ = JobStatus{true, kind, user, part_id, "", registration::utcNow()};
+  status_ = JobStatus{};
+  status_.busy = true;
+  status_.job = ++jobs_started_;
+  status_.kind = kind;
+  status_.user = user;
+  status_.part_id = part_id;
+  status_.started_utc = registration::utcNow();
   pending_abort_.reset();
   return std::nullopt;
 }
@@ -155,10 +180,15 @@ class CellJobs::RunningJob {
   CellJobs& jobs_;
 };
 
-std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const std::string& user) {
+std::optional<std::string> CellJobs::startScan(const ScanRequest& request, const std::string& user, std::uint64_t* job) {
   if (auto refused = begin("scan", user, request.part_id)) return refused;
+  {
+    std::lock_guard lock(mutex_);
+    status_.by_line = request.by_line;
+    if (job != nullptr) *job = status_.job;
+  }
   live_cloud_.reset();
-  hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"part_id", request.part_id},
+  hub_.publish("started", json{{"kind", "scan"}, {"user", user}, {"by_line", request.by_line}, {"part_id", request.part_id},
                                {"program", request.program}, {"part_program", request.part_program}}.dump());
   worker_ = std::thread(&CellJobs::runScan, this, request, user);
   return std::nullopt;
@@ -209,6 +239,13 @@ JobStatus CellJobs::status() const {
   return status_;
 }
 
+std::optional<JobOutcome> CellJobs::outcomeOf(std::uint64_t job) const {
+  std::lock_guard lock(mutex_);
+  for (const JobOutcome& outcome : outcomes_)
+    if (outcome.job == job) return outcome;
+  return std::nullopt;
+}
+
 acquisition::CalibrationPolicy CellJobs::calibrationPolicy() const {
   std::lock_guard lock(mutex_);
   return setup_.scan.calibration_policy;
@@ -226,16 +263,21 @@ void CellJobs::setCalibrationPolicy(const acquisition::CalibrationPolicy& policy
   }
 }
 
-void CellJobs::finish(const std::string& event_json) {
+void CellJobs::finish(const std::string& event_json, JobOutcome outcome) {
   {
     std::lock_guard lock(mutex_);
+    outcome.job = status_.job;
+    outcome.kind = status_.kind;
+    outcomes_.push_back(std::move(outcome));
+    if (outcomes_.size() > 16) outcomes_.pop_front();
     status_ = JobStatus{};
   }
   hub_.publish("finished", event_json);
 }
 
 void CellJobs::runScan(ScanRequest request, std::string user) {
-  json done = {{"kind", "scan"}, {"user", user}, {"part_id", request.part_id}, {"ok", false}};
+  json done = {{"kind", "scan"}, {"user", user}, {"by_line", request.by_line}, {"part_id", request.part_id}, {"ok", false}};
+  JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
     station::ScanJobOptions options = [this] {
@@ -245,6 +287,7 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     options.part_id = request.part_id;
     options.program = request.program;
     options.material = request.material;
+    options.started_by = request.by_line ? user + " (the line's PLC)" : user + " (on the panel)";
     if (request.part_program.empty() && setup_.programs.restore) setup_.programs.restore();
     if (request.part_program.empty() && options.plan.steps.empty())
       throw std::runtime_error("choose the part's program: this cell has no part of its own to scan");
@@ -294,20 +337,36 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     if (!r.report_error.empty()) done["error"] = "the scan is measured, but its report failed: " + r.report_error;
     if (r.data_loss) done["data_loss"] = *r.data_loss;
     if (!r.history_error.empty()) done["history_error"] = r.history_error;
+    if (!r.report) {
+      outcome.end = JobOutcome::End::Failed;
+      outcome.error = "its report failed: " + r.report_error;
+    } else if (r.data_loss) {
+      outcome.end = JobOutcome::End::Incomplete;
+      outcome.verdict = r.report->verdict;
+      outcome.error = *r.data_loss;
+    } else {
+      outcome.end = JobOutcome::End::Verdict;
+      outcome.verdict = r.report->verdict;
+    }
   } catch (const acquisition::ScanError& e) {
     done["error"] = std::string("refused before anything moved: ") + e.what();
     done["advice"] = faultAdvice(e.what());
+    outcome.end = JobOutcome::End::Refused;
+    outcome.error = e.what();
   } catch (const std::exception& e) {
     done["error"] = e.what();
     done["advice"] = faultAdvice(e.what());
+    outcome.end = dynamic_cast<const station::ScanStopped*>(&e) != nullptr ? JobOutcome::End::Stopped : JobOutcome::End::Failed;
+    outcome.error = e.what();
     std::lock_guard lock(mutex_);
     if (!status_.run_id.empty()) done["run_id"] = status_.run_id;
   }
-  finish(done.dump());
+  finish(done.dump(), std::move(outcome));
 }
 
 void CellJobs::runVerify(std::string user) {
   json done = {{"kind", "verify"}, {"user", user}, {"ok", false}};
+  JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
     station::VerifyJobOptions options = [this] {
@@ -328,15 +387,18 @@ void CellJobs::runVerify(std::string user) {
     done["record_id"] = r.record.id;
     done["verdict"] = registration::toString(r.record.verdict);
     done["checks"] = checksJson(r.record.checks);
+    outcome.end = JobOutcome::End::Done;
   } catch (const std::exception& e) {
     done["error"] = e.what();
     done["advice"] = faultAdvice(e.what());
+    outcome.error = e.what();
   }
-  finish(done.dump());
+  finish(done.dump(), std::move(outcome));
 }
 
 void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string user) {
   json done = {{"kind", "calibrate"}, {"user", user}, {"ok", false}};
+  JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
     HubObserver observer(hub_, *setup_.cell, "calibrate");
@@ -360,11 +422,13 @@ void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string us
                          {"drift", s.drift}});
     }
     done["sensors"] = sensors;
+    outcome.end = JobOutcome::End::Done;
   } catch (const std::exception& e) {
     done["error"] = e.what();
     done["advice"] = faultAdvice(e.what());
+    outcome.error = e.what();
   }
-  finish(done.dump());
+  finish(done.dump(), std::move(outcome));
 }
 
 }  // namespace stampscan::hmi

@@ -136,6 +136,7 @@ HmiServer::Impl::Impl(CellSetup setup, HmiOptions o)
            options.session_idle_timeout),
       jobs(std::move(setup), hub) {
   if (options.actions_log.empty()) options.actions_log = runsDir() / "hmi-actions.jsonl";
+  if (jobs.setup().line_start) line_handshake = std::make_unique<LineHandshake>(jobs, hub);
 }
 
 void HmiServer::checkOptions(const HmiOptions& options) {
@@ -367,10 +368,12 @@ int HmiServer::bind() {
 
 void HmiServer::run() {
   impl_->jobs.connectDevices();
+  if (impl_->line_handshake) impl_->line_handshake->start();
   impl_->server.listen_after_bind();
 }
 
 void HmiServer::stop() {
+  if (impl_->line_handshake) impl_->line_handshake->stop();
   impl_->hub.close();
   impl_->server.stop();
 }

@@ -137,8 +137,27 @@ json runRecordJson(const results::RunRecord& r) {
 }
 
 json statusJson(const JobStatus& s) {
-  return {{"busy", s.busy}, {"kind", s.kind}, {"user", s.user}, {"part_id", s.part_id}, {"run_id", s.run_id},
+  return {{"busy", s.busy},       {"kind", s.kind},       {"user", s.user},
+          {"by_line", s.by_line}, {"part_id", s.part_id}, {"run_id", s.run_id},
           {"started_utc", s.started_utc}, {"measuring", s.measuring}};
+}
+
+json lineAnswerJson(const drivers::plc::CellAnswer& a) {
+  return {{"ready", a.ready},
+          {"busy", a.busy},
+          {"done", a.done},
+          {"verdict", std::string(drivers::plc::describe(a.verdict).name)},
+          {"error", std::string(drivers::plc::describe(a.error).name)}};
+}
+
+json lineJson(const LineState& line) {
+  json j = {{"connected", line.connected}, {"answer", lineAnswerJson(line.answer)}, {"last", line.last}};
+  j["request"] = {{"start", line.request.start},
+                  {"program_number", line.request.program_number},
+                  {"part_id", line.request.part_id.value_or("")}};
+  if (line.job) j["job"] = *line.job;
+  if (!line.error.empty()) j["error"] = line.error;
+  return j;
 }
 
 }  // namespace stampscan::hmi

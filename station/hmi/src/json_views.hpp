@@ -3,6 +3,7 @@
 
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/hmi/cell_jobs.hpp"
+#include "stampscan/hmi/line_handshake.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/results/results_store.hpp"
 
@@ -25,5 +26,8 @@ nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir, con
 acquisition::CellConfig configInUse(const CellJobs& jobs);
 nlohmann::json runRecordJson(const results::RunRecord& r);
 nlohmann::json statusJson(const JobStatus& s);
+// The cell's answer to the line, by the names of REGISTER_MAP.md's tables; and the whole handshake.
+nlohmann::json lineAnswerJson(const drivers::plc::CellAnswer& a);
+nlohmann::json lineJson(const LineState& line);
 
 }  // namespace stampscan::hmi

@@ -5,10 +5,12 @@
 #include "stampscan/hmi/cell_jobs.hpp"
 #include "stampscan/hmi/event_hub.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
+#include "stampscan/hmi/line_handshake.hpp"
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -28,6 +30,9 @@ struct HmiServer::Impl {
   EventHub hub;
   Authenticator auth;
   CellJobs jobs;
+  // The line's handshake, when the cell lets the line start scans (CellSetup::line_start); started
+  // by run(), stopped by stop(). After `jobs`: it goes first.
+  std::unique_ptr<LineHandshake> line_handshake;
   httplib::Server server;
   std::mutex actions_mutex;
   std::mutex settings_mutex;  // one change of the cell's settings (and its file) at a time

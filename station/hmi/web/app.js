@@ -93,7 +93,20 @@ function renderCell(c) {
     c.devices.map((d) => `<tr><td>${esc(d.name)}</td><td>${esc(d.state)}${d.last_fault ? '<br><small>' + esc(d.last_fault.text) + '</small>' : ''}</td>` +
       `<td>${esc(d.identity.vendor)} ${esc(d.identity.model)}</td><td>${esc(d.identity.serial)}</td><td>${esc(d.identity.firmware)}</td><td>${esc(d.identity.address)}</td></tr>`).join('');
   $('cell-calibration').innerHTML = calibrationHtml(c.calibration);
+  renderLine(c.line);
   setBusy(c.job.busy, c.job);
+}
+// The line's PLC handshake (REGISTER_MAP.md, "Started by the line"), when the cell watches it.
+function renderLine(line) {
+  $('line').classList.toggle('hidden', !line);
+  if (!line) return;
+  const a = line.answer;
+  const chip = (on, label) => `<span class="chip ${on ? 'ok' : ''}">${label}</span>`;
+  $('line-state').innerHTML = (line.connected ? '' : `<span class="chip warn">not reached${line.error ? ': ' + esc(line.error) : ''}</span>`) +
+    chip(a.ready, 'ready') + chip(a.busy, 'busy') + chip(a.done, 'done') +
+    `<span class="chip">last answer: ${esc(a.verdict)}${a.error !== 'none' ? ' (' + esc(a.error) + ')' : ''}</span>` +
+    (line.request.start ? `<span class="chip ok">request: program ${line.request.program_number}, part ${esc(line.request.part_id)}</span>` : '');
+  $('line-last').textContent = line.last || '';
 }
 function calibrationHtml(cal) {
   const v = cal.last_verification;
@@ -194,7 +207,7 @@ function connectEvents() {
   on('hello', (d) => { setBusy(d.job.busy, d.job); if (d.job.busy && d.job.kind === 'scan') liveCloudLoad(); });
   on('started', (d) => {
     setBusy(true, d);
-    log(`${d.kind} started by ${d.user}${d.part_id ? ' for ' + d.part_id : ''}`);
+    log(`${d.kind} started by ${d.by_line ? "the line's PLC" : d.user}${d.part_id ? ' for ' + d.part_id : ''}${d.part_program ? ' (' + d.part_program + ')' : ''}`);
     if (d.kind === 'scan') liveCloudReset();
   });
   on('cloud', liveCloudAdd);
@@ -206,6 +219,7 @@ function connectEvents() {
   on('stage', (d) => { log(`${d.stage}: ${d.text}`); $('doing').textContent = `Measuring: ${d.stage}`; });
   on('finished', onFinished);
   on('cell', () => pollCell());
+  on('line', (d) => { if (d.text) log(`line: ${d.text}`); pollCell(); });
 }
 
 // ---- result ----------------------------------------------------------------------------------
@@ -283,7 +297,7 @@ async function loadResult(runId) {
   if (rep) {
     $('verdict').className = `verdict ${rep.verdict}`;
     $('verdict').textContent = rep.verdict;
-    $('verdict-reason').textContent = `${run.part_id || ''} · ${rep.program || ''} · ${rep.material} — ${rep.verdict_reason}. Max thinning ${num(rep.max_thinning_percent)} %, min safety margin ${num(rep.min_margin_percent)} %.`;
+    $('verdict-reason').textContent = `${run.part_id || ''} · ${rep.program || ''} · ${rep.material} — ${rep.verdict_reason}. Max thinning ${num(rep.max_thinning_percent)} %, min safety margin ${num(rep.min_margin_percent)} %.${run.started_by ? ' Started by ' + run.started_by + '.' : ''}`;
     $('worst').innerHTML = '<tr><th>#</th><th>Element</th><th>Major %</th><th>Minor %</th><th>Thinning %</th><th>Margin %</th><th>Zone</th><th>Patch</th></tr>' +
       (rep.worst_spots || []).map((w, i) => `<tr><td>${i + 1}</td><td>${w.element}</td><td>${num(w.major_engineering_percent)}</td><td>${num(w.minor_engineering_percent)}</td><td>${num(w.thinning_percent)}</td><td>${num(w.safety_margin_percent)}</td><td>${esc(w.zone)}</td><td>${w.patch_elements}</td></tr>`).join('');
   } else {

@@ -78,6 +78,7 @@ nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell,
   for (const auto& d : r.devices)
     run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
   if (!r.completed) run["abort_reason"] = r.abort_reason;
+  if (!o.started_by.empty()) run["started_by"] = o.started_by;
   if (!r.safety_events.empty()) run["safety_events"] = r.safety_events;
   // The cloud, the surface and the maps are in the machine frame; the part's datum frame (its nominal
   // model's) is here on the table.
@@ -520,7 +521,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     measuring.reset();
     writeJsonAtomically(result.run_dir / "run.json", record);
     recordInHistory(result.run_dir, database, "");  // as aborted, with its reason from run.json
-    throw std::runtime_error("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
+    throw ScanStopped("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
                              trace_file.string() + ")");
   }
 
@@ -542,7 +543,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     record["abort_reason"] = *reason + " " + during;
     writeJsonAtomically(result.run_dir / "run.json", record);
     recordInHistory(result.run_dir, database, "");
-    throw std::runtime_error("the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
+    throw ScanStopped("the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
                              (fs::exists(result.run_dir / "cloud4d.ply") ? " and elements are" : " is") + " kept in " +
                              result.run_dir.string() + "; `station process --with-stereo --fit` measures it again)");
   };

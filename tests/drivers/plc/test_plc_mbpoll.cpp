@@ -18,6 +18,7 @@ using drivers::plc::Coil;
 using drivers::plc::DiscreteInput;
 using drivers::plc::HoldingRegister;
 using drivers::plc::InputRegister;
+using drivers::plc::ModbusPlc;
 
 std::string findInPath(const std::string& program) {
   const char* path = std::getenv("PATH");
@@ -109,6 +110,31 @@ TEST_F(PlcMbpollTest, WritesACoil) {
   ASSERT_EQ(written.exit_status, 0) << written.output;
   EXPECT_TRUE(plc_.coil(Coil::StackLightAmber));
   EXPECT_FALSE(plc_.coil(Coil::StackLightGreen));
+}
+
+TEST_F(PlcMbpollTest, PlaysTheLinesSideOfTheHandshake) {
+  // As REGISTER_MAP.md shows it: the program number and the part id "P-0001" (two characters a
+  // register, the first in the high byte), then the start request.
+  const MbpollResult program = run("-t 4 -r 3 127.0.0.1 7 0x502D 0x3030 0x3031");
+  ASSERT_EQ(program.exit_status, 0) << program.output;
+  const MbpollResult start = run("-t 4 -r 2 127.0.0.1 1");
+  ASSERT_EQ(start.exit_status, 0) << start.output;
+  ModbusPlc driver(options());
+  driver.connect();
+  const drivers::plc::LineRequest request = driver.readLineRequest();
+  EXPECT_TRUE(request.start);
+  EXPECT_EQ(request.program_number, 7);
+  EXPECT_EQ(request.part_id, "P-0001");
+
+  // The cell's answer, as the line reads it: cell_ready .. cell_error_code from 20.
+  driver.writeCellAnswer({false, false, true, drivers::plc::LineVerdict::Marginal, drivers::plc::LineError::None});
+  const MbpollResult answer = run("-t 4 -r 20 -c 5 127.0.0.1");
+  ASSERT_EQ(answer.exit_status, 0) << answer.output;
+  EXPECT_EQ(answer.values.at(address(HoldingRegister::CellReady)), 0) << answer.output;
+  EXPECT_EQ(answer.values.at(address(HoldingRegister::CellDone)), 1) << answer.output;
+  EXPECT_EQ(answer.values.at(address(HoldingRegister::CellVerdict)), 2) << answer.output;
+  EXPECT_EQ(answer.values.at(address(HoldingRegister::CellErrorCode)), 0) << answer.output;
+  driver.disconnect();
 }
 
 }  // namespace

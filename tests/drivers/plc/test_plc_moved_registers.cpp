@@ -25,6 +25,7 @@ using drivers::plc::InputRegister;
 using drivers::plc::PlcInputs;
 using drivers::plc::PlcOutputs;
 using drivers::plc::RegisterKind;
+using drivers::plc::SignalGroup;
 using drivers::plc::RegisterMap;
 using drivers::plc::registerTable;
 
@@ -63,7 +64,9 @@ TEST(RegisterMapValue, TheDefaultIsTheStandardMapOfTheTable) {
   EXPECT_EQ(standard.address(Coil::MotionEnable), 5);
   EXPECT_EQ(standard.address(InputRegister::FaultWord), 4);
   EXPECT_EQ(standard.span(RegisterKind::DiscreteInput), (AddressSpan{0, 6}));
-  EXPECT_EQ(standard.span(RegisterKind::HoldingRegister), (AddressSpan{0, 2}));
+  EXPECT_EQ(standard.span(RegisterKind::HoldingRegister, SignalGroup::Cell), (AddressSpan{0, 2}));
+  EXPECT_EQ(standard.span(RegisterKind::HoldingRegister, SignalGroup::Line), (AddressSpan{2, 23}));
+  EXPECT_EQ(standard.span(RegisterKind::HoldingRegister), (AddressSpan{0, 25}));
   EXPECT_EQ(standard.problem(), "");
 }
 
@@ -72,7 +75,9 @@ TEST(RegisterMapValue, SpansCoverTheMovedAddresses) {
   EXPECT_EQ(map.problem(), "");
   EXPECT_EQ(map.span(RegisterKind::DiscreteInput), (AddressSpan{100, 6}));
   EXPECT_EQ(map.span(RegisterKind::Coil), (AddressSpan{200, 8}));
-  EXPECT_EQ(map.span(RegisterKind::HoldingRegister), (AddressSpan{300, 11}));
+  EXPECT_EQ(map.span(RegisterKind::HoldingRegister, SignalGroup::Cell), (AddressSpan{300, 11}));
+  // The line's handshake left where the standard map has it: its own group, its own request.
+  EXPECT_EQ(map.span(RegisterKind::HoldingRegister, SignalGroup::Line), (AddressSpan{2, 23}));
   EXPECT_EQ(map.span(RegisterKind::InputRegister), (AddressSpan{400, 6}));
   EXPECT_NE(map, RegisterMap::standard());
 }
@@ -144,6 +149,9 @@ class RawClient {
     std::uint16_t value = 0;
     return modbus_read_registers(context_.get(), address, 1, &value) == 1 ? value : -1;
   }
+  bool writeHolding(int address, std::uint16_t value) {
+    return modbus_write_register(context_.get(), address, value) == 1;
+  }
   long inputRegister(int address) {
     std::uint16_t value = 0;
     return modbus_read_input_registers(context_.get(), address, 1, &value) == 1 ? value : -1;
@@ -171,6 +179,51 @@ class MovedRegistersTest : public ::testing::Test {
 
   VirtualPlc plc_{served()};
 };
+
+TEST_F(MovedRegistersTest, TheLinesHandshakeIsReadAndAnsweredAtItsMappedAddresses) {
+  // The line's handshake is its own group: here far from the cell's holding registers, and the
+  // answer's registers in another order with a gap, each written where the map says.
+  RegisterMap map = movedMap();
+  map.setAddress(HoldingRegister::LineStartRequest, 520);
+  map.setAddress(HoldingRegister::LineProgramNumber, 521);
+  map.setAddress(HoldingRegister::LinePartId, 500);
+  map.setAddress(HoldingRegister::CellReady, 530);
+  map.setAddress(HoldingRegister::CellBusy, 529);
+  map.setAddress(HoldingRegister::CellDone, 527);
+  map.setAddress(HoldingRegister::CellVerdict, 526);
+  map.setAddress(HoldingRegister::CellErrorCode, 525);
+  ASSERT_EQ(map.problem(), "");
+  sim::VirtualPlcOptions served = virtualPlcOptions();
+  served.registers = map;
+  VirtualPlc plc(served);
+  plc.start();
+  ModbusPlcOptions o = driverOptions(plc.port());
+  o.registers = map;
+  ModbusPlc driver(o);
+  driver.connect();
+  EXPECT_FALSE(driver.readLineRequest().start);
+  plc.requestStart(4711, "coil-07.B");
+  const drivers::plc::LineRequest request = driver.readLineRequest();
+  EXPECT_TRUE(request.start);
+  EXPECT_EQ(request.program_number, 4711);
+  EXPECT_EQ(request.part_id, "coil-07.B");
+  RawClient raw(plc.port());
+  EXPECT_EQ(raw.holding(500), ('c' << 8) | 'o');
+  EXPECT_EQ(raw.holding(520), 1);
+  EXPECT_EQ(raw.holding(521), 4711);
+
+  const drivers::plc::CellAnswer answer{true, false, true, drivers::plc::LineVerdict::Failed, drivers::plc::LineError::None};
+  ASSERT_TRUE(raw.writeHolding(528, 0xBEEF));  // between the answer's registers: never written
+  driver.writeCellAnswer(answer);
+  EXPECT_EQ(plc.cellAnswer(), answer);
+  EXPECT_EQ(driver.readCellAnswer(), answer);
+  EXPECT_EQ(raw.holding(530), 1);
+  EXPECT_EQ(raw.holding(526), 3);
+  EXPECT_EQ(raw.holding(528), 0xBEEF);
+  plc.dropStartRequest();
+  EXPECT_FALSE(driver.readLineRequest().start);
+  driver.disconnect();
+}
 
 TEST_F(MovedRegistersTest, TheVirtualPlcServesEachSignalAtItsMappedAddress) {
   RawClient raw(plc_.port());

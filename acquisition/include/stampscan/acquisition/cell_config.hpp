@@ -68,6 +68,10 @@ struct CellConfig {
   // drivers/plc/REGISTER_MAP.md): the driver reads and writes there, and the cell's virtual twin
   // serves there. Default: the standard map.
   drivers::plc::RegisterMap plc_registers;
+  // [plc] line_start: the line's PLC may start scans through the handshake registers (line_* and
+  // cell_* of REGISTER_MAP.md), which `station hmi` then watches. Off: those registers are left alone
+  // (a PLC program without them is not read there).
+  bool plc_line_start = false;
   struct Camera {
     std::string serial, address;
   };

@@ -11,6 +11,7 @@
 //   model = "model.stl"           # required, relative to the folder
 //   plan = "plan.toml"            # required, relative to the folder
 //   press_program = "..."         # optional: the press program that forms it
+//   line_number = 12              # optional, 1 .. 65535: the number the line's PLC starts it by
 //   [grid]                        # the grid printed on the blank; required
 //   kind = "circle"               # circle or square
 //   pitch_mm = 2.54
@@ -42,7 +43,9 @@
 #include "stampscan/acquisition/scan_plan.hpp"
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -90,6 +93,9 @@ struct PartProgram {
   std::string material;
   double sheet_thickness_mm = 0;
   std::string press_program;
+  // The number the line's PLC names it by (line_program_number, drivers/plc/REGISTER_MAP.md); none:
+  // the line cannot start it. Unique within a library (findProgramByLineNumber checks).
+  std::optional<std::uint16_t> line_number;
   std::vector<RegionOfInterest> regions;
   std::string simulated_part;  // "dome" or "pan" when the virtual cell is to simulate it; "" when none
   SimulationParameters simulation;
@@ -117,6 +123,11 @@ void writePartProgram(const PartProgram& program, const std::filesystem::path& d
 
 // The folders of a program library that hold a program.toml, sorted by path.
 std::vector<std::filesystem::path> listPrograms(const std::filesystem::path& library);
+
+// The name of the library's program whose line_number is `number` (program files only are read; one
+// that does not read is passed over); nothing when none has it. Throws ProgramError when two
+// programs share it, or the library is not a folder.
+std::optional<std::string> findProgramByLineNumber(const std::filesystem::path& library, std::uint16_t number);
 
 // A program's folder: `name_or_dir` when it is a folder holding program.toml (or that file),
 // otherwise the library's program whose name is `name_or_dir`. Throws ProgramError listing the

@@ -11,6 +11,8 @@
 #include "stampscan/sim/scan_scenario.hpp"
 
 #include <filesystem>
+#include <cstdint>
+#include <optional>
 #include <string>
 
 namespace stampscan::sim {
@@ -38,6 +40,7 @@ struct SimulatedProgramOptions {
   // The part family's parameters (scale, depth, strain level); the defaults are the family's own.
   acquisition::SimulationParameters simulation;
   std::string name;  // the program's name (its part number); "": simulatedProgramName's
+  std::optional<std::uint16_t> line_number;  // the number the line's PLC starts it by; none: none
 };
 
 // The world's part with a program's family parameters applied: lengths scaled, and its depth and

@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "stampscan/drivers/plc/plc_register_map.hpp"
 
@@ -107,6 +108,15 @@ class VirtualPlc {
   std::uint16_t faultWord() const;
   // How many times the station heartbeat register changed value.
   std::uint64_t stationHeartbeatChanges() const;
+
+  // The line's side of the handshake (REGISTER_MAP.md, "Started by the line"), as the line's PLC
+  // plays it: requestStart writes line_program_number and line_part_id, then line_start_request 1;
+  // dropStartRequest writes it 0. Throws std::invalid_argument for a part id the registers cannot
+  // hold (drivers::plc::encodePartId). A client can do the same over Modbus.
+  void requestStart(std::uint16_t program_number, std::string_view part_id);
+  void dropStartRequest();
+  // The cell's answer (cell_* registers), as the line reads it.
+  drivers::plc::CellAnswer cellAnswer() const;
 
   // Fault injection.
   // Silent: requests are read and dropped, never answered (a PLC whose program hangs).

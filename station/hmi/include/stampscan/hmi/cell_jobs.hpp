@@ -15,6 +15,8 @@
 #include "stampscan/station/scan_job.hpp"
 #include "stampscan/station/verify_job.hpp"
 
+#include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <memory>
 #include <mutex>
@@ -30,6 +32,7 @@ struct ProgramSummary {
   std::string name, description, grid, material;
   double pitch_mm = 0, sheet_thickness_mm = 0;
   std::string note;  // e.g. "written on first use" for a virtual cell's own part not yet in the library
+  std::optional<std::uint16_t> line_number;  // the number the line's PLC starts it by
 };
 
 // What a scan of a program runs, prepared by the command that serves the cell: the program's plan
@@ -53,6 +56,9 @@ struct CellPrograms {
   // Before a scan of the setup's own plan: a virtual cell puts its own part back on the fixture
   // (after a program's). May be empty.
   std::function<void()> restore;
+  // The name of the program the line's PLC starts by this number (part_program.hpp's line_number);
+  // nothing when none has it. Throws naming what is wrong. Empty: the line can start nothing.
+  std::function<std::optional<std::string>(std::uint16_t line_number)> by_line_number;
 };
 
 // What the command prepares once for the cell it serves (the jobs fill in the rest per start).
@@ -68,22 +74,50 @@ struct CellSetup {
   // digitizer.json in use and history/ of calibration records.
   std::filesystem::path calibration_dir = "stampscan-runs/calibration";
   CellPrograms programs;
+  // The line's PLC may start scans (the cell file's [plc] line_start): the panel then watches the
+  // handshake registers (line_handshake.hpp) while it serves.
+  bool line_start = false;
 };
+
+// A part id a scan takes (from the panel or the line): letters, digits, '-', '_' and '.', not
+// starting with '.'; it names the run's folder.
+bool isPartId(const std::string& id);
 
 struct ScanRequest {
   std::string part_id, program, material;
   std::string part_program;  // a program of the cell's library; empty: the setup's own plan
+  bool by_line = false;      // started by the line's PLC (line_handshake.hpp), not by a person
 };
 
 struct JobStatus {
   bool busy = false;
+  std::uint64_t job = 0;  // the running job's number (1, 2, ... since the panel started); 0 when idle
   std::string kind;      // "scan", "verify" or "calibrate" while busy
   std::string user;      // who started it
+  bool by_line = false;  // a scan the line's PLC started
   std::string part_id;   // of a scan
   std::string run_id;    // once the scan has its folder
   std::string started_utc;
   bool measuring = false;  // a scan whose motion is over: measuring, fitting, the report
 };
+
+// How a job ended, for whoever started it (the line's handshake answers with it).
+struct JobOutcome {
+  enum class End {
+    Verdict,     // measured whole: `verdict` holds the report's
+    Refused,     // refused before anything moved (interlock, calibration, a device, a plan)
+    Stopped,     // aborted on request or by a safety trip
+    Failed,      // ended without a verdict (a device fault, the report failed, an error)
+    Incomplete,  // measured, but lacking data the plan asked for: its verdict is not to be trusted
+    Done,        // a verification or calibration that ran to its end
+  };
+  std::uint64_t job = 0;
+  std::string kind;
+  End end = End::Failed;
+  std::optional<report::Verdict> verdict;  // a scan's, when it has a report
+  std::string error;                       // why, for every end but Verdict and Done
+};
+const char* toString(JobOutcome::End end);
 
 class CellJobs {
  public:
@@ -95,8 +129,10 @@ class CellJobs {
   // Connects the cell's devices in the background, so that the cell view shows them before the
   // first scan. A job started meanwhile waits for it.
   void connectDevices();
-  // Nothing when started; otherwise why not, in one line (another job runs, no verify on this cell).
-  std::optional<std::string> startScan(const ScanRequest& request, const std::string& user);
+  // Nothing when started (and the job's number in *job when given); otherwise why not, in one line
+  // (another job runs, no verify on this cell).
+  std::optional<std::string> startScan(const ScanRequest& request, const std::string& user,
+                                       std::uint64_t* job = nullptr);
   std::optional<std::string> startVerify(const std::string& user);
   // `sensors`: "digitizer", "cameras" or "all"; with `accept`, a calibration that fails its limits
   // is put in use anyway, recorded as accepted by `user`.
@@ -105,6 +141,8 @@ class CellJobs {
   // motion is over and only its measuring remains, which ends by itself).
   std::optional<std::string> abort(const std::string& reason);
   JobStatus status() const;
+  // How job number `job` ended; nothing while it runs (or when it is older than the last few).
+  std::optional<JobOutcome> outcomeOf(std::uint64_t job) const;
   // The cloud of the scan under way (or the last one), as it grows.
   const LiveCloud& liveCloud() const { return live_cloud_; }
   // The cell's calibration rules the jobs apply (validity, acceptance limits, the verification's
@@ -122,7 +160,7 @@ class CellJobs {
   void runScan(ScanRequest request, std::string user);
   void runVerify(std::string user);
   void runCalibrate(station::CalibrateJobOptions options, std::string user);
-  void finish(const std::string& event_json);
+  void finish(const std::string& event_json, JobOutcome outcome);
 
   CellSetup setup_;  // its options and policy change only under mutex_ (setCalibrationPolicy)
   EventHub& hub_;
@@ -135,6 +173,8 @@ class CellJobs {
   // Registers a job's abort for as long as it lives (and hands it an abort asked before it existed).
   class RunningJob;
   std::optional<std::string> pending_abort_;
+  std::uint64_t jobs_started_ = 0;
+  std::deque<JobOutcome> outcomes_;  // the last few, newest last
   std::thread worker_, connector_;
 };
 

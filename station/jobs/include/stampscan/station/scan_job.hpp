@@ -31,6 +31,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 namespace stampscan::station {
@@ -52,6 +53,13 @@ struct PartProgramRef {
   std::string folder;
 };
 
+// A scan stopped before its end: aborted on request (Ctrl-C, SIGTERM, the panel's Abort, the line) or
+// by a safety trip. Its run folder keeps the trace (and what was measured), recorded as incomplete.
+class ScanStopped : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 struct ScanJobOptions {
   acquisition::ScanPlan plan;
   acquisition::ScanRunParams run;  // the session description's cell geometry, limits
@@ -66,6 +74,9 @@ struct ScanJobOptions {
   std::string material, program;
   // The part program scanned, when the plan is a program's; recorded in run.json.
   std::optional<PartProgramRef> part_program;
+  // Who started the scan, in words ("alice on the panel", "the line's PLC"); recorded in run.json
+  // as "started_by" when given.
+  std::string started_by;
   // The material library of the report: null for the built-in one (borrowed for run()).
   const report::MaterialLibrary* materials = nullptr;
   // The cell's calibration folder (digitizer.json and cameras.json in use, put there by `station

@@ -122,6 +122,12 @@ class ModbusPlc : public Device {
   void setOutput(Coil coil, bool on);
   // Writes the next station heartbeat value and returns it (the watchdog thread also does this).
   std::uint16_t writeHeartbeat();
+  // The line's handshake: its request (one read of the holding registers' span) and the cell's
+  // answer (one write per run of consecutive cell_* addresses; one for the standard map). Throw
+  // DeviceError as readInputs does.
+  LineRequest readLineRequest();
+  CellAnswer readCellAnswer();
+  void writeCellAnswer(const CellAnswer& answer);
   void setPlcWatchdogTimeout(std::chrono::milliseconds timeout);
 
   // The callbacks run on the watchdog thread (connection events of the API connection: on the
