@@ -72,7 +72,7 @@ void addApiRoutes(HmiServer::Impl& impl) {
   // For the plant's monitoring: 200 while the cell can scan (findings may warn), 503 when it cannot.
   // Without a session (a monitoring probe on a panel with a login) only the status and findings.
   s.Get("/api/health", [&impl](const httplib::Request& req, httplib::Response& res) {
-    const CellHealth health = cellHealth(impl.jobs);
+    const CellHealth health = impl.health();
     const bool with_detail = !impl.auth.loginRequired() || impl.sessionOf(req).has_value();
     sendJson(res, healthJson(health, with_detail), health.level == HealthLevel::Fault ? 503 : 200);
   });

@@ -385,6 +385,17 @@ std::string HmiServer::url() const {
 
 bool HmiServer::loginRequired() const { return impl_->auth.loginRequired(); }
 
-CellHealth HmiServer::health() const { return cellHealth(impl_->jobs); }
+CellHealth HmiServer::health() const { return impl_->health(); }
+
+CellHealth HmiServer::Impl::health() {
+  // One check at a time: callers that arrive during one wait for it and share its answer.
+  std::lock_guard lock(health_mutex);
+  const auto now = std::chrono::steady_clock::now();
+  if (!health_cache || now - health_checked > std::chrono::seconds(5)) {
+    health_cache = cellHealth(jobs);
+    health_checked = std::chrono::steady_clock::now();
+  }
+  return *health_cache;
+}
 
 }  // namespace stampscan::hmi

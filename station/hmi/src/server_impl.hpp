@@ -10,6 +10,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -49,6 +50,13 @@ struct HmiServer::Impl {
   void recordAction(const Session& who, const std::string& action, const nlohmann::json& detail,
                     const httplib::Request& req);
   std::filesystem::path runsDir() const { return jobs.setup().scan.runs_dir; }
+  // The cell's health, checked at most once every few seconds whoever asks (a monitoring probe,
+  // the pages, the log): a check reads the disk and reaches the results database, which a probe
+  // polling fast must not multiply.
+  CellHealth health();
+  std::mutex health_mutex;
+  std::optional<CellHealth> health_cache;
+  std::chrono::steady_clock::time_point health_checked{};
 };
 
 // A request whose parameters are wrong: answered 400 with the message.
