@@ -60,7 +60,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
         const acquisition::PartProgram program = acquisition::parseProgramFile(text.str(), (dir / acquisition::kProgramFile).string());
         names.insert(program.name);
         out.push_back({program.name, program.description, program.grid.kind, program.material, program.grid.pitch_mm,
-                       program.sheet_thickness_mm, "", program.line_number});
+                       program.sheet_thickness_mm, "", lineNumberOf(program, virtual_cell)});
       } catch (const std::exception& e) {
         out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what(), std::nullopt});
       }

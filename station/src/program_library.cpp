@@ -4,6 +4,8 @@
 #include "stampscan/sim/part_model.hpp"
 
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace stampscan::station {
@@ -62,15 +64,35 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
   return acquisition::loadPartProgram(acquisition::findProgram(library, name));  // its error lists the library
 }
 
+std::optional<std::uint16_t> lineNumberOf(const acquisition::PartProgram& program, bool virtual_cell) {
+  if (program.line_number || !virtual_cell) return program.line_number;
+  // A virtual cell's own part written before programs carried their number keeps its number.
+  for (const SimulatedProgramName& simulated : simulatedProgramNames())
+    if (simulated.name == program.name) return simulated.line_number;
+  return std::nullopt;
+}
+
 std::optional<std::string> programByLineNumber(std::uint16_t line_number, const acquisition::CellConfig& cell,
                                                bool virtual_cell, const fs::path& runs) {
   const fs::path library = programLibrary(cell, virtual_cell, runs);
   std::error_code ec;
   if (fs::is_directory(library, ec))
     if (auto name = acquisition::findProgramByLineNumber(library, line_number)) return name;
-  if (virtual_cell)
-    for (const SimulatedProgramName& simulated : simulatedProgramNames())
-      if (simulated.line_number == line_number && !fs::exists(library / simulated.name, ec)) return simulated.name;
+  if (!virtual_cell) return std::nullopt;
+  // The virtual cell's own parts: not yet written (written on first use), or written without a number.
+  for (const SimulatedProgramName& simulated : simulatedProgramNames()) {
+    if (simulated.line_number != line_number) continue;
+    const fs::path file = library / simulated.name / acquisition::kProgramFile;
+    if (!fs::exists(file, ec)) return simulated.name;
+    std::ifstream in(file, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    try {
+      if (!acquisition::parseProgramFile(text.str(), file.string()).line_number) return simulated.name;
+    } catch (const acquisition::ProgramError&) {
+      // unreadable: the scan would fail on it too; the number names no program
+    }
+  }
   return std::nullopt;
 }
 

@@ -36,6 +36,10 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
 std::optional<std::string> programByLineNumber(std::uint16_t line_number, const acquisition::CellConfig& cell,
                                                bool virtual_cell, const std::filesystem::path& runs);
 
+// The number the line's PLC starts the program by: its own line_number; on a virtual cell, its own
+// simulated parts' number (simulatedProgramNames) when their program was written without one.
+std::optional<std::uint16_t> lineNumberOf(const acquisition::PartProgram& program, bool virtual_cell);
+
 // The virtual cell's own simulated parts' programs (sim-dome-circle, ..., sim-pan-square-sample).
 struct SimulatedProgramName {
   std::string name, part, grid;  // e.g. sim-pan-circle-sample, pan, circle
