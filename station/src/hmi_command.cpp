@@ -3,6 +3,7 @@
 // `station scan` does), prepares the scan and the verification the panel may start, and serves.
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
+#include "stampscan/hmi/panel_log.hpp"
 #include "stampscan/hmi/tls_front.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
@@ -133,35 +134,6 @@ extern "C" void onHmiStop(int sig) { g_hmi_stop = sig; }
 // can be rehearsed (and tested) on the panel. The handler only records which; the watcher acts.
 std::atomic<int> g_virtual_door{0};
 extern "C" void onVirtualDoor(int sig) { g_virtual_door = sig; }
-
-// A line of the panel's log on standard error. Under systemd (JOURNAL_STREAM is set) it carries its
-// syslog level as a "<N>" prefix, so that the journal files it as a warning or an error.
-void logLine(int syslog_level, std::string text) {
-  std::replace(text.begin(), text.end(), '\n', ' ');  // one entry, one line: the level holds for all of it
-  const std::string level = std::getenv("JOURNAL_STREAM") != nullptr ? "<" + std::to_string(syslog_level) + ">" : "";
-  const std::string line = level + "station hmi: " + text + "\n";
-  std::fputs(line.c_str(), stderr);  // one write, not split by other threads' output
-  std::fflush(stderr);
-}
-
-// Logs the health's findings when they appear or change, and says when one is mended.
-class HealthLog {
- public:
-  void update(const hmi::CellHealth& health) {
-    std::map<std::string, std::string> now;
-    for (const hmi::HealthFinding& f : health.findings) {
-      const std::string line = std::string(hmi::toString(f.level)) + ": " + f.text;
-      now[f.what] = line;
-      if (reported_[f.what] != line) logLine(f.level == hmi::HealthLevel::Fault ? 3 : 4, line);
-    }
-    for (const auto& [what, line] : reported_)
-      if (!line.empty() && now.count(what) == 0) logLine(6, "mended: " + what + " (was " + line + ")");
-    reported_ = std::move(now);
-  }
-
- private:
-  std::map<std::string, std::string> reported_;
-};
 
 int hashPasswordFromStdin() {
   std::string password;
@@ -319,14 +291,14 @@ CommandRunner addHmiCommand(CLI::App& app) {
     std::thread watcher([&] {
       // The cell's health into the log (the journal): first once the devices have had time to
       // connect, then every minute.
-      HealthLog health_log;
+      hmi::HealthLog health_log;
       auto next_health = std::chrono::steady_clock::now() + std::chrono::seconds(10);
       while (!done && !g_hmi_stop) {
         if (std::chrono::steady_clock::now() >= next_health) {
           try {
             health_log.update(server.health());
           } catch (const std::exception& e) {
-            logLine(4, std::string("warning: the cell's health could not be checked: ") + e.what());
+            hmi::logLine(hmi::kLogWarning, std::string("warning: the cell's health could not be checked: ") + e.what());
           }
           next_health = std::chrono::steady_clock::now() + std::chrono::seconds(60);
         }

@@ -1,6 +1,7 @@
 #include "stampscan/hmi/line_handshake.hpp"
 
 #include "json_views.hpp"
+#include "stampscan/hmi/panel_log.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -107,7 +108,10 @@ void LineHandshake::loop() {
         poll(device);
       } catch (const std::exception& e) {
         std::lock_guard error_lock(mutex_);
-        if (state_.error != e.what()) hub_.publish("line", json{{"error", e.what()}}.dump());
+        if (state_.error != e.what()) {
+          hub_.publish("line", json{{"error", e.what()}}.dump());
+          logLine(kLogWarning, std::string("the line's handshake cannot reach the PLC: ") + e.what());
+        }
         state_.connected = false;
         state_.error = e.what();
       }
@@ -209,6 +213,9 @@ void LineHandshake::refuse(plc::LineError error, const std::string& why) {
 // Called with mutex_ held.
 void LineHandshake::note(const std::string& what) {
   state_.last = what;
+  // Into the journal too: an unattended cell's record of what the line asked and got.
+  const bool trouble = state_.answer.verdict == plc::LineVerdict::Error && state_.answer.done;
+  logLine(trouble ? kLogWarning : kLogNotice, what);
   hub_.publish("line", json{{"text", what}, {"answer", lineAnswerJson(state_.answer)}}.dump());
 }
 
