@@ -17,7 +17,8 @@ deb=$(ls "$out"/stampscan_*.deb)
 echo "built $(basename "$deb") ($(du -h "$deb" | cut -f1))"
 contents=$(dpkg-deb -c "$deb")
 for f in ./usr/bin/station ./etc/stampscan/cell.toml ./lib/systemd/system/stampscan-panel.service \
-         ./lib/udev/rules.d/60-stampscan-digitizer.rules ./usr/share/man/man1/station.1.gz \
+         ./lib/udev/rules.d/60-stampscan-digitizer.rules ./usr/lib/sysctl.d/60-stampscan-gige.conf \
+         ./usr/share/man/man1/station.1.gz \
          ./usr/share/doc/stampscan/copyright ./usr/share/doc/stampscan/changelog.gz ./usr/share/stampscan/materials.toml; do
   echo "$contents" | grep -q " $f\$" || { echo "FAILED: the package lacks $f"; exit 1; }
 done
@@ -27,6 +28,8 @@ for script in postinst prerm postrm; do
   dpkg-deb -I "$deb" "$script" >/dev/null || { echo "FAILED: no $script"; exit 1; }
 done
 dpkg-deb -f "$deb" Depends | grep -q "libjs-three" || { echo "FAILED: Depends lacks libjs-three"; exit 1; }
+# The virtual cell's digitizer needs umockdev's preload library (the virtual cell of a fresh install).
+dpkg-deb -f "$deb" Recommends | grep -q "umockdev" || { echo "FAILED: Recommends lacks umockdev"; exit 1; }
 # lintian: errors fail, warnings are printed.
 lintian --fail-on error --allow-root "$deb"
 echo "lintian: no errors"

@@ -42,6 +42,11 @@ void setPacketResend(ArvStream* stream, bool enabled) {
                enabled ? ARV_GV_STREAM_PACKET_RESEND_ALWAYS : ARV_GV_STREAM_PACKET_RESEND_NEVER, NULL);
 }
 
+void setSocketBuffer(ArvStream* stream, int bytes) {
+  if (!ARV_IS_GV_STREAM(stream)) return;
+  g_object_set(stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size", bytes, NULL);
+}
+
 bool holdsControl(ArvCamera* camera) {
   ArvDevice* device = arv_camera_get_device(camera);
   return !ARV_IS_GV_DEVICE(device) || arv_gv_device_is_controller(ARV_GV_DEVICE(device));

@@ -43,6 +43,11 @@ void disconnectSignal(ArvDevice* device, unsigned long handler);
 // Resends make no sense against a device that ignores them (the fake camera) and are the
 // device's business on a real one; the option lets the caller choose.
 void setPacketResend(ArvStream* stream, bool enabled);
+// The stream socket's receive buffer (SO_RCVBUF), in bytes. Without it the kernel's default
+// (net.core.rmem_default, 208 KiB on Debian) holds less than one frame, and a process without
+// CAP_NET_RAW (Aravis's packet socket needs it) loses the packets of a burst: a frame never
+// completes. The kernel caps it at net.core.rmem_max.
+void setSocketBuffer(ArvStream* stream, int bytes);
 
 // GigE Vision control channel privilege (CCP, bootstrap register 0x0A00). Aravis writes CCP when it
 // opens a GigE Vision camera and carries on without control when the camera refuses.

@@ -6,6 +6,7 @@
 // to the callback, counts any other status by reason, and pushes the buffer back. No allocation
 // per frame, no unbounded queue: when the consumer is slow Aravis runs out of input buffers and
 // counts an underrun.
+#include <algorithm>
 #include <limits>
 
 #include "gige_camera_impl.hpp"
@@ -96,6 +97,9 @@ void GigECamera::Impl::startSessionLocked() {
   stream.reset(arv_camera_create_stream(cam, nullptr, nullptr, e.out()));
   if (!stream || e) throw owner.fault("stream", "cannot open the GVSP stream: " + e.message());
   glue::setPacketResend(stream.get(), owner.options_.packet_resend);
+  // Room for several frames in the socket: a receive thread that a loaded machine holds back for a
+  // moment must find the burst still there.
+  glue::setSocketBuffer(stream.get(), static_cast<int>(std::clamp<std::uint64_t>(4ULL * payload, 8ULL << 20, 1ULL << 30)));
   for (std::size_t i = 0; i < owner.options_.buffer_count; ++i) {
     arv_stream_push_buffer(stream.get(), arv_buffer_new(payload, nullptr));
   }

@@ -2,6 +2,7 @@
 // a reason when the machine cannot host them, and bounded waits on conditions.
 #pragma once
 
+#include <cstdlib>
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -60,7 +61,12 @@ inline bool imageIsIntact(std::uint8_t tag, std::span<const std::uint8_t> bytes)
 
 class VirtualCamerasTest : public ::testing::Test {
  protected:
+  // Set in the environment of a test run by another test's process, whose cameras it then uses
+  // (test_camera_stream.cpp: the stream of a process without privileges).
+  static constexpr const char* kCamerasServedElsewhere = "STAMPSCAN_TEST_CAMERAS_SERVED_ELSEWHERE";
+
   void SetUp() override {
+    if (std::getenv(kCamerasServedElsewhere) != nullptr) return;
     const sim::LoopbackStatus status = sim::VirtualCamera::ensureLoopbackAddress(kRightAddress);
     if (!status.ok) GTEST_SKIP() << "virtual right camera unavailable: " << status.reason;
     left_ = std::make_unique<sim::VirtualCamera>(sim::VirtualCameraOptions{kLeftAddress, kLeftSerial, "", 0.0});
