@@ -2,14 +2,20 @@
 // cell (as an operator starts it), on a free port, with a scratch runs folder; an HTTP client for it.
 #pragma once
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
 #include <nlohmann/json.hpp>
 #include <signal.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/time.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -50,6 +56,34 @@ inline std::string hashOf(const std::string& password) {
   return out;
 }
 
+// A request whose connection the panel closes (a refused body) must fail the request, not kill the
+// test process with SIGPIPE (which would leave its panel running).
+inline const bool kSigpipeIgnored = [] {
+  std::signal(SIGPIPE, SIG_IGN);
+  return true;
+}();
+
+// Sends `request` whole on a new connection to 127.0.0.1:port and returns what comes back until the
+// server closes (or 5 s pass).
+inline std::string rawExchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return "";
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string reply;
+  timeval timeout{5, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0 &&
+      ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(request.size())) {
+    char buffer[4096];
+    for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;) reply.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  return reply;
+}
+
 // Runs `station hmi ARGS --ready-file ... -o ROOT/runs` until destroyed.
 class StationHmi {
  public:
@@ -62,6 +96,9 @@ class StationHmi {
     std::fflush(nullptr);  // what this process has buffered is written once, not again by the child
     pid_ = fork();
     if (pid_ == 0) {
+      // The panel goes with the test: a test process that dies (a crash, a signal) must not leave
+      // it holding the virtual cell's ports for the tests after it.
+      prctl(PR_SET_PDEATHSIG, SIGTERM);
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(a.data());
       argv.push_back(nullptr);

@@ -6,6 +6,7 @@
 // passed through, login floods slowed.
 #include "hmi_test_support.hpp"
 
+#include <sys/prctl.h>
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sched.h>
@@ -150,6 +151,7 @@ class HmiFrontTest : public HmiTest {
     std::fflush(nullptr);
     nginx_pid_ = fork();
     if (nginx_pid_ == 0) {
+      prctl(PR_SET_PDEATHSIG, SIGTERM);  // the front goes with the test, whatever ends it
       const std::string log = (dir / "stderr.log").string();
       freopen(log.c_str(), "w", stderr);
       execl(nginx_.c_str(), "nginx", "-e", (dir / "error.log").c_str(), "-p", dir.c_str(), "-c",

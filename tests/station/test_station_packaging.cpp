@@ -5,6 +5,7 @@
 #include "station_test_support.hpp"
 
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -76,6 +77,7 @@ TEST_F(StationTest, ThePanelsServiceStartsFromItsCommandLineAndItsStopSignalEnds
   std::fflush(nullptr);
   const pid_t pid = fork();
   if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGTERM);  // the panel goes with the test, whatever ends it
     setenv("JOURNAL_STREAM", "8:4242", 1);  // as systemd sets it for a service logging to the journal
     execl("/bin/sh", "sh", "-c", ("exec " + command + " >" + quote(log) + " 2>&1").c_str(), static_cast<char*>(nullptr));
     _exit(127);
