@@ -253,35 +253,46 @@ std::array<std::uint16_t, 5> answerValues(const CellAnswer& a) {
           static_cast<std::uint16_t>(a.error)};
 }
 
+// The line's handshake registers, read in one request over their span.
+class LineRegisters {
+ public:
+  explicit LineRegisters(const RegisterMap& map)
+      : map_(map), span_(map.span(RegisterKind::HoldingRegister, SignalGroup::Line)) {}
+  void read(detail::ModbusClient& client) { client.readRegisters(span_.first, span_.count, regs_.data()); }
+  std::uint16_t at(HoldingRegister r) const { return regs_[map_.address(r) - span_.first]; }
+  std::span<const std::uint16_t, kPartIdRegisters> partId() const {
+    return std::span<const std::uint16_t, kPartIdRegisters>(regs_.data() + (map_.address(HoldingRegister::LinePartId) - span_.first),
+                                                            kPartIdRegisters);
+  }
+
+ private:
+  const RegisterMap& map_;
+  AddressSpan span_;
+  std::array<std::uint16_t, kMaxAddressSpan> regs_{};
+};
+
 }  // namespace
 
 LineRequest ModbusPlc::readLineRequest() {
-  const RegisterMap& map = options_.registers;
-  const AddressSpan span = map.span(RegisterKind::HoldingRegister, SignalGroup::Line);
-  std::array<std::uint16_t, kMaxAddressSpan> regs{};
-  request("read line request", [&](detail::ModbusClient& client) { client.readRegisters(span.first, span.count, regs.data()); });
-  const auto at = [&](HoldingRegister r) { return regs[map.address(r) - span.first]; };
+  LineRegisters regs(options_.registers);
+  request("read line request", [&](detail::ModbusClient& client) { regs.read(client); });
   LineRequest line;
-  line.start = at(HoldingRegister::LineStartRequest) != 0;
-  line.program_number = at(HoldingRegister::LineProgramNumber);
-  const std::size_t first = map.address(HoldingRegister::LinePartId) - span.first;
-  line.part_id = decodePartId(std::span<const std::uint16_t, kPartIdRegisters>(regs.data() + first, kPartIdRegisters));
+  line.start = regs.at(HoldingRegister::LineStartRequest) != 0;
+  line.program_number = regs.at(HoldingRegister::LineProgramNumber);
+  line.part_id = decodePartId(regs.partId());
   return line;
 }
 
 CellAnswer ModbusPlc::readCellAnswer() {
-  const RegisterMap& map = options_.registers;
-  const AddressSpan span = map.span(RegisterKind::HoldingRegister, SignalGroup::Line);
-  std::array<std::uint16_t, kMaxAddressSpan> regs{};
-  request("read cell answer", [&](detail::ModbusClient& client) { client.readRegisters(span.first, span.count, regs.data()); });
-  const auto at = [&](HoldingRegister r) { return regs[map.address(r) - span.first]; };
+  LineRegisters regs(options_.registers);
+  request("read cell answer", [&](detail::ModbusClient& client) { regs.read(client); });
   CellAnswer a;
-  a.ready = at(HoldingRegister::CellReady) != 0;
-  a.busy = at(HoldingRegister::CellBusy) != 0;
-  a.done = at(HoldingRegister::CellDone) != 0;
+  a.ready = regs.at(HoldingRegister::CellReady) != 0;
+  a.busy = regs.at(HoldingRegister::CellBusy) != 0;
+  a.done = regs.at(HoldingRegister::CellDone) != 0;
   // A value outside the enums is kept as it is: the caller compares, it does not describe.
-  a.verdict = static_cast<LineVerdict>(at(HoldingRegister::CellVerdict));
-  a.error = static_cast<LineError>(at(HoldingRegister::CellErrorCode));
+  a.verdict = static_cast<LineVerdict>(regs.at(HoldingRegister::CellVerdict));
+  a.error = static_cast<LineError>(regs.at(HoldingRegister::CellErrorCode));
   return a;
 }
 
