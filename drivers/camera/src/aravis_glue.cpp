@@ -1,5 +1,11 @@
 #include "aravis_glue.hpp"
 
+#include <arpa/inet.h>
+#include <dirent.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <cstdlib>
 #include <mutex>
 
 // GLib's type-checking macros expand to C casts; this file is the only one that uses them.
@@ -44,7 +50,31 @@ void setPacketResend(ArvStream* stream, bool enabled) {
 
 void setSocketBuffer(ArvStream* stream, int bytes) {
   if (!ARV_IS_GV_STREAM(stream)) return;
+  // Aravis applies this when a frame begins, which is after the first frame's burst has met the
+  // default buffer...
   g_object_set(stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size", bytes, NULL);
+  // ... so the stream's socket (the UDP socket bound to its port; Aravis does not hand it out) gets
+  // it now, before the first frame. With the packet socket (root, CAP_NET_RAW) there is none to find.
+  const guint16 port = arv_gv_stream_get_port(ARV_GV_STREAM(stream));
+  DIR* fds = ::opendir("/proc/self/fd");
+  if (fds == nullptr) return;
+  while (const dirent* entry = ::readdir(fds)) {
+    char* end = nullptr;
+    const long fd = std::strtol(entry->d_name, &end, 10);
+    if (end == entry->d_name || *end != '\0' || fd == ::dirfd(fds)) continue;
+    int type = 0;
+    socklen_t type_length = sizeof type;
+    sockaddr_storage address{};
+    socklen_t address_length = sizeof address;
+    if (::getsockopt(static_cast<int>(fd), SOL_SOCKET, SO_TYPE, &type, &type_length) != 0 || type != SOCK_DGRAM ||
+        ::getsockname(static_cast<int>(fd), reinterpret_cast<sockaddr*>(&address), &address_length) != 0)
+      continue;
+    const guint16 bound = address.ss_family == AF_INET    ? ntohs(reinterpret_cast<const sockaddr_in*>(&address)->sin_port)
+                          : address.ss_family == AF_INET6 ? ntohs(reinterpret_cast<const sockaddr_in6*>(&address)->sin6_port)
+                                                          : 0;
+    if (bound == port) ::setsockopt(static_cast<int>(fd), SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);
+  }
+  ::closedir(fds);
 }
 
 bool holdsControl(ArvCamera* camera) {
