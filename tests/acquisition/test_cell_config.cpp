@@ -62,6 +62,9 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
     EXPECT_NE(b.plc_registers.addresses[row], a.plc_registers.addresses[row]) << drivers::plc::registerTable()[row].name;
   EXPECT_EQ(b.plc_registers.address(drivers::plc::DiscreteInput::DoorClosed), 104);
   EXPECT_EQ(b.plc_registers.address(drivers::plc::Coil::LaserShutterOpenRequest), 200);
+  EXPECT_EQ(b.plc_registers.address(drivers::plc::HoldingRegister::LinePartId), 520);
+  EXPECT_TRUE(b.plc_line_start);
+  EXPECT_TRUE(a.plc_line_start) << "the built-in virtual cell lets the line start scans too";
   EXPECT_EQ(b.left_camera.serial, "CELL-B-LEFT");
   EXPECT_EQ(b.limits.travel_max[0], 500);
   EXPECT_EQ(b.geometry.head.kind, HeadDescription::Kind::Indexing);
