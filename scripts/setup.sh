@@ -43,9 +43,9 @@ if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
 fi
-# The panel's browser test (tests/hmi/browser) drives Debian's chromium with puppeteer-core, pinned
+# The panel's browser test (tests/station/hmi/browser) drives Debian's chromium with puppeteer-core, pinned
 # the same way. Each folder is installed again only when its lockfile is newer than its install.
-for node_dir in tests/acquisition/interop tests/hmi/browser; do
+for node_dir in tests/acquisition/interop tests/station/hmi/browser; do
   if [ ! -d "$node_dir/node_modules" ] || [ "$node_dir/package-lock.json" -nt "$node_dir/node_modules/.package-lock.json" ]; then
     echo "setup: npm ci in $node_dir"
     npm ci --prefix "$node_dir" --no-audit --no-fund --loglevel=error

@@ -43,7 +43,7 @@ class ScenePlanner {
       const Vec3 target = plate_pose * (centre_on_plate + Vec3(8 * u(rng), 8 * u(rng), 0));
       const Vec3 head = target + headRotation(a, b) * Vec3(0, 0, drop + distance * (1 + 0.1 * u(rng)));
       StereoStep v;
-      v.scene = kScenePlate;
+      v.scene = Scene::CalibrationPlate;
       v.index = static_cast<std::uint32_t>(k);
       v.pose = {{head.x(), head.y(), head.z()}, a, b};
       v.settle_s = 0.4;
@@ -51,7 +51,7 @@ class ScenePlanner {
     }
   }
 
-  void sphereSweeps(const Vec3& centre_of_ball, double radius, const char* scene, int count) {
+  void sphereSweeps(const Vec3& centre_of_ball, double radius, Scene scene, int count) {
     struct Sweep {
       double b, a, speed, direction, lateral, depth;
     };
@@ -110,9 +110,9 @@ void appendCalibrationScenes(const CellGeometry& cell, const MachineLimits& limi
   ScenePlanner planner(cell, limits, plan);
   if (scenes.plate_views > 0) planner.plateViews(scenes.plate_views, scenes.seed);
   if (scenes.sphere_sweeps > 0)
-    planner.sphereSweeps(vec(cell.sphere.centre_mm), 0.5 * cell.sphere.diameter_mm, kSceneSphere, scenes.sphere_sweeps);
+    planner.sphereSweeps(vec(cell.sphere.centre_mm), 0.5 * cell.sphere.diameter_mm, Scene::ReferenceSphere, scenes.sphere_sweeps);
   if (scenes.second_sphere_sweeps > 0 && cell.ball_bar)
-    planner.sphereSweeps(vec(cell.ball_bar->centre_mm), 0.5 * cell.ball_bar->diameter_mm, kSceneSecondSphere,
+    planner.sphereSweeps(vec(cell.ball_bar->centre_mm), 0.5 * cell.ball_bar->diameter_mm, Scene::SecondSphere,
                          scenes.second_sphere_sweeps);
 }
 

@@ -579,11 +579,11 @@ std::string hex(unsigned v) {
 
 }  // namespace
 
-std::string describeCellConfig(const CellConfig& c) {
-  CellListing l(c.defaulted);
+namespace {
+
+// [cmm], [machine], [head]: the machine and its head.
+void listMachine(CellListing& l, const CellConfig& c) {
   const CellGeometry& g = c.geometry;
-  l.raw("# The cell as understood from " + c.source + "; \"# default\": the file left the key out.");
-  l.raw("name = " + CellListing::quoted(c.name));
   l.section("cmm");
   l.text("host", c.cmm.host);
   l.integer("port", c.cmm.port);
@@ -616,6 +616,11 @@ std::string describeCellConfig(const CellConfig& c) {
     else l.raw("radius_mm = " + CellListing::shown(b.radius_mm));
     if (b.shape == BodySolid::Shape::Cylinder) l.raw("length_mm = " + CellListing::shown(b.length_mm));
   }
+}
+
+// [plc], [plc.registers], [cameras], [digitizer]: the devices.
+void listDevices(CellListing& l, const CellConfig& c) {
+  const CellGeometry& g = c.geometry;
   l.section("plc");
   l.text("host", c.plc.host);
   l.integer("port", c.plc.port);
@@ -655,6 +660,11 @@ std::string describeCellConfig(const CellConfig& c) {
   l.number("latency_ms", g.digitizer.latency_ms);
   l.triple("mount_mm", g.digitizer.mount.position_mm);
   l.triple("mount_rotation_deg", g.digitizer.mount.rotation_deg);
+}
+
+// [sphere], [ball_bar], [plate], [fixture]: what stands on the table.
+void listArtefacts(CellListing& l, const CellConfig& c) {
+  const CellGeometry& g = c.geometry;
   l.section("sphere");
   l.triple("centre_mm", g.sphere.centre_mm);
   l.number("diameter_mm", g.sphere.diameter_mm);
@@ -677,6 +687,10 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("name", g.fixture.name);
   l.triple("datum_mm", g.fixture.datum.position_mm);
   l.triple("datum_rotation_deg", g.fixture.datum.rotation_deg);
+}
+
+// [calibration], [results], [report], [programs], [hmi]: the cell's rules and places.
+void listPolicies(CellListing& l, const CellConfig& c) {
   l.section("calibration");
   const CalibrationPolicy& p = c.calibration;
   l.text("dir", p.dir);
@@ -711,6 +725,18 @@ std::string describeCellConfig(const CellConfig& c) {
   l.text("tls_key", c.panel.tls_key);
   l.integer("https_port", c.panel.https_port);
   l.integer("http_port", c.panel.http_port);
+}
+
+}  // namespace
+
+std::string describeCellConfig(const CellConfig& c) {
+  CellListing l(c.defaulted);
+  l.raw("# The cell as understood from " + c.source + "; \"# default\": the file left the key out.");
+  l.raw("name = " + CellListing::quoted(c.name));
+  listMachine(l, c);
+  listDevices(l, c);
+  listArtefacts(l, c);
+  listPolicies(l, c);
   return l.str();
 }
 

@@ -57,10 +57,10 @@ ScanPlan placeOnFixture(const ScanPlan& plan, const CellGeometry& cell, double i
   const Eigen::Vector3d mirror(m[0], m[1], m[2]);
   const Eigen::Vector3d aim(0, 0, -(cell.cameras.drop_mm + cell.cameras.convergence_mm));
   for (PlanStep& step : placed.steps) {
-    if (auto* sweep = std::get_if<SweepStep>(&step); sweep && sweep->scene == kScenePart) {
+    if (auto* sweep = std::get_if<SweepStep>(&step); sweep && sweep->scene == Scene::Part) {
       sweep->start = placePose(sweep->start, machine_from_datum, mirror, index_step);
       sweep->end = placePose(sweep->end, machine_from_datum, mirror, index_step);
-    } else if (auto* view = std::get_if<StereoStep>(&step); view && view->scene == kScenePart) {
+    } else if (auto* view = std::get_if<StereoStep>(&step); view && view->scene == Scene::Part) {
       view->pose = placePose(view->pose, machine_from_datum, aim, index_step);
     }
   }

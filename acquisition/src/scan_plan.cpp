@@ -32,7 +32,7 @@ std::string stepName(std::size_t k, const PlanStep& step) {
   return std::visit(
       [&](const auto& s) {
         const char* kind = std::is_same_v<std::decay_t<decltype(s)>, SweepStep> ? "sweep" : "stereo";
-        return "step " + std::to_string(k + 1) + " (" + kind + " " + s.scene + " " + std::to_string(s.index) + ")";
+        return "step " + std::to_string(k + 1) + " (" + kind + " " + std::string(toString(s.scene)) + " " + std::to_string(s.index) + ")";
       },
       step);
 }
@@ -125,17 +125,17 @@ double distance(const HeadPose& p, const HeadPose& q) {
 
 }  // namespace
 
-std::size_t ScanPlan::sweepCount(const std::string& scene) const {
+std::size_t ScanPlan::sweepCount(std::optional<Scene> scene) const {
   std::size_t n = 0;
   for (const PlanStep& s : steps)
-    if (const auto* w = std::get_if<SweepStep>(&s)) n += scene.empty() || w->scene == scene;
+    if (const auto* w = std::get_if<SweepStep>(&s)) n += !scene || w->scene == *scene;
   return n;
 }
 
-std::size_t ScanPlan::stereoCount(const std::string& scene) const {
+std::size_t ScanPlan::stereoCount(std::optional<Scene> scene) const {
   std::size_t n = 0;
   for (const PlanStep& s : steps)
-    if (const auto* v = std::get_if<StereoStep>(&s)) n += scene.empty() || v->scene == scene;
+    if (const auto* v = std::get_if<StereoStep>(&s)) n += !scene || v->scene == *scene;
   return n;
 }
 
@@ -266,9 +266,9 @@ ScanPlan parseScanPlan(const std::string& text, const std::string& source) {
     const std::string prefix = "step[" + std::to_string(k + 1) + "].";
     if (!s) in.fail(&(*list)[k], prefix, "must be a table");
     const std::string kind = in.text(*s, "kind", prefix + "kind", "", true);
-    const std::string scene = in.text(*s, "scene", prefix + "scene", kScenePart);
-    if (scene != kScenePart && scene != kSceneSphere && scene != kScenePlate && scene != kSceneSecondSphere)
-      in.fail(s->get("scene"), prefix + "scene", "must be part, reference_sphere, second_sphere or calibration_plate");
+    const std::optional<Scene> named = trace::sceneFromString(in.text(*s, "scene", prefix + "scene", std::string(toString(Scene::Part))));
+    if (!named) in.fail(s->get("scene"), prefix + "scene", "must be one of " + trace::sceneNames());
+    const Scene scene = *named;
     const double index = in.number(*s, "index", prefix + "index", -1);
     if (kind == "sweep") {
       in.onlyKeys(*s, prefix, {"kind", "scene", "index", "start", "end", "head", "speed", "expected_elements"});
@@ -335,13 +335,13 @@ std::string toToml(const ScanPlan& plan) {
     << "\nline_width = " << fmt(plan.part.line_width) << "\n";
   for (const PlanStep& step : plan.steps) {
     if (const auto* s = std::get_if<SweepStep>(&step)) {
-      o << "\n[[step]]\nkind = \"sweep\"\nscene = \"" << s->scene << "\"\nindex = " << s->index << "\nstart = "
+      o << "\n[[step]]\nkind = \"sweep\"\nscene = \"" << toString(s->scene) << "\"\nindex = " << s->index << "\nstart = "
         << triple(s->start.position) << "\nend = " << triple(s->end.position) << "\nhead = " << head(s->start)
         << "\nspeed = " << fmt(s->speed) << "\n";
       if (s->expected_elements > 0) o << "expected_elements = " << s->expected_elements << "\n";
     } else {
       const auto& v = std::get<StereoStep>(step);
-      o << "\n[[step]]\nkind = \"stereo\"\nscene = \"" << v.scene << "\"\nindex = " << v.index << "\npose = "
+      o << "\n[[step]]\nkind = \"stereo\"\nscene = \"" << toString(v.scene) << "\"\nindex = " << v.index << "\npose = "
         << triple(v.pose.position) << "\nhead = " << head(v.pose) << "\nsettle = " << fmt(v.settle_s) << "\n";
     }
   }

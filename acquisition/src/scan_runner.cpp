@@ -32,7 +32,8 @@ ToolOrientation orientationOf(const HeadPose& p) { return {p.a, p.b, 0}; }
 std::string describe(const PlanStep& step) {
   return std::visit([](const auto& s) {
     using T = std::decay_t<decltype(s)>;
-    return s.scene + (std::is_same_v<T, SweepStep> ? " sweep " : " view ") + std::to_string(s.index);
+    if constexpr (std::is_same_v<T, SweepStep>) return msg::sweepLabel(s.scene, s.index);
+    else return std::string(toString(s.scene)) + " view " + std::to_string(s.index);
   }, step);
 }
 
@@ -61,7 +62,7 @@ struct ScanRunner::Impl {
     sink.message(topic, log_time, std::move(bytes));
   }
 
-  void event(const std::string& kind, const std::string& detail) {
+  void event(msg::CmmEventKind kind, const std::string& detail) {
     msg::CmmEvent e;
     e.station_time_ns = clock.now();
     e.kind = kind;
@@ -69,7 +70,7 @@ struct ScanRunner::Impl {
     write(msg::topics::kCmmEvent, e.station_time_ns, msg::encode(e));
   }
 
-  void marker(const std::string& scene, const char* phase, std::uint32_t index) {
+  void marker(Scene scene, const char* phase, std::uint32_t index) {
     msg::SceneMarker m;
     m.station_time_ns = clock.now();
     m.scene = scene;
@@ -296,18 +297,90 @@ struct ScanRunner::Impl {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
 
+  // ---- The run, phase by phase ----------------------------------------------------------------
+
+  // What one run carries from phase to phase.
+  struct Running {
+    const ScanPlan& plan;
+    const ScanRunParams& params;
+    const drivers::digitizer::ConfigReply& config;
+    SafetyInterlock& safety;
+    ScanRunResult& result;
+    std::unique_ptr<drivers::camera::StereoPair> pair = nullptr;
+    std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+    std::uint64_t lost_before = 0;  // the digitizer's lost profiles before the run
+    double motion_done = 0;         // s of the plan's motion done, for the time left
+    HeadPose at = {};               // where the head was sent last
+    double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+  };
+
   ScanRunResult run(const ScanPlan& plan, const ScanRunParams& params) {
+    checkRunnable(plan, params);
+    // An abort that came before the run (an operator pressing Abort as the job starts) is kept: it
+    // ends the run at its first step. A runner plays one plan.
+    const bool stereo = plan.stereoCount() > 0;
+    ScanRunResult result;
+    result.devices = connectDevices(params, stereo);
+    if (params.before_motion) params.before_motion(result.devices);
+    checkInterlocks(params);
+    result.motion_seconds = motionSeconds(plan, params.limits);
+    const drivers::digitizer::ConfigReply config = dev.digitizer.readConfig();
+    recordSession(plan, params, config);
+
+    SafetyInterlock safety(dev.plc, dev.cmm);
+    Running r{plan, params, config, safety, result};
+    r.lost_before = dev.digitizer.counters().lost_profiles;
+    r.at = plan.park;
+    std::optional<PlcStatePoller> poller;
+    poller.emplace(*this, params.plc_state_period);
+    try {
+      startCmmReports(params);
+      if (stereo) r.pair = startStereoPair();
+      home(r);
+      runSteps(r);
+      park(r);
+      result.completed = true;
+      dev.plc.setOutput(Coil::ClampRequest, false);
+    } catch (const Aborted& a) {
+      result.abort_reason = a.reason;
+    } catch (const std::exception& e) {
+      result.abort_reason = e.what();
+    }
+    if (!result.completed) endEarly(result.abort_reason);
+    if (r.pair) r.pair->stop();
+    try {
+      dev.cmm.stopMoveReports();
+    } catch (const std::exception&) {
+    }
+    poller.reset();
+    for (const SafetyEvent& e : safety.events()) {
+      result.safety_events.push_back(e.what);
+      if (observer) observer->safetyEvent(e.what);
+    }
+    result.wall_seconds = r.elapsed();
+    result.spent = spent;
+    result.spent.other = result.wall_seconds - spent.moving - spent.settling - spent.frames - spent.clock_sync -
+                         spent.digitizer;
+    result.profiles = profiles;
+    result.positions = positions;
+    result.plc_states = plc_states;
+    result.lost_profiles = dev.digitizer.counters().lost_profiles - r.lost_before;
+    return result;
+  }
+
+  // A plan outside the machine, or with views and no cameras, is refused before anything moves.
+  void checkRunnable(const ScanPlan& plan, const ScanRunParams& params) const {
     const std::vector<std::string> problems = checkPlan(plan, params.limits);
     if (!problems.empty()) {
       std::string text = "the plan cannot run on this cell: " + problems.front();
       if (problems.size() > 1) text += " (and " + std::to_string(problems.size() - 1) + " more)";
       throw ScanError(text);
     }
-    const bool stereo = plan.stereoCount() > 0;
-    if (stereo && (!dev.left_camera || !dev.right_camera))
+    if (plan.stereoCount() > 0 && (!dev.left_camera || !dev.right_camera))
       throw ScanError("the plan has " + std::to_string(plan.stereoCount()) + " stereo views, but the cell has no cameras");
-    // An abort that came before the run (an operator pressing Abort as the job starts) is kept: it
-    // ends the run at its first step. A runner plays one plan.
+  }
+
+  std::vector<drivers::DeviceIdentity> connectDevices(const ScanRunParams& params, bool stereo) {
     connect(dev.cmm, "the CMM");
     connect(dev.plc, "the PLC");
     connect(dev.digitizer, "the digitizer");
@@ -316,18 +389,16 @@ struct ScanRunner::Impl {
       connect(*dev.right_camera, "the right camera");
       configureCameras(params);
     }
-    ScanRunResult result;
-    result.devices = {dev.cmm.identity(), dev.plc.identity(), dev.digitizer.identity()};
+    std::vector<drivers::DeviceIdentity> devices{dev.cmm.identity(), dev.plc.identity(), dev.digitizer.identity()};
     if (stereo) {
-      result.devices.push_back(dev.left_camera->identity());
-      result.devices.push_back(dev.right_camera->identity());
+      devices.push_back(dev.left_camera->identity());
+      devices.push_back(dev.right_camera->identity());
     }
-    if (params.before_motion) params.before_motion(result.devices);
-    checkInterlocks(params);
-    result.motion_seconds = motionSeconds(plan, params.limits);
+    return devices;
+  }
 
-    // The session description, with what the devices say of themselves.
-    const drivers::digitizer::ConfigReply config = dev.digitizer.readConfig();
+  // The session description, with what the devices say of themselves, as the trace's metadata.
+  void recordSession(const ScanPlan& plan, const ScanRunParams& params, const drivers::digitizer::ConfigReply& config) {
     trace::SessionDescription session = params.session;
     session.part = plan.part.kind;
     session.plan = plan.name;
@@ -338,243 +409,241 @@ struct ScanRunner::Impl {
     session.grid_line_width_mm = plan.part.line_width;
     session.digitizer_points_per_profile = config.config.points_per_profile;
     session.digitizer_profile_rate_hz = config.config.profile_rate_hz;
-    session.station_clock = "station system clock, ns since the Unix epoch";
-    {
-      std::lock_guard lock(sink_mutex);
-      sink.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(session));
-    }
+    session.station_clock = trace::kStationClockText;
+    std::lock_guard lock(sink_mutex);
+    sink.metadata(std::string(trace::kSessionMetadataName), trace::encodeSession(session));
+  }
 
-    SafetyInterlock safety(dev.plc, dev.cmm);
-    const auto start = std::chrono::steady_clock::now();
-    const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
-    std::atomic<bool> stop_polling{false};
-    // The PLC's state into the trace, at a steady rate (the driver's watchdog thread reads it).
-    // Joined on every way out of run(), an exception included.
-    std::thread plc_poller;
-    struct Joiner {
-      std::atomic<bool>& stop;
-      std::thread& thread;
-      ~Joiner() {
-        stop = true;
-        if (thread.joinable()) thread.join();
+  // The PLC's state into the trace at a steady rate (the driver's watchdog thread reads it), from
+  // construction until destruction: every way out of run(), an exception included.
+  class PlcStatePoller {
+   public:
+    PlcStatePoller(Impl& impl, std::chrono::milliseconds period)
+        : thread_([this, &impl, period] {
+            while (!stop_) {
+              if (const auto in = impl.dev.plc.lastInputs()) {
+                try {
+                  impl.plcState(*in, impl.dev.plc.readOutputs());
+                } catch (const std::exception&) {
+                }
+              }
+              std::this_thread::sleep_for(period);
+            }
+          }) {}
+    ~PlcStatePoller() {
+      stop_ = true;
+      thread_.join();
+    }
+    PlcStatePoller(const PlcStatePoller&) = delete;
+    PlcStatePoller& operator=(const PlcStatePoller&) = delete;
+
+   private:
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+  };
+
+  // A report's position was sampled by the CMM some time before the line arrived, and how long
+  // before varies with the load on both sides (a millisecond is 25 um along a sweep at 25 mm/s).
+  // When the CMM stamps its reports with its own clock, that stamp is put on the station clock by
+  // the smallest arrival delay seen so far: the delay's floor, which the jitter only adds to.
+  void startCmmReports(const ScanRunParams& params) {
+    cmm_offset = std::numeric_limits<std::int64_t>::max();
+    dev.cmm.startMoveReports(params.report_interval_s, [this](const drivers::cmm::MoveReport& r) {
+      std::int64_t t = clock.fromSteady(r.arrival_steady_ns);
+      if (r.device_time_s) {
+        const auto device_ns = static_cast<std::int64_t>(std::llround(*r.device_time_s * 1e9));
+        cmm_offset = std::min(cmm_offset, t - device_ns);
+        t = device_ns + cmm_offset;
       }
-    } joiner{stop_polling, plc_poller};
-    plc_poller = std::thread([&] {
-      while (!stop_polling) {
-        if (const auto in = dev.plc.lastInputs()) {
-          try {
-            plcState(*in, dev.plc.readOutputs());
-          } catch (const std::exception&) {
-          }
-        }
-        std::this_thread::sleep_for(params.plc_state_period);
+      position(t, r.position, r.orientation.value_or(ToolOrientation{}));
+    }, drivers::cmm::MoveReportContent::PositionAndOrientation);
+  }
+
+  // The trigger id pairs the frames; the head stands still through a view, so how far apart the two
+  // exposures are stamped does not move the geometry. A wide tolerance keeps cameras whose clock
+  // offsets are only estimated from frame arrivals (no timestamp latch) paired.
+  std::unique_ptr<drivers::camera::StereoPair> startStereoPair() {
+    drivers::camera::StereoPairOptions pairing;
+    pairing.tolerance = std::chrono::seconds(1);
+    auto pair = std::make_unique<drivers::camera::StereoPair>(
+        *dev.left_camera, *dev.right_camera, [this](const drivers::camera::StereoFrame& f) { onStereoPair(f); }, pairing);
+    pair->start();
+    return pair;
+  }
+
+  void report(const Running& r, std::size_t step, const std::string& doing) {
+    if (!observer) return;
+    ScanProgress p;
+    p.step = step;
+    p.steps = r.plan.steps.size();
+    p.doing = doing;
+    p.elapsed_s = r.elapsed();
+    p.remaining_s = std::max(0.0, r.result.motion_seconds - r.motion_done);
+    p.profiles = profiles;
+    p.lost_profiles = dev.digitizer.counters().lost_profiles - r.lost_before;
+    p.positions = positions;
+    observer->progress(p);
+  }
+
+  void home(Running& r) {
+    if (!dev.cmm.isHomed()) {
+      report(r, 0, "homing");
+      event(msg::CmmEventKind::MoveBegin, "home");
+      if (dev.cmm.home() == MoveOutcome::Aborted) checkAbort(r.safety);
+      event(msg::CmmEventKind::MoveEnd, "home");
+    }
+    samplePose();
+    clockSync();
+  }
+
+  // Each step between the markers of its scene: a scene begins at its first step and ends after its
+  // last one of a run of steps.
+  void runSteps(Running& r) {
+    const auto sceneOf = [&](std::size_t k) {
+      return k < r.plan.steps.size() ? std::optional<Scene>(std::visit([](const auto& s) { return s.scene; }, r.plan.steps[k]))
+                                     : std::nullopt;
+    };
+    for (std::size_t k = 0; k < r.plan.steps.size(); ++k) {
+      const Scene scene = *sceneOf(k);
+      const bool first = k == 0 || sceneOf(k - 1) != scene, last = sceneOf(k + 1) != scene;
+      if (const auto* view = std::get_if<StereoStep>(&r.plan.steps[k])) {
+        runView(r, k, *view, first, last);
+      } else {
+        runSweep(r, k, std::get<SweepStep>(r.plan.steps[k]), first, last);
+        ++r.result.sweeps_done;
+      }
+      ++r.result.steps_done;
+    }
+  }
+
+  void travelTo(Running& r, std::size_t k, const HeadPose& target) {
+    report(r, k, "travel to " + describe(r.plan.steps[k]));
+    event(msg::CmmEventKind::MoveBegin, "travel");
+    move(r.safety, target, r.plan.travel_speed);
+    event(msg::CmmEventKind::MoveEnd, "travel");
+    samplePose();
+    r.motion_done += moveSeconds(r.at, target, r.plan.travel_speed, r.params.limits);
+    r.at = target;
+  }
+
+  // Settle, then trigger both cameras and wait for the pair (the scene's end marker must come after
+  // its frames). A view without frames is marked missing and the scan goes on.
+  void runView(Running& r, std::size_t k, const StereoStep& view, bool first, bool last) {
+    travelTo(r, k, view.pose);
+    r.motion_done += view.settle_s;
+    if (first) marker(view.scene, "begin", view.index);
+    report(r, k, describe(r.plan.steps[k]));
+    timed(spent.settling, [&] { std::this_thread::sleep_for(std::chrono::duration<double>(view.settle_s)); });
+    checkAbort(r.safety);
+    bool arrived = false;
+    timed(spent.frames, [&] {
+      try {
+        const std::uint64_t id = r.pair->trigger();
+        std::unique_lock lock(pair_mutex);
+        arrived = pair_arrived.wait_for(lock, r.params.frame_timeout, [&] { return last_pair_trigger >= id; });
+      } catch (const drivers::DeviceError& e) {
+        if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
       }
     });
-
-    std::unique_ptr<drivers::camera::StereoPair> pair;
-    std::uint64_t lost_before = dev.digitizer.counters().lost_profiles;
-    double motion_done = 0;
-    HeadPose at = plan.park;
-    auto report = [&](std::size_t step, const std::string& doing) {
-      if (!observer) return;
-      ScanProgress p;
-      p.step = step;
-      p.steps = plan.steps.size();
-      p.doing = doing;
-      p.elapsed_s = elapsed();
-      p.remaining_s = std::max(0.0, result.motion_seconds - motion_done);
-      p.profiles = profiles;
-      p.lost_profiles = dev.digitizer.counters().lost_profiles - lost_before;
-      p.positions = positions;
-      observer->progress(p);
-    };
-    const auto sceneOf = [&](std::size_t k) {
-      return k < plan.steps.size() ? std::visit([](const auto& s) { return s.scene; }, plan.steps[k]) : std::string();
-    };
-    try {
-      // A report's position was sampled by the CMM some time before the line arrived, and how long
-      // before varies with the load on both sides (a millisecond is 25 um along a sweep at 25 mm/s).
-      // When the CMM stamps its reports with its own clock, that stamp is put on the station clock
-      // by the smallest arrival delay seen so far: the delay's floor, which the jitter only adds to.
-      cmm_offset = std::numeric_limits<std::int64_t>::max();
-      dev.cmm.startMoveReports(params.report_interval_s, [this](const drivers::cmm::MoveReport& r) {
-        std::int64_t t = clock.fromSteady(r.station_time_ns);
-        if (r.device_time_s) {
-          const auto device_ns = static_cast<std::int64_t>(std::llround(*r.device_time_s * 1e9));
-          cmm_offset = std::min(cmm_offset, t - device_ns);
-          t = device_ns + cmm_offset;
-        }
-        position(t, r.position, r.orientation.value_or(ToolOrientation{}));
-      }, drivers::cmm::MoveReportContent::PositionAndOrientation);
-
-      if (stereo) {
-        // The trigger id pairs the frames; the head stands still through a view, so how far apart
-        // the two exposures are stamped does not move the geometry. A wide tolerance keeps cameras
-        // whose clock offsets are only estimated from frame arrivals (no timestamp latch) paired.
-        drivers::camera::StereoPairOptions pairing;
-        pairing.tolerance = std::chrono::seconds(1);
-        pair = std::make_unique<drivers::camera::StereoPair>(
-            *dev.left_camera, *dev.right_camera, [this](const drivers::camera::StereoFrame& f) { onStereoPair(f); }, pairing);
-        pair->start();
-      }
-      if (!dev.cmm.isHomed()) {
-        report(0, "homing");
-        event("move_begin", "home");
-        if (dev.cmm.home() == MoveOutcome::Aborted) checkAbort(safety);
-        event("move_end", "home");
-      }
-      samplePose();
-      clockSync();
-      for (std::size_t k = 0; k < plan.steps.size(); ++k) {
-        const std::string label = describe(plan.steps[k]);
-        const std::string scene = sceneOf(k);
-        const bool first = k == 0 || sceneOf(k - 1) != scene, last = sceneOf(k + 1) != scene;
-        if (const auto* view = std::get_if<StereoStep>(&plan.steps[k])) {
-          report(k, "travel to " + label);
-          event("move_begin", "travel");
-          move(safety, view->pose, plan.travel_speed);
-          event("move_end", "travel");
-          samplePose();
-          motion_done += moveSeconds(at, view->pose, plan.travel_speed, params.limits) + view->settle_s;
-          if (first) marker(scene, "begin", view->index);
-          report(k, label);
-          // Settle, then trigger both cameras and wait for the pair (the scene's end marker must
-          // come after its frames).
-          timed(spent.settling, [&] { std::this_thread::sleep_for(std::chrono::duration<double>(view->settle_s)); });
-          checkAbort(safety);
-          bool arrived = false;
-          timed(spent.frames, [&] {
-            try {
-              const std::uint64_t id = pair->trigger();
-              std::unique_lock lock(pair_mutex);
-              arrived = pair_arrived.wait_for(lock, params.frame_timeout, [&] { return last_pair_trigger >= id; });
-            } catch (const drivers::DeviceError& e) {
-              if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
-            }
-          });
-          if (arrived) {
-            ++result.views_done;
-          } else {
-            ++result.views_missing;
-            event("view_missing", label);
-          }
-          if (last) marker(scene, "end", view->index);
-          at = view->pose;
-          ++result.steps_done;
-          continue;
-        }
-        const auto& sweep = std::get<SweepStep>(plan.steps[k]);
-        if (first) marker(sweep.scene, "begin", sweep.index);
-        const std::string sweep_label = sweep.scene + " sweep " + std::to_string(sweep.index);
-        // A sweep that lost more profiles on the way than the limit is run again, once; the trace
-        // says the first run is not to be used ("sweep_discarded").
-        for (int attempt = 0;; ++attempt) {
-          report(k, "travel to " + label);
-          event("move_begin", "travel");
-          move(safety, sweep.start, plan.travel_speed);
-          event("move_end", "travel");
-          samplePose();
-          motion_done += moveSeconds(at, sweep.start, plan.travel_speed, params.limits);
-          clockSync();
-          const std::uint64_t lost_at_start = dev.digitizer.counters().lost_profiles;
-          shutter(true);
-          const auto start_begin = std::chrono::steady_clock::now();
-          dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
-                                  drivers::digitizer::Profile&& p) {
-            msg::LaserProfile m;
-            m.sequence = p.sequence;
-            m.device_time_ns = static_cast<std::int64_t>(p.device_time_ns);
-            m.status = p.status;
-            m.angle_min = angle_min;
-            m.angle_increment = increment;
-            m.range = std::move(p.range);
-            m.intensity = std::move(p.intensity);
-            ++profiles;
-            last_profile_device_ns = p.device_time_ns;
-            write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
-          });
-          spent.digitizer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start_begin).count();
-          report(k, label);
-          event("sweep_begin", sweep_label);
-          try {
-            move(safety, sweep.end, sweep.speed);
-          } catch (...) {
-            dev.digitizer.stop();
-            shutter(false);
-            throw;
-          }
-          event("sweep_end", sweep_label);
-          samplePose();
-          timed(spent.digitizer, [&] {
-            drainDigitizer();
-            dev.digitizer.stop();
-          });
-          shutter(false);
-          clockSync();
-          motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, params.limits);
-          at = sweep.end;
-          const std::uint64_t lost = dev.digitizer.counters().lost_profiles - lost_at_start;
-          if (lost <= params.max_lost_profiles_per_sweep) break;
-          if (attempt > 0) {
-            // Repeated once and still over the limit: kept, and the loss is reported with the result.
-            ++result.sweeps_over_loss_limit;
-            if (observer) observer->safetyEvent(sweep_label + ": " + std::to_string(lost) + " profiles lost again; kept");
-            break;
-          }
-          event("sweep_discarded", sweep_label);
-          if (observer) observer->safetyEvent(sweep_label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
-          ++result.sweeps_repeated;
-        }
-        if (last) marker(sweep.scene, "end", sweep.index);
-        ++result.steps_done;
-        ++result.sweeps_done;
-      }
-      report(plan.steps.size(), "parking");
-      event("move_begin", "park");
-      move(safety, plan.park, plan.travel_speed);
-      event("move_end", "park");
-      samplePose();
-      clockSync();
-      result.completed = true;
-      dev.plc.setOutput(Coil::ClampRequest, false);
-    } catch (const Aborted& a) {
-      result.abort_reason = a.reason;
-    } catch (const std::exception& e) {
-      result.abort_reason = e.what();
+    if (arrived) {
+      ++r.result.views_done;
+    } else {
+      ++r.result.views_missing;
+      event(msg::CmmEventKind::ViewMissing, describe(r.plan.steps[k]));
     }
-    if (!result.completed) {
-      // A clean ending: nothing more moves, the laser is off, the trace says why it ends here.
-      try {
-        dev.cmm.abort();
-      } catch (const std::exception&) {
+    if (last) marker(view.scene, "end", view.index);
+  }
+
+  // A sweep that lost more profiles on the way than the limit is run again, once; the trace says the
+  // first run is not to be used ("sweep_discarded").
+  void runSweep(Running& r, std::size_t k, const SweepStep& sweep, bool first, bool last) {
+    if (first) marker(sweep.scene, "begin", sweep.index);
+    const std::string label = msg::sweepLabel(sweep.scene, sweep.index);
+    for (int attempt = 0;; ++attempt) {
+      const std::uint64_t lost = sweepOnce(r, k, sweep, label);
+      if (lost <= r.params.max_lost_profiles_per_sweep) break;
+      if (attempt > 0) {
+        // Repeated once and still over the limit: kept, and the loss is reported with the result.
+        ++r.result.sweeps_over_loss_limit;
+        if (observer) observer->safetyEvent(label + ": " + std::to_string(lost) + " profiles lost again; kept");
+        break;
       }
+      event(msg::CmmEventKind::SweepDiscarded, label);
+      if (observer) observer->safetyEvent(label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
+      ++r.result.sweeps_repeated;
+    }
+    if (last) marker(sweep.scene, "end", sweep.index);
+  }
+
+  // One run of a sweep: to its start, the laser on, along it at its speed, the profiles drained, the
+  // laser off. Returns the profiles it lost.
+  std::uint64_t sweepOnce(Running& r, std::size_t k, const SweepStep& sweep, const std::string& label) {
+    travelTo(r, k, sweep.start);
+    clockSync();
+    const std::uint64_t lost_at_start = dev.digitizer.counters().lost_profiles;
+    shutter(true);
+    timed(spent.digitizer, [&] { startDigitizer(r.config); });
+    report(r, k, describe(r.plan.steps[k]));
+    event(msg::CmmEventKind::SweepBegin, label);
+    try {
+      move(r.safety, sweep.end, sweep.speed);
+    } catch (...) {
       dev.digitizer.stop();
-      try {
-        shutter(false);
-      } catch (const std::exception&) {
-      }
-      event("abort", result.abort_reason);
+      shutter(false);
+      throw;
     }
-    if (pair) pair->stop();
+    event(msg::CmmEventKind::SweepEnd, label);
+    samplePose();
+    timed(spent.digitizer, [&] {
+      drainDigitizer();
+      dev.digitizer.stop();
+    });
+    shutter(false);
+    clockSync();
+    r.motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, r.params.limits);
+    r.at = sweep.end;
+    return dev.digitizer.counters().lost_profiles - lost_at_start;
+  }
+
+  // The digitizer's profiles into the trace as they arrive (its reader thread).
+  void startDigitizer(const drivers::digitizer::ConfigReply& config) {
+    dev.digitizer.start([this, angle_min = config.angle_min, increment = config.angle_increment](
+                            drivers::digitizer::Profile&& p) {
+      msg::LaserProfile m;
+      m.sequence = p.sequence;
+      m.device_time_ns = static_cast<std::int64_t>(p.device_time_ns);
+      m.status = p.status;
+      m.angle_min = angle_min;
+      m.angle_increment = increment;
+      m.range = std::move(p.range);
+      m.intensity = std::move(p.intensity);
+      ++profiles;
+      last_profile_device_ns = p.device_time_ns;
+      write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
+    });
+  }
+
+  void park(Running& r) {
+    report(r, r.plan.steps.size(), "parking");
+    event(msg::CmmEventKind::MoveBegin, "park");
+    move(r.safety, r.plan.park, r.plan.travel_speed);
+    event(msg::CmmEventKind::MoveEnd, "park");
+    samplePose();
+    clockSync();
+  }
+
+  // A clean ending: nothing more moves, the laser is off, the trace says why it ends here.
+  void endEarly(const std::string& reason) {
     try {
-      dev.cmm.stopMoveReports();
+      dev.cmm.abort();
     } catch (const std::exception&) {
     }
-    stop_polling = true;
-    if (plc_poller.joinable()) plc_poller.join();
-    for (const SafetyEvent& e : safety.events()) {
-      result.safety_events.push_back(e.what);
-      if (observer) observer->safetyEvent(e.what);
+    dev.digitizer.stop();
+    try {
+      shutter(false);
+    } catch (const std::exception&) {
     }
-    result.wall_seconds = elapsed();
-    result.spent = spent;
-    result.spent.other = result.wall_seconds - spent.moving - spent.settling - spent.frames - spent.clock_sync -
-                         spent.digitizer;
-    result.profiles = profiles;
-    result.positions = positions;
-    result.plc_states = plc_states;
-    result.lost_profiles = dev.digitizer.counters().lost_profiles - lost_before;
-    return result;
+    event(msg::CmmEventKind::Abort, reason);
   }
 };
 

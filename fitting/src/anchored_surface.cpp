@@ -150,7 +150,18 @@ struct AnchoredSurface::Impl {
   const BandwidthField& pointField() const { return narrow_field ? *narrow_field : *h_field; }
   void linkAnchors();
   std::size_t orientAnchors();
+  // One anchor's part in a blend at a point: its weight, the point's foot on its patch and how far
+  // the point moved to get there.
+  struct Contribution {
+    const Anchor* anchor;
+    double phi;
+    Vec3 projected;
+    double moved;
+  };
   Projection blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const;
+  bool contributions(const Vec3& x, const std::uint32_t* candidates, std::size_t count, std::vector<Contribution>& near) const;
+  double predictedStep(const std::vector<Contribution>& near, const Vec3& next) const;
+  void normalAndStrain(const std::vector<Contribution>& near, const Vec3& x, double h_mean, Projection& result) const;
   Projection checkedAgainstLocalFit(const Vec3& x, const Projection& blended) const;
 };
 
@@ -521,77 +532,79 @@ std::size_t AnchoredSurface::Impl::orientAnchors() {
       [&](std::uint32_t v) { anchors[v].surface.flip(); });
 }
 
+// The anchors whose support reaches x, each with its weight gated by how far its projection moves x
+// beyond the closest one's (see blend); outside every support, the nearest anchor alone. False when
+// no valid anchor is around.
+bool AnchoredSurface::Impl::contributions(const Vec3& x, const std::uint32_t* candidates, std::size_t count,
+                                          std::vector<Contribution>& near) const {
+  near.clear();
+  const Anchor* nearest = nullptr;
+  double nearest_d2 = std::numeric_limits<double>::infinity();
+  double least_moved = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < count; ++k) {
+    const Anchor& a = anchors[candidates[k]];
+    if (!a.valid) continue;
+    const double d2 = (x - a.centre).squaredNorm();
+    if (d2 < nearest_d2) {
+      nearest_d2 = d2;
+      nearest = &a;
+    }
+    // Support in cells, but never wider than the fit's own bandwidth warrants.
+    const double R = params.blend_radius * std::min(a.cell, a.h);
+    const double t = 1.0 - d2 / (R * R);
+    if (t <= 0) continue;
+    const Vec3 p = a.surface.project(x);
+    const double moved = (p - x).norm();
+    least_moved = std::min(least_moved, moved);
+    near.push_back({&a, t * t * t, p, moved});
+  }
+  if (near.empty()) {
+    if (!nearest) return false;
+    near.push_back({nearest, 1.0, nearest->surface.project(x), 0.0});
+    least_moved = 0;
+  }
+  for (Contribution& c : near) c.phi *= gate((c.moved - least_moved) / (0.25 * c.anchor->h));
+  return true;
+}
+
+// Another round from `next` would project it onto the same patches. Near the surface (the step small
+// against h) its feet stay where they are: `next` moved from x along the blended normal, which the
+// patches' normals agree with to a small angle, so each foot moves by the step times that angle.
+// What changes are the weights, which depend on where the point is: the mean of the same feet under
+// the weights at `next` is where that round would put it, to second order.
+double AnchoredSurface::Impl::predictedStep(const std::vector<Contribution>& near, const Vec3& next) const {
+  double least = std::numeric_limits<double>::infinity();
+  for (const Contribution& c : near) least = std::min(least, (c.projected - next).norm());
+  Vec3 sum = Vec3::Zero();
+  double weight = 0;
+  for (const Contribution& c : near) {
+    const double R = params.blend_radius * std::min(c.anchor->cell, c.anchor->h);
+    const double t = std::max(0.0, 1.0 - (next - c.anchor->centre).squaredNorm() / (R * R));
+    const double excess = ((c.projected - next).norm() - least) / (0.25 * c.anchor->h);
+    const double phi = t * t * t * gate(excess);
+    sum += phi * c.projected;
+    weight += phi;
+  }
+  return weight > 0 ? (sum / weight - next).norm() : std::numeric_limits<double>::infinity();
+}
+
 Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* candidates, std::size_t count) const {
   // Partition of unity: phi_a(x) = (1 - d^2 / R_a^2)^3 with R_a = blend_radius * cell. The point moves
   // to the weighted mean of its projections onto each anchor's patch, until the step is small.
   // A local fit is only trusted near its own surface: across a tight radius the anchor on the flange
   // would pull a wall point onto the flange's plane. So each weight is also gated by how far the
   // anchor's projection moves x beyond the closest anchor's: g = exp(-(excess / (h_a/4))^2).
-  struct Contribution {
-    const Anchor* anchor;
-    double phi;
-    Vec3 projected;
-    double moved;
-  };
   thread_local std::vector<Contribution> near;
-  // Another round from `next` would project it onto the same patches. Near the surface (the step
-  // small against h) its feet stay where they are: `next` moved from x along the blended normal,
-  // which the patches' normals agree with to a small angle, so each foot moves by the step times
-  // that angle. What changes are the weights, which depend on where the point is: the mean of the
-  // same feet under the weights at `next` is where that round would put it, to second order.
-  const auto predictedStep = [&](const Vec3& next) {
-    double least = std::numeric_limits<double>::infinity();
-    for (const Contribution& c : near) least = std::min(least, (c.projected - next).norm());
-    Vec3 sum = Vec3::Zero();
-    double weight = 0;
-    for (const Contribution& c : near) {
-      const double R = params.blend_radius * std::min(c.anchor->cell, c.anchor->h);
-      const double t = std::max(0.0, 1.0 - (next - c.anchor->centre).squaredNorm() / (R * R));
-      const double excess = ((c.projected - next).norm() - least) / (0.25 * c.anchor->h);
-      const double phi = t * t * t * gate(excess);
-      sum += phi * c.projected;
-      weight += phi;
-    }
-    return weight > 0 ? (sum / weight - next).norm() : std::numeric_limits<double>::infinity();
-  };
   Projection result;
   result.point = start;
   result.scalar = std::numeric_limits<double>::quiet_NaN();
   Vec3 x = start;
   double h_mean = 0;
   for (int it = 1; it <= params.max_iterations; ++it) {
-    near.clear();
-    const Anchor* nearest = nullptr;
-    double nearest_d2 = std::numeric_limits<double>::infinity();
-    double least_moved = std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k < count; ++k) {
-      const Anchor& a = anchors[candidates[k]];
-      if (!a.valid) continue;
-      const double d2 = (x - a.centre).squaredNorm();
-      if (d2 < nearest_d2) {
-        nearest_d2 = d2;
-        nearest = &a;
-      }
-      // Support in cells, but never wider than the fit's own bandwidth warrants.
-      const double R = params.blend_radius * std::min(a.cell, a.h);
-      const double t = 1.0 - d2 / (R * R);
-      if (t <= 0) continue;
-      const Vec3 p = a.surface.project(x);
-      const double moved = (p - x).norm();
-      least_moved = std::min(least_moved, moved);
-      near.push_back({&a, t * t * t, p, moved});
-    }
-    if (near.empty()) {
-      if (!nearest) return result;  // no valid anchor around: leave the point alone
-      // Outside every support: use the nearest anchor alone.
-      near.push_back({nearest, 1.0, nearest->surface.project(x), 0.0});
-      least_moved = 0;
-    }
+    if (!contributions(x, candidates, count, near)) return result;  // no valid anchor around: left alone
     Vec3 sum_p = Vec3::Zero();
     double sum_w = 0, sum_h = 0;
-    for (Contribution& c : near) {
-      const double excess = (c.moved - least_moved) / (0.25 * c.anchor->h);
-      c.phi *= gate(excess);  // from here on, the gated weight
+    for (const Contribution& c : near) {
       sum_w += c.phi;
       sum_p += c.phi * c.projected;
       sum_h += c.phi * c.anchor->h;
@@ -616,7 +629,7 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     for (const Contribution& c : near) spread_sq += c.phi * (c.projected - next).squaredNorm();
     const double tolerance = std::min(params.tolerance * h_mean, step_tolerance);
     const bool settled = step < tolerance || spread_sq < tolerance * tolerance * sum_w ||
-                         (step < kPredictableStep * h_mean && predictedStep(next) < tolerance);
+                         (step < kPredictableStep * h_mean && predictedStep(near, next) < tolerance);
     x = next;
     result.iterations = it;
     result.valid = true;
@@ -625,9 +638,18 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
       break;
     }
   }
-  // Normal and strain from the last blend, evaluated once at the end. Each patch normal is turned
-  // to agree with the strongest one, so that a neighbour whose orientation came out the other way
-  // (sparse data, the far side of a thin wall) cannot tilt the sum.
+  normalAndStrain(near, x, h_mean, result);
+  result.point = x;
+  result.bandwidth = h_mean;
+  result.neighbors = count;
+  return result;
+}
+
+// Normal and strain from the last blend, evaluated once at the end. Each patch normal is turned to
+// agree with the strongest one, so that a neighbour whose orientation came out the other way (sparse
+// data, the far side of a thin wall) cannot tilt the sum.
+void AnchoredSurface::Impl::normalAndStrain(const std::vector<Contribution>& near, const Vec3& x, double h_mean,
+                                            Projection& result) const {
   const Contribution* strongest = nullptr;
   for (const Contribution& c : near)
     if (!strongest || c.phi > strongest->phi) strongest = &c;
@@ -673,10 +695,6 @@ Projection AnchoredSurface::Impl::blend(const Vec3& start, const std::uint32_t* 
     const double shepard = shepardScalar(x, samples, R);  // Eqs. (15)-(16)
     if (std::isfinite(shepard)) result.scalar = shepard;
   }
-  result.point = x;
-  result.bandwidth = h_mean;
-  result.neighbors = count;
-  return result;
 }
 
 AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& tree, const std::vector<double>* strain,

@@ -44,51 +44,45 @@ void sortUnique(std::vector<Key>& keys) {
   std::sort(keys.begin(), keys.end());
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
 }
-}  // namespace
 
-Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
-  const ImplicitSurface& surface = fitted.surface();
-  const std::vector<Vec3>& data_points = fitted.input().positions;
-  const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().data_bandwidth.median);
-  if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
-  const Bounds bounds = boundsOf(projected.positions);
-  const double span = bounds.extent().maxCoeff() / cell;
-  if (span > static_cast<double>(kBias - 4))
-    throw std::invalid_argument("mesh cell size " + std::to_string(cell) + " mm is too small for a part this large");
-  const Vec3 origin = bounds.min;
-  const auto cellOf = [&](const Vec3& p) {
+// The cubic grid the mesh is built on: cells of `cell` mm from `origin`, keyed by their integer index.
+struct MeshGrid {
+  Vec3 origin;
+  double cell;
+  std::array<std::int64_t, 3> cellOf(const Vec3& p) const {
     const Vec3 g = (p - origin) / cell;
-    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(g.x())),
-                                       static_cast<std::int64_t>(std::floor(g.y())),
-                                       static_cast<std::int64_t>(std::floor(g.z()))};
-  };
-  const auto cornerPosition = [&](Key key) {
-    const auto c = unpack(key);
-    return Vec3(origin + cell * Vec3(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2])));
-  };
-
-  // Cells holding a fitted point, and one ring around them, so that every edge the surface crosses
-  // near the data has all its corners.
-  std::vector<Key> cells;
-  cells.reserve(projected.size());
-  for (const Vec3& p : projected.positions) {
-    const auto c = cellOf(p);
-    cells.push_back(pack(c[0], c[1], c[2]));
+    return {static_cast<std::int64_t>(std::floor(g.x())), static_cast<std::int64_t>(std::floor(g.y())),
+            static_cast<std::int64_t>(std::floor(g.z()))};
   }
-  sortUnique(cells);
-  std::vector<Key> corners;
-  corners.reserve(cells.size() * 27);
+  Vec3 cornerPosition(Key key) const {
+    const auto c = unpack(key);
+    return origin + cell * Vec3(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2]));
+  }
+};
+
+// The keys of every cell within `from`..`to` (each axis) of the given cells.
+std::vector<Key> cellsAround(const std::vector<Key>& cells, int from, int to) {
+  std::vector<Key> out;
+  const std::size_t side = static_cast<std::size_t>(to - from + 1);
+  out.reserve(cells.size() * side * side * side);
   for (Key key : cells) {
     const auto c = unpack(key);
-    for (int di = -1; di <= 2; ++di)
-      for (int dj = -1; dj <= 2; ++dj)
-        for (int dk = -1; dk <= 2; ++dk) corners.push_back(pack(c[0] + di, c[1] + dj, c[2] + dk));
+    for (int di = from; di <= to; ++di)
+      for (int dj = from; dj <= to; ++dj)
+        for (int dk = from; dk <= to; ++dk) out.push_back(pack(c[0] + di, c[1] + dj, c[2] + dk));
   }
-  sortUnique(corners);
+  sortUnique(out);
+  return out;
+}
 
-  // Signed distance at the corners near data; NaN marks a corner in a hole.
+// The signed distance at the corners of the cells near data (one ring beyond the cells holding a
+// fitted point, so that every edge the surface crosses near the data has all its corners); NaN marks
+// a corner in a hole.
+SortedMap<double> cornerField(const MeshGrid& grid, const std::vector<Key>& cells, const FittedSurface& fitted,
+                              const MeshParams& params) {
+  const ImplicitSurface& surface = fitted.surface();
   SortedMap<double> field;
-  field.keys = std::move(corners);
+  field.keys = cellsAround(cells, -1, 2);
   field.values.assign(field.keys.size(), std::numeric_limits<double>::quiet_NaN());
   const KdTree& tree = fitted.tree();
   detail::LoopProgress field_ticks(params.progress, "mesh field", field.keys.size());
@@ -96,105 +90,75 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
     field_ticks.add(range.size());
     std::vector<Neighbor> near;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const Vec3 x = cornerPosition(field.keys[i]);
+      const Vec3 x = grid.cornerPosition(field.keys[i]);
       tree.knn(x, 1, near);
       if (near.empty()) continue;
-      const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 2.5 * cell);
+      const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 2.5 * grid.cell);
       if (near[0].distance_sq > reach * reach) continue;
       field.values[i] = surface.signedDistance(x);
     }
   });
   if (params.progress) params.progress("mesh field", 1.0);
+  return field;
+}
 
-  // One vertex per cell with a sign change: the mean of its edge crossings, projected on the surface.
+struct CellVertex {
+  bool present = false;
+  Vec3 position, normal;
+  double strain = 0;
+};
+
+// The vertex of one cell with a sign change: the mean of its edge crossings, projected on the
+// surface; none where a corner is in a hole, the projection jumps away, or there are no data.
+CellVertex cellVertex(const MeshGrid& grid, Key key, const SortedMap<double>& field, const FittedSurface& fitted) {
   static constexpr int kEdges[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
                                         {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
-  std::vector<Key> surface_cells;
-  for (Key key : cells) {
-    const auto c = unpack(key);
-    for (int di = -1; di <= 1; ++di)
-      for (int dj = -1; dj <= 1; ++dj)
-        for (int dk = -1; dk <= 1; ++dk) surface_cells.push_back(pack(c[0] + di, c[1] + dj, c[2] + dk));
+  const ImplicitSurface& surface = fitted.surface();
+  const auto c = unpack(key);
+  std::array<double, 8> f;
+  std::array<Vec3, 8> x;
+  for (int v = 0; v < 8; ++v) {
+    const Key corner = pack(c[0] + (v & 1), c[1] + ((v >> 1) & 1), c[2] + ((v >> 2) & 1));
+    const double* value = field.find(corner);
+    if (!value || !std::isfinite(*value)) return {};
+    f[static_cast<std::size_t>(v)] = *value;
+    x[static_cast<std::size_t>(v)] = grid.cornerPosition(corner);
   }
-  sortUnique(surface_cells);
-  struct CellVertex {
-    bool present = false;
-    Vec3 position, normal;
-    double strain = 0;
-  };
-  std::vector<CellVertex> cell_vertices(surface_cells.size());
-  detail::LoopProgress vertex_ticks(params.progress, "mesh", surface_cells.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface_cells.size(), 256), [&](const auto& range) {
-    vertex_ticks.add(range.size());
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const auto c = unpack(surface_cells[i]);
-      std::array<double, 8> f;
-      std::array<Vec3, 8> x;
-      bool complete = true;
-      for (int v = 0; v < 8 && complete; ++v) {
-        const Key corner = pack(c[0] + (v & 1), c[1] + ((v >> 1) & 1), c[2] + ((v >> 2) & 1));
-        const double* value = field.find(corner);
-        complete = value && std::isfinite(*value);
-        if (complete) {
-          f[static_cast<std::size_t>(v)] = *value;
-          x[static_cast<std::size_t>(v)] = cornerPosition(corner);
-        }
-      }
-      if (!complete) continue;
-      Vec3 sum = Vec3::Zero();
-      int crossings = 0;
-      for (const auto& e : kEdges) {
-        const double fa = f[static_cast<std::size_t>(e[0])], fb = f[static_cast<std::size_t>(e[1])];
-        if ((fa < 0) == (fb < 0)) continue;
-        const double t = fa / (fa - fb);
-        sum += x[static_cast<std::size_t>(e[0])] + t * (x[static_cast<std::size_t>(e[1])] - x[static_cast<std::size_t>(e[0])]);
-        ++crossings;
-      }
-      if (crossings == 0) continue;
-      const Projection p = surface.project(sum / crossings);
-      if (!p.valid) continue;
-      CellVertex& cv = cell_vertices[i];
-      // Keep the vertex inside its cell's neighbourhood: a projection that jumps away is not trusted.
-      if ((p.point - sum / crossings).norm() > 2.0 * cell) continue;
-      // The field reaches a little past the data so that its sign is known on both sides of the
-      // surface; vertices stay where there are data (no extrapolation past edges and holes).
-      // Where the data are sparse (a stereo grid, dropouts on a steep wall) the reach grows with
-      // their spacing: half the distance from the nearest point to its 16th neighbour.
-      thread_local std::vector<Neighbor> nearest, spacing;
-      tree.knn(p.point, 1, nearest);
-      if (nearest.empty()) continue;
-      const double gap_sq = nearest[0].distance_sq;
-      double vertex_reach = std::max(0.5 * surface.bandwidthAt(p.point), cell);
-      if (gap_sq > vertex_reach * vertex_reach) {
-        tree.knn(data_points[nearest[0].index], 17, spacing);
-        vertex_reach = std::max(vertex_reach, 0.5 * std::sqrt(spacing.back().distance_sq));
-        if (gap_sq > vertex_reach * vertex_reach) continue;
-      }
-      cv.present = true;
-      cv.position = p.point;
-      cv.normal = p.normal;
-      cv.strain = p.scalar;
-    }
-  });
-
-  Mesh mesh;
-  const bool has_strain = surface.hasScalar();
-  std::vector<std::uint32_t> vertex_index(surface_cells.size(), std::numeric_limits<std::uint32_t>::max());
-  for (std::size_t i = 0; i < surface_cells.size(); ++i) {
-    if (!cell_vertices[i].present) continue;
-    vertex_index[i] = static_cast<std::uint32_t>(mesh.vertices.positions.size());
-    mesh.vertices.positions.push_back(cell_vertices[i].position);
-    mesh.vertices.normals.push_back(cell_vertices[i].normal);
-    if (has_strain) mesh.vertices.strain.push_back(cell_vertices[i].strain);
+  Vec3 sum = Vec3::Zero();
+  int crossings = 0;
+  for (const auto& e : kEdges) {
+    const double fa = f[static_cast<std::size_t>(e[0])], fb = f[static_cast<std::size_t>(e[1])];
+    if ((fa < 0) == (fb < 0)) continue;
+    const double t = fa / (fa - fb);
+    sum += x[static_cast<std::size_t>(e[0])] + t * (x[static_cast<std::size_t>(e[1])] - x[static_cast<std::size_t>(e[0])]);
+    ++crossings;
   }
-  const auto vertexOfCell = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::uint32_t {
-    const Key key = pack(i, j, k);
-    const auto it = std::lower_bound(surface_cells.begin(), surface_cells.end(), key);
-    if (it == surface_cells.end() || *it != key) return std::numeric_limits<std::uint32_t>::max();
-    return vertex_index[static_cast<std::size_t>(it - surface_cells.begin())];
-  };
+  if (crossings == 0) return {};
+  const Projection p = surface.project(sum / crossings);
+  if (!p.valid) return {};
+  // Keep the vertex inside its cell's neighbourhood: a projection that jumps away is not trusted.
+  if ((p.point - sum / crossings).norm() > 2.0 * grid.cell) return {};
+  // The field reaches a little past the data so that its sign is known on both sides of the
+  // surface; vertices stay where there are data (no extrapolation past edges and holes). Where the
+  // data are sparse (a stereo grid, dropouts on a steep wall) the reach grows with their spacing:
+  // half the distance from the nearest point to its 16th neighbour.
+  thread_local std::vector<Neighbor> nearest, spacing;
+  const KdTree& tree = fitted.tree();
+  tree.knn(p.point, 1, nearest);
+  if (nearest.empty()) return {};
+  const double gap_sq = nearest[0].distance_sq;
+  double vertex_reach = std::max(0.5 * surface.bandwidthAt(p.point), grid.cell);
+  if (gap_sq > vertex_reach * vertex_reach) {
+    tree.knn(fitted.input().positions[nearest[0].index], 17, spacing);
+    vertex_reach = std::max(vertex_reach, 0.5 * std::sqrt(spacing.back().distance_sq));
+    if (gap_sq > vertex_reach * vertex_reach) return {};
+  }
+  return {true, p.point, p.normal, p.scalar};
+}
 
-  // A quad around every grid edge the surface crosses, from the four cells sharing that edge.
+// A quad around every grid edge the surface crosses, from the four cells sharing that edge, split
+// along its shorter diagonal and turned to face along the vertices' normals.
+void addFaces(const SortedMap<double>& field, const SortedMap<std::uint32_t>& vertex_of_cell, Mesh& mesh) {
   const auto& verts = mesh.vertices.positions;
   const auto& normals = mesh.vertices.normals;
   const auto addTriangle = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
@@ -222,11 +186,11 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
         std::array<std::int64_t, 3> cc = c;
         cc[static_cast<std::size_t>(u)] += kAround[q][0];
         cc[static_cast<std::size_t>(v)] += kAround[q][1];
-        quad[static_cast<std::size_t>(q)] = vertexOfCell(cc[0], cc[1], cc[2]);
-        complete = quad[static_cast<std::size_t>(q)] != std::numeric_limits<std::uint32_t>::max();
+        const std::uint32_t* vertex = vertex_of_cell.find(pack(cc[0], cc[1], cc[2]));
+        complete = vertex != nullptr;
+        if (complete) quad[static_cast<std::size_t>(q)] = *vertex;
       }
       if (!complete) continue;
-      // Split along the shorter diagonal.
       if ((verts[quad[0]] - verts[quad[2]]).squaredNorm() <= (verts[quad[1]] - verts[quad[3]]).squaredNorm()) {
         addTriangle(quad[0], quad[1], quad[2]);
         addTriangle(quad[0], quad[2], quad[3]);
@@ -236,6 +200,51 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
       }
     }
   }
+}
+
+}  // namespace
+
+Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
+  const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().data_bandwidth.median);
+  if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
+  const Bounds bounds = boundsOf(projected.positions);
+  const double span = bounds.extent().maxCoeff() / cell;
+  if (span > static_cast<double>(kBias - 4))
+    throw std::invalid_argument("mesh cell size " + std::to_string(cell) + " mm is too small for a part this large");
+  const MeshGrid grid{bounds.min, cell};
+
+  // The cells holding a fitted point; the field on their corners and a ring around them.
+  std::vector<Key> cells;
+  cells.reserve(projected.size());
+  for (const Vec3& p : projected.positions) {
+    const auto c = grid.cellOf(p);
+    cells.push_back(pack(c[0], c[1], c[2]));
+  }
+  sortUnique(cells);
+  const SortedMap<double> field = cornerField(grid, cells, fitted, params);
+
+  // One vertex per cell with a sign change (surface nets), those cells and their neighbours tried.
+  const std::vector<Key> surface_cells = cellsAround(cells, -1, 1);
+  std::vector<CellVertex> cell_vertices(surface_cells.size());
+  detail::LoopProgress vertex_ticks(params.progress, "mesh", surface_cells.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface_cells.size(), 256), [&](const auto& range) {
+    vertex_ticks.add(range.size());
+    for (std::size_t i = range.begin(); i != range.end(); ++i)
+      cell_vertices[i] = cellVertex(grid, surface_cells[i], field, fitted);
+  });
+
+  Mesh mesh;
+  const bool has_strain = fitted.surface().hasScalar();
+  SortedMap<std::uint32_t> vertex_of_cell;  // the cells that have a vertex, in key order
+  for (std::size_t i = 0; i < surface_cells.size(); ++i) {
+    if (!cell_vertices[i].present) continue;
+    vertex_of_cell.keys.push_back(surface_cells[i]);
+    vertex_of_cell.values.push_back(static_cast<std::uint32_t>(mesh.vertices.positions.size()));
+    mesh.vertices.positions.push_back(cell_vertices[i].position);
+    mesh.vertices.normals.push_back(cell_vertices[i].normal);
+    if (has_strain) mesh.vertices.strain.push_back(cell_vertices[i].strain);
+  }
+  addFaces(field, vertex_of_cell, mesh);
   if (stats) {
     stats->cell_size = cell;
     stats->corners_evaluated = static_cast<std::size_t>(

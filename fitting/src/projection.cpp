@@ -1,6 +1,7 @@
 #include "stampscan/fitting/projection.hpp"
 
 #include "stampscan/fitting/local_fit.hpp"
+#include "stampscan/fitting/median.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -22,12 +23,6 @@ struct Candidate {
   double weight = 0;   // weight of the last fit
 };
 
-double medianOf(std::vector<double>& v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 }  // namespace
 
 WlsSurface::WlsSurface(const SurfaceData& data, const ProjectionParams& params) : data_(data), params_(params) {
@@ -58,97 +53,156 @@ double ImplicitSurface::signedDistance(const Vec3& x, Projection* out) const {
   return p.normal.dot(x - p.point);
 }
 
+namespace {
+
+// One projection's neighbourhood and fits (Sec. 3 of the paper): the candidates gathered once, the
+// local surface fitted at the moving point, robust weights re-estimated in the first iterations.
+class ProjectionRun {
+ public:
+  ProjectionRun(const SurfaceData& data, const ProjectionParams& params, double h)
+      : data_(data), params_(params), points_(*data.points), h_(h), h_sq_(h * h),
+        support_(kernelSupport(params.kernel, h)), margin_(0.5 * h),
+        euclidean_(params.weights == WeightScheme::Euclidean), sphere_(params.model == SurfaceModel::Sphere) {
+    candidates_.clear();
+  }
+
+  // The neighbourhood: by graph distance or data-to-data distance from the anchor (fixed weights),
+  // or for the Euclidean kernel around the start (the weights move with P*).
+  void gather(const Vec3& start, std::uint32_t anchor) {
+    if (params_.weights == WeightScheme::GraphDistance) {
+      data_.graph->distancesFrom(anchor, support_, reached_);
+      for (const auto& r : reached_) candidates_.push_back({r.vertex, kernelWeight(params_.kernel, r.distance, h_)});
+    } else if (params_.weights == WeightScheme::DataToData) {
+      data_.tree->radius(points_[anchor], support_, near_);
+      for (const Neighbor& nb : near_)
+        candidates_.push_back({nb.index, kernelWeight(params_.kernel, std::sqrt(nb.distance_sq), h_)});  // Eqs. (10)-(11)
+    } else {
+      gatherEuclidean(start);
+    }
+  }
+
+  // For the Euclidean kernel the centre moves with P*: the query radius carries a margin and is
+  // refreshed once P* wanders farther than that.
+  void followPoint(const Vec3& x) {
+    if (euclidean_ && (x - query_centre_).norm() > margin_) gatherEuclidean(x);
+  }
+
+  std::optional<LocalSurface> fitAt(const Vec3& centre) {
+    WeightedSums plane_sums(centre, h_);
+    AlgebraicMoments sphere_sums(centre, h_);
+    for (Candidate& c : candidates_) {
+      const Vec3& p = points_[c.index];
+      double w = c.base_weight;
+      if (euclidean_) {
+        const double r_sq = (p - centre).squaredNorm();
+        w = params_.kernel == KernelType::Gaussian ? (r_sq < support_ * support_ ? gaussianWeightSq(r_sq, h_sq_) : 0.0)
+                                                   : cubicWeight(std::sqrt(r_sq), h_);  // Eqs. (3)-(5)
+      }
+      w *= c.robust;
+      c.weight = w;
+      if (w <= 0) continue;
+      if (sphere_)
+        sphere_sums.add(p, w);
+      else
+        plane_sums.add(p, w);  // Eqs. (2), (6), (7)
+    }
+    return sphere_ ? LocalSurface::fitPrattSphere(sphere_sums) : LocalSurface::fitPlane(plane_sums);
+  }
+
+  // Robust weights (Tukey's biweight) from the median absolute residual of the points that carry
+  // weight. The first residuals come from a plane: a sphere fitted through outliers can bend round
+  // them and make them look like inliers; a plane cannot.
+  void reweigh(const Vec3& x, const LocalSurface& fit, bool first) {
+    std::optional<LocalSurface> reference = fit;
+    if (sphere_ && first) {
+      WeightedSums plane_sums(x, h_);
+      for (const Candidate& c : candidates_)
+        if (c.weight > 0) plane_sums.add(points_[c.index], c.weight);
+      reference = LocalSurface::fitPlane(plane_sums);
+      if (!reference) reference = fit;
+    }
+    residuals_.clear();
+    for (const Candidate& c : candidates_)
+      if (c.weight > 0) residuals_.push_back(std::abs(reference->signedDistance(points_[c.index])));
+    const double sigma = std::max(1.4826 * (residuals_.empty() ? 0.0 : medianInPlace(residuals_)), 1e-6 * h_);
+    const double cutoff = kTukeyC * sigma;
+    for (Candidate& c : candidates_) {
+      const double r = std::abs(reference->signedDistance(points_[c.index])) / cutoff;
+      c.robust = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
+    }
+  }
+
+  // The projected point's normal (oriented like the data normals when known), the points used, and
+  // the scalar there (Sec. 5).
+  void finish(const Vec3& x, const LocalSurface& fit, Projection& result) const {
+    result.valid = true;
+    result.point = x;
+    Vec3 n = fit.normal(x);
+    if (data_.normals) {
+      Vec3 reference = Vec3::Zero();
+      for (const Candidate& c : candidates_) reference += c.weight * (*data_.normals)[c.index].cast<double>();
+      if (n.dot(reference) < 0) n = -n;
+    }
+    result.normal = n;
+    std::size_t used = 0;
+    for (const Candidate& c : candidates_) used += c.weight > 0;
+    result.neighbors = used;
+    if (data_.scalar) {
+      thread_local std::vector<ScalarSample> samples;
+      samples.clear();
+      for (const Candidate& c : candidates_)
+        if (c.weight > 0) samples.push_back({points_[c.index], (*data_.scalar)[c.index], c.weight});
+      result.scalar = params_.scalar == ScalarFieldType::Smooth ? smoothScalar(x, n, samples)
+                                                                : shepardScalar(x, samples, support_);
+    }
+  }
+
+ private:
+  void gatherEuclidean(const Vec3& centre) {
+    data_.tree->radius(centre, support_ + margin_, near_);
+    // Keep the robust weights of points already seen; they only make sense for the same points.
+    candidates_.clear();
+    for (const Neighbor& nb : near_) candidates_.push_back({nb.index, 0.0});
+    query_centre_ = centre;
+  }
+
+  const SurfaceData& data_;
+  const ProjectionParams& params_;
+  const std::vector<Vec3>& points_;
+  const double h_, h_sq_, support_, margin_;
+  const bool euclidean_, sphere_;
+  Vec3 query_centre_ = Vec3::Zero();
+  // Reused by every projection on a thread.
+  static thread_local std::vector<Candidate> candidates_;
+  static thread_local std::vector<Neighbor> near_;
+  static thread_local std::vector<SigGraph::Reached> reached_;
+  static thread_local std::vector<double> residuals_;
+};
+
+thread_local std::vector<Candidate> ProjectionRun::candidates_;
+thread_local std::vector<Neighbor> ProjectionRun::near_;
+thread_local std::vector<SigGraph::Reached> ProjectionRun::reached_;
+thread_local std::vector<double> ProjectionRun::residuals_;
+
+}  // namespace
+
 Projection WlsSurface::run(const Vec3& start, std::uint32_t anchor, double h) const {
-  const auto& points = *data_.points;
   Projection result;
   result.point = start;
   result.bandwidth = h;
   result.scalar = std::numeric_limits<double>::quiet_NaN();
   if (!(h > 0)) return result;
-
-  const double h_sq = h * h;
-  const double support = kernelSupport(params_.kernel, h);
-  const bool euclidean = params_.weights == WeightScheme::Euclidean;
-
-  // Gather the neighbourhood once. For the Euclidean kernel the centre moves with P*; the query
-  // radius carries a margin and is refreshed if P* wanders farther than that margin.
-  thread_local std::vector<Candidate> candidates;
-  thread_local std::vector<Neighbor> near;
-  thread_local std::vector<SigGraph::Reached> reached;
-  candidates.clear();
-  const double margin = 0.5 * h;
-  Vec3 query_centre = start;
-  const auto gatherEuclidean = [&](const Vec3& centre) {
-    data_.tree->radius(centre, support + margin, near);
-    // Keep the robust weights of points already seen; they only make sense for the same points.
-    candidates.clear();
-    for (const Neighbor& nb : near) candidates.push_back({nb.index, 0.0});
-    query_centre = centre;
-  };
-  if (params_.weights == WeightScheme::GraphDistance) {
-    data_.graph->distancesFrom(anchor, support, reached);
-    for (const auto& r : reached) candidates.push_back({r.vertex, kernelWeight(params_.kernel, r.distance, h)});
-  } else if (params_.weights == WeightScheme::DataToData) {
-    const Vec3& pa = points[anchor];
-    data_.tree->radius(pa, support, near);
-    for (const Neighbor& nb : near)
-      candidates.push_back({nb.index, kernelWeight(params_.kernel, std::sqrt(nb.distance_sq), h)});  // Eqs. (10)-(11)
-  } else {
-    gatherEuclidean(start);
-  }
-
-  const bool sphere = params_.model == SurfaceModel::Sphere;
-  thread_local std::vector<double> residuals;
+  ProjectionRun projection(data_, params_, h);
+  projection.gather(start, anchor);
   Vec3 x = start;
   std::optional<LocalSurface> fit;
-  const auto fitAt = [&](const Vec3& centre) -> std::optional<LocalSurface> {
-    WeightedSums plane_sums(centre, h);
-    AlgebraicMoments sphere_sums(centre, h);
-    for (Candidate& c : candidates) {
-      const Vec3& p = points[c.index];
-      double w = c.base_weight;
-      if (euclidean) {
-        const double r_sq = (p - centre).squaredNorm();
-        w = params_.kernel == KernelType::Gaussian ? (r_sq < support * support ? gaussianWeightSq(r_sq, h_sq) : 0.0)
-                                                   : cubicWeight(std::sqrt(r_sq), h);  // Eqs. (3)-(5)
-      }
-      w *= c.robust;
-      c.weight = w;
-      if (w <= 0) continue;
-      if (sphere)
-        sphere_sums.add(p, w);
-      else
-        plane_sums.add(p, w);  // Eqs. (2), (6), (7)
-    }
-    return sphere ? LocalSurface::fitPrattSphere(sphere_sums) : LocalSurface::fitPlane(plane_sums);
-  };
-
   for (int it = 1; it <= params_.max_iterations; ++it) {
-    if (euclidean && (x - query_centre).norm() > margin) gatherEuclidean(x);
-    fit = fitAt(x);
+    projection.followPoint(x);
+    fit = projection.fitAt(x);
     if (!fit) break;
     if (params_.robust && it <= kRobustIterations) {
-      // Robust scale from the median absolute residual of the points that carry weight. The first
-      // residuals come from a plane: a sphere fitted through outliers can bend round them and make
-      // them look like inliers; a plane cannot.
-      std::optional<LocalSurface> reference = fit;
-      if (sphere && it == 1) {
-        WeightedSums plane_sums(x, h);
-        for (const Candidate& c : candidates)
-          if (c.weight > 0) plane_sums.add(points[c.index], c.weight);
-        reference = LocalSurface::fitPlane(plane_sums);
-        if (!reference) reference = fit;
-      }
-      residuals.clear();
-      for (const Candidate& c : candidates)
-        if (c.weight > 0) residuals.push_back(std::abs(reference->signedDistance(points[c.index])));
-      const double sigma = std::max(1.4826 * medianOf(residuals), 1e-6 * h);
-      const double cutoff = kTukeyC * sigma;
-      for (Candidate& c : candidates) {
-        const double r = std::abs(reference->signedDistance(points[c.index])) / cutoff;
-        c.robust = r < 1.0 ? (1.0 - r * r) * (1.0 - r * r) : 0.0;
-      }
-      fit = fitAt(x);
+      projection.reweigh(x, *fit, it == 1);
+      fit = projection.fitAt(x);
       if (!fit) break;
     }
     const Vec3 next = fit->project(x);
@@ -161,29 +215,7 @@ Projection WlsSurface::run(const Vec3& start, std::uint32_t anchor, double h) co
     }
   }
   if (!fit) return result;
-
-  result.valid = true;
-  result.point = x;
-  Vec3 n = fit->normal(x);
-  // Fitted normals have no sign of their own: orient them like the data normals when known.
-  if (data_.normals) {
-    Vec3 reference = Vec3::Zero();
-    for (const Candidate& c : candidates) reference += c.weight * (*data_.normals)[c.index].cast<double>();
-    if (n.dot(reference) < 0) n = -n;
-  }
-  result.normal = n;
-  std::size_t used = 0;
-  for (const Candidate& c : candidates) used += c.weight > 0;
-  result.neighbors = used;
-
-  if (data_.scalar) {
-    thread_local std::vector<ScalarSample> samples;
-    samples.clear();
-    for (const Candidate& c : candidates)
-      if (c.weight > 0) samples.push_back({points[c.index], (*data_.scalar)[c.index], c.weight});
-    result.scalar = params_.scalar == ScalarFieldType::Smooth ? smoothScalar(x, n, samples)
-                                                              : shepardScalar(x, samples, support);
-  }
+  projection.finish(x, *fit, result);
   return result;
 }
 

@@ -108,129 +108,20 @@ class CarrierStrain {
   };
   CarrierStrain(const Cloud& carriers, const ShapeAndStrainParams& params)
       : positions_(carriers.positions), strain_(carriers.strain), tree_(positions_) {
-    const std::size_t n = positions_.size();
-    // Each carrier's weight relative to a typical one: the inverse variance of its strain when the
-    // carriers state it (a merged element measured by several sweeps and views counts for more than
-    // one seen once, a laser element more than a noisier stereo one), scaled so that the median
-    // carrier weighs one (the Gaussian's scale stays that of the bandwidth).
-    certainty_.assign(n, 1.0);
-    std::vector<double> variance(n, std::numeric_limits<double>::quiet_NaN());  // the stated one, squared
-    if (const auto u = carriers.scalars.find(kStrainUncertainty); u != carriers.scalars.end() && u->second.size() == n) {
-      std::vector<double> finite;
-      for (double s : u->second)
-        if (std::isfinite(s) && s > 0) finite.push_back(s);
-      if (!finite.empty()) {
-        const double typical = summarize(finite).median;
-        for (std::size_t i = 0; i < n; ++i) {
-          const double s = u->second[i];
-          if (!(std::isfinite(s) && s > 0)) continue;
-          certainty_[i] = std::pow(typical / s, 2);
-          variance[i] = s * s;
-        }
-      }
-    }
-    // The grid's pitch: the fourth neighbour's distance, which twins do not shorten (a square
-    // grid's four nearest are a pitch away).
-    std::vector<double> fourth(n, 0.0);
-    std::vector<Vec3> normals(n, Vec3::UnitZ());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& range) {
-      std::vector<Neighbor> near;
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        tree_.knn(positions_[i], kPitchRank + 1, near);
-        fourth[i] = std::sqrt(near.back().distance_sq);
-        // The carriers' own plane gives the tangent plane of the strain fits there.
-        tree_.knn(positions_[i], kPoolSize, near);
-        WeightedSums sums(positions_[i], fourth[i] > 0 ? fourth[i] : 1.0);
-        for (const Neighbor& nb : near) sums.add(positions_[nb.index], 1.0);
-        if (const auto plane = LocalSurface::fitPlane(sums)) normals[i] = plane->normal(positions_[i]);
-      }
-    });
-    spacing_ = summarize(fourth).median;
+    const std::vector<double> variance = statedVariances(carriers);
+    const std::vector<Vec3> normals = measureGrid();
     reach_ = params.strain_reach * spacing_;
     // Carriers all at one place (or a single one): no grid, no field.
     if (!(spacing_ > 0)) return;
     for (int k = 0; k < kBandwidths; ++k)
       candidates_[static_cast<std::size_t>(k)] = 0.5 * spacing_ * std::pow(kBandwidthStep, k);
-
-    // Leave-one-element-out predictions and their squared errors, per carrier and model (NaN: the
-    // others do not determine it).
-    std::vector<PerModel> error(n), prediction(n);
-    const double twin_sq = 0.0625 * spacing_ * spacing_;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
-      std::vector<Neighbor> near;
-      std::vector<ScalarSample> samples;
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        error[i].fill(std::numeric_limits<double>::quiet_NaN());
-        prediction[i].fill(std::numeric_limits<double>::quiet_NaN());
-        if (!std::isfinite(strain_[i])) continue;
-        for (int k = 0; k < kBandwidths; ++k) {
-          const double h = candidates_[static_cast<std::size_t>(k)];
-          tree_.radius(positions_[i], detail::kSupport * h, near);
-          samples.clear();
-          for (const Neighbor& nb : near)
-            if (nb.distance_sq > twin_sq && std::isfinite(strain_[nb.index]))
-              samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
-          for (int degree = 1; degree <= 2; ++degree) {
-            const auto field = fitTangentPolynomial(positions_[i], normals[i], samples, degree, h);
-            if (!field) continue;
-            const auto m = static_cast<std::size_t>(2 * k + degree - 1);
-            prediction[i][m] = field->value;
-            error[i][m] = std::pow(field->value - strain_[i], 2);
-          }
-        }
-      }
-    });
-    std::vector<double> h(n, candidates_.back());
-    quadric_.assign(n, 0.0);
-    // Each carrier's best estimate of its own strain (NaN: keep the smooth field's).
-    std::vector<double> estimate(n, std::numeric_limits<double>::quiet_NaN());
-    std::vector<double> trust(n, 1.0);  // below 1: an element its neighbours contradict
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
-      std::vector<Neighbor> near;
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        tree_.knn(positions_[i], kPoolSize, near);
-        double best = std::numeric_limits<double>::infinity();
-        int chosen = -1;
-        for (int m = 0; m < kModels; ++m) {
-          double sum = 0;
-          std::size_t count = 0;
-          for (const Neighbor& nb : near) {
-            const double e = error[nb.index][static_cast<std::size_t>(m)];
-            if (std::isfinite(e)) {
-              sum += e;
-              ++count;
-            }
-          }
-          // A model that predicts fewer than half the neighbourhood is too narrow here.
-          if (2 * count < near.size() || !(sum / static_cast<double>(count) < best)) continue;
-          best = sum / static_cast<double>(count);
-          chosen = m;
-        }
-        if (chosen < 0) continue;
-        const auto m = static_cast<std::size_t>(chosen);
-        h[i] = candidates_[m / 2];
-        quadric_[i] = m % 2 == 1 ? 1.0 : 0.0;
-        const OwnEstimate own = ownEstimate(i, m, near, error, prediction, variance);
-        estimate[i] = own.value;
-        trust[i] = own.trust;
-      }
-    });
-    bandwidth_ = summarize(h);
-    field_ = std::make_unique<BandwidthField>(positions_, tree_, std::move(h), BandwidthField::Mean::Harmonic);
-
+    std::vector<PerModel> error(n()), prediction(n());
+    crossValidate(normals, error, prediction);
+    const Choice choice = chooseModels(error, prediction, variance);
     // An element its neighbours contradict weighs less in the smooth field too, so that an outlier
     // does not reach its neighbours through their fits.
-    for (std::size_t i = 0; i < n; ++i) certainty_[i] *= trust[i];
-    correction_.assign(n, 0.0);
-    bump_ = kBumpWidth * spacing_;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const auto& range) {
-      Scratch scratch;
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        if (!std::isfinite(estimate[i])) continue;
-        const double smooth = smoothAt(positions_[i], normals[i], scratch);
-        if (std::isfinite(smooth)) correction_[i] = estimate[i] - smooth;
-      }
-    });
+    for (std::size_t i = 0; i < n(); ++i) certainty_[i] *= choice.trust[i];
+    correctTowardsEstimates(normals, choice.estimate);
   }
 
   // NaN beyond reach of every carrier.
@@ -256,6 +147,144 @@ class CarrierStrain {
   double spacing() const { return spacing_; }
 
  private:
+  std::size_t n() const { return positions_.size(); }
+
+  // Each carrier's weight relative to a typical one: the inverse variance of its strain when the
+  // carriers state it (a merged element measured by several sweeps and views counts for more than
+  // one seen once, a laser element more than a noisier stereo one), scaled so that the median carrier
+  // weighs one (the Gaussian's scale stays that of the bandwidth). Returns the stated variances
+  // (NaN where none is stated).
+  std::vector<double> statedVariances(const Cloud& carriers) {
+    certainty_.assign(n(), 1.0);
+    std::vector<double> variance(n(), std::numeric_limits<double>::quiet_NaN());
+    const auto u = carriers.scalars.find(kStrainUncertainty);
+    if (u == carriers.scalars.end() || u->second.size() != n()) return variance;
+    std::vector<double> finite;
+    for (double s : u->second)
+      if (std::isfinite(s) && s > 0) finite.push_back(s);
+    if (finite.empty()) return variance;
+    const double typical = summarize(finite).median;
+    for (std::size_t i = 0; i < n(); ++i) {
+      const double s = u->second[i];
+      if (!(std::isfinite(s) && s > 0)) continue;
+      certainty_[i] = std::pow(typical / s, 2);
+      variance[i] = s * s;
+    }
+    return variance;
+  }
+
+  // The grid's pitch (spacing_): the fourth neighbour's distance, which twins do not shorten (a
+  // square grid's four nearest are a pitch away). Returns each carrier's tangent plane's normal,
+  // from the carriers' own plane there.
+  std::vector<Vec3> measureGrid() {
+    std::vector<double> fourth(n(), 0.0);
+    std::vector<Vec3> normals(n(), Vec3::UnitZ());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n(), 256), [&](const auto& range) {
+      std::vector<Neighbor> near;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        tree_.knn(positions_[i], kPitchRank + 1, near);
+        fourth[i] = std::sqrt(near.back().distance_sq);
+        tree_.knn(positions_[i], kPoolSize, near);
+        WeightedSums sums(positions_[i], fourth[i] > 0 ? fourth[i] : 1.0);
+        for (const Neighbor& nb : near) sums.add(positions_[nb.index], 1.0);
+        if (const auto plane = LocalSurface::fitPlane(sums)) normals[i] = plane->normal(positions_[i]);
+      }
+    });
+    spacing_ = summarize(fourth).median;
+    return normals;
+  }
+
+  // Leave-one-element-out predictions and their squared errors, per carrier and model (NaN: the
+  // others do not determine it).
+  void crossValidate(const std::vector<Vec3>& normals, std::vector<PerModel>& error, std::vector<PerModel>& prediction) const {
+    const double twin_sq = 0.0625 * spacing_ * spacing_;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n(), 64), [&](const auto& range) {
+      std::vector<Neighbor> near;
+      std::vector<ScalarSample> samples;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        error[i].fill(std::numeric_limits<double>::quiet_NaN());
+        prediction[i].fill(std::numeric_limits<double>::quiet_NaN());
+        if (!std::isfinite(strain_[i])) continue;
+        for (int k = 0; k < kBandwidths; ++k) {
+          const double h = candidates_[static_cast<std::size_t>(k)];
+          tree_.radius(positions_[i], detail::kSupport * h, near);
+          samples.clear();
+          for (const Neighbor& nb : near)
+            if (nb.distance_sq > twin_sq && std::isfinite(strain_[nb.index]))
+              samples.push_back({positions_[nb.index], strain_[nb.index], weight(nb, h)});
+          for (int degree = 1; degree <= 2; ++degree) {
+            const auto field = fitTangentPolynomial(positions_[i], normals[i], samples, degree, h);
+            if (!field) continue;
+            const auto m = static_cast<std::size_t>(2 * k + degree - 1);
+            prediction[i][m] = field->value;
+            error[i][m] = std::pow(field->value - strain_[i], 2);
+          }
+        }
+      }
+    });
+  }
+
+  // Each carrier's best estimate of its own strain (NaN: keep the smooth field's), and how far its
+  // neighbours trust it (below 1: an element they contradict).
+  struct Choice {
+    std::vector<double> estimate, trust;
+  };
+
+  // Each carrier takes the model whose predictions were best over its neighbourhood: its bandwidth
+  // (the field between carriers, field_) and degree (quadric_).
+  Choice chooseModels(const std::vector<PerModel>& error, const std::vector<PerModel>& prediction,
+                      const std::vector<double>& variance) {
+    std::vector<double> h(n(), candidates_.back());
+    quadric_.assign(n(), 0.0);
+    Choice choice{std::vector<double>(n(), std::numeric_limits<double>::quiet_NaN()), std::vector<double>(n(), 1.0)};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n(), 64), [&](const auto& range) {
+      std::vector<Neighbor> near;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        tree_.knn(positions_[i], kPoolSize, near);
+        double best = std::numeric_limits<double>::infinity();
+        int chosen = -1;
+        for (int m = 0; m < kModels; ++m) {
+          double sum = 0;
+          std::size_t count = 0;
+          for (const Neighbor& nb : near) {
+            const double e = error[nb.index][static_cast<std::size_t>(m)];
+            if (std::isfinite(e)) {
+              sum += e;
+              ++count;
+            }
+          }
+          // A model that predicts fewer than half the neighbourhood is too narrow here.
+          if (2 * count < near.size() || !(sum / static_cast<double>(count) < best)) continue;
+          best = sum / static_cast<double>(count);
+          chosen = m;
+        }
+        if (chosen < 0) continue;
+        const auto m = static_cast<std::size_t>(chosen);
+        h[i] = candidates_[m / 2];
+        quadric_[i] = m % 2 == 1 ? 1.0 : 0.0;
+        const OwnEstimate own = ownEstimate(i, m, near, error, prediction, variance);
+        choice.estimate[i] = own.value;
+        choice.trust[i] = own.trust;
+      }
+    });
+    bandwidth_ = summarize(h);
+    field_ = std::make_unique<BandwidthField>(positions_, tree_, std::move(h), BandwidthField::Mean::Harmonic);
+    return choice;
+  }
+
+  // The corrections at the carriers that restore each one's best estimate over the smooth field.
+  void correctTowardsEstimates(const std::vector<Vec3>& normals, const std::vector<double>& estimate) {
+    correction_.assign(n(), 0.0);
+    bump_ = kBumpWidth * spacing_;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n(), 64), [&](const auto& range) {
+      Scratch scratch;
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        if (!std::isfinite(estimate[i])) continue;
+        const double smooth = smoothAt(positions_[i], normals[i], scratch);
+        if (std::isfinite(smooth)) correction_[i] = estimate[i] - smooth;
+      }
+    });
+  }
   // The best linear estimate of carrier i's strain from its own measurement s (variance stated) and
   // its neighbours' leave-one-out prediction p with model m. p's variance is what the
   // neighbourhood's prediction errors hold beyond the carriers' own noise: E[(p - s)^2] = var p +

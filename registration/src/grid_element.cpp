@@ -11,15 +11,15 @@ fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
   c.positions.reserve(n);
   c.normals.reserve(n);
   c.strain.reserve(n);
-  auto& major = c.scalars["major_strain"];
-  auto& minor = c.scalars["minor_strain"];
-  auto& dx = c.scalars["major_dir_x"];
-  auto& dy = c.scalars["major_dir_y"];
-  auto& dz = c.scalars["major_dir_z"];
-  auto& source = c.scalars["source"];
-  auto& view = c.scalars["view"];
-  auto& quality = c.scalars["quality"];
-  auto& measurements = c.scalars["measurements"];
+  auto& major = c.scalars[fitting::kMajorStrain];
+  auto& minor = c.scalars[fitting::kMinorStrain];
+  auto& dx = c.scalars[fitting::kMajorDirection[0]];
+  auto& dy = c.scalars[fitting::kMajorDirection[1]];
+  auto& dz = c.scalars[fitting::kMajorDirection[2]];
+  auto& source = c.scalars[fitting::kSource];
+  auto& view = c.scalars[fitting::kView];
+  auto& quality = c.scalars[fitting::kFitQuality];
+  auto& measurements = c.scalars[fitting::kMeasurementCount];
   for (const GridElement& g : elements) {
     c.positions.push_back(g.position);
     c.normals.push_back(g.normal);

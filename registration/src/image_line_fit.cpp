@@ -148,88 +148,82 @@ bool excluded(const Eigen::Vector2d& x, const Exclusions& ex) {
   return false;
 }
 
-// Levenberg-Marquardt over the geometry and the photometry: the sheet's plane (l0, lx, ly), the
-// ink's contrast k, the blur s and the line's width w.
+// The model of a printed line in the pixels, and its parts of the fit: the sheet's plane (l0, lx,
+// ly), the ink's contrast k, the blur s and the line's width w beside the geometry's parameters.
 template <typename Geometry>
-LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const Eigen::Vector2d& origin, double scale,
-                       Geometry& geometry) {
-  constexpr int G = Geometry::N, P = G + 6;
-  constexpr int L0 = G, LX = G + 1, LY = G + 2, K = G + 3, S = G + 4, W = G + 5;
+class LineModel {
+ public:
+  static constexpr int G = Geometry::N, P = G + 6;
+  static constexpr int L0 = G, LX = G + 1, LY = G + 2, K = G + 3, S = G + 4, W = G + 5;
   using Vector = Eigen::Matrix<double, P, 1>;
-  LineFitResult result;
-  result.pixels = samples.size();
-  if (samples.size() < 12 * static_cast<std::size_t>(P)) return result;
-  // Start: the sheet from pixels clear of the line, the contrast from those on it.
-  const double s0 = 0.8;
-  std::vector<double> sheet, ink;
-  for (const Sample& q : samples) {
-    Where at;
-    geometry.locate(q.x, at);
-    if (std::abs(at.d) > 0.5 * line_px * at.width_scale + 2.5 * s0) sheet.push_back(q.value);
-    else if (std::abs(at.d) < 0.25 * line_px * at.width_scale) ink.push_back(q.value);
-  }
-  if (sheet.size() < 8 || ink.size() < 4) return result;
-  const double level = fitting::medianOr(sheet, 0.0);
-  if (level <= 0) return result;
-  const double peak = cdf(0.5 * line_px / s0) - cdf(-0.5 * line_px / s0);
-  Vector p;
-  {
+  using Matrix = Eigen::Matrix<double, P, P>;
+
+  LineModel(const std::vector<Sample>& samples, double line_px, const Eigen::Vector2d& origin, double scale)
+      : samples_(samples), line_px_(line_px), origin_(origin), scale_(scale), weight_(samples.size(), 1.0) {}
+
+  // The start: the sheet from pixels clear of the line, the contrast from those on it. False when
+  // either are too few, or the sheet is dark.
+  bool start(const Geometry& geometry, Vector& p) const {
+    const double s0 = 0.8;
+    std::vector<double> sheet, ink;
+    for (const Sample& q : samples_) {
+      Where at;
+      geometry.locate(q.x, at);
+      if (std::abs(at.d) > 0.5 * line_px_ * at.width_scale + 2.5 * s0) sheet.push_back(q.value);
+      else if (std::abs(at.d) < 0.25 * line_px_ * at.width_scale) ink.push_back(q.value);
+    }
+    if (sheet.size() < 8 || ink.size() < 4) return false;
+    const double level = fitting::medianOr(sheet, 0.0);
+    if (level <= 0) return false;
+    const double peak = cdf(0.5 * line_px_ / s0) - cdf(-0.5 * line_px_ / s0);
     const auto g = geometry.get();
     for (int i = 0; i < G; ++i) p(i) = g[static_cast<std::size_t>(i)];
-    p.template tail<6>() << level, 0, 0, std::clamp((1 - fitting::medianOr(ink, 0.0) / level) / peak, 0.05, 1.0), s0, line_px;
+    p.template tail<6>() << level, 0, 0, std::clamp((1 - fitting::medianOr(ink, 0.0) / level) / peak, 0.05, 1.0), s0, line_px_;
+    return true;
   }
-  using Located = Where;
-  const auto model = [&](const Vector& q, const Sample& sample, const Located& at) {
-    const Eigen::Vector2d r = (sample.x - origin) / scale;
-    const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
-    const double half = 0.5 * q(W) * at.width_scale;
-    const double d = at.d + 0.5 * q(S) * q(S) * at.curvature;  // see Where::curvature
-    return sheet_level * (1 - q(K) * (cdf((d + half) / q(S)) - cdf((d - half) / q(S))));
-  };
-  const auto evaluate = [&](const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Located>* where) {
+
+  // The residuals of every sample under q (the geometry set to q's), and where each lies.
+  void evaluate(const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Where>* where) const {
     std::array<double, G> g;
     for (int i = 0; i < G; ++i) g[static_cast<std::size_t>(i)] = q(i);
     geom.set(g);
-    residual.resize(samples.size());
-    if (where) where->resize(samples.size());
-    for (std::size_t i = 0; i < samples.size(); ++i) {
-      Located at{};
-      geom.locate(samples[i].x, at);
-      residual[i] = samples[i].value - model(q, samples[i], at);
+    residual.resize(samples_.size());
+    if (where) where->resize(samples_.size());
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      Where at{};
+      geom.locate(samples_[i].x, at);
+      residual[i] = samples_[i].value - model(q, samples_[i], at);
       if (where) (*where)[i] = at;
     }
-  };
-  std::vector<double> residual, trial, weight(samples.size(), 1.0);
-  std::vector<Located> located, trial_located;
-  Geometry geom = geometry;
-  evaluate(p, geom, residual, &located);
-  const auto robustWeights = [&](const std::vector<double>& r) {
+  }
+
+  // Tukey's biweight of each residual against its robust spread.
+  void reweigh(const std::vector<double>& r, double level) {
     std::vector<double> a(r.size());
     for (std::size_t i = 0; i < r.size(); ++i) a[i] = std::abs(r[i]);
-    const double c = 4.685 * std::max(1e-6 * p(L0), 1.4826 * fitting::medianOr(a, 0.0));
+    const double c = 4.685 * std::max(1e-6 * level, 1.4826 * fitting::medianOr(a, 0.0));
     for (std::size_t i = 0; i < r.size(); ++i) {
       const double u = r[i] / c;
-      weight[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
+      weight_[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
     }
-  };
-  const auto cost = [&](const std::vector<double>& r) {
+  }
+
+  double cost(const std::vector<double>& r) const {
     double c = 0;
-    for (std::size_t i = 0; i < r.size(); ++i) c += weight[i] * r[i] * r[i];
+    for (std::size_t i = 0; i < r.size(); ++i) c += weight_[i] * r[i] * r[i];
     return c;
-  };
-  robustWeights(residual);
-  double lambda = 1e-3;
-  const std::array<double, G> g0 = geometry.get();
-  for (int iteration = 0; iteration < 30; ++iteration) {
-    result.iterations = static_cast<std::size_t>(iteration + 1);
-    // Jacobian: the model's slopes in the distance and the local width, times their slopes in the
-    // geometry; and in the photometry.
-    Eigen::Matrix<double, P, P> H = Eigen::Matrix<double, P, P>::Zero();
-    Vector b = Vector::Zero();
-    for (std::size_t i = 0; i < samples.size(); ++i) {
-      if (weight[i] <= 0) continue;
-      const Eigen::Vector2d r = (samples[i].x - origin) / scale;
-      const Located& at = located[i];
+  }
+
+  // The weighted normal equations H delta = b at p. The Jacobian: the model's slopes in the distance
+  // and the local width, times their slopes in the geometry; and in the photometry.
+  void normalEquations(const Vector& p, const Geometry& geom, const std::vector<double>& residual,
+                       const std::vector<Where>& located, Matrix& H, Vector& b) const {
+    H.setZero();
+    b.setZero();
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      if (weight_[i] <= 0) continue;
+      const Eigen::Vector2d r = (samples_[i].x - origin_) / scale_;
+      const Where& at = located[i];
       const double half = 0.5 * p(W) * at.width_scale;
       const double d = at.d + 0.5 * p(S) * p(S) * at.curvature;
       const double zp = (d + half) / p(S), zm = (d - half) / p(S);
@@ -241,7 +235,7 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
       Vector J;
       double dd[G], dscale[G];
       Where unused;
-      geom.locate(samples[i].x, unused, dd, dscale);
+      geom.locate(samples_[i].x, unused, dd, dscale);
       for (int j = 0; j < G; ++j) J(j) = dm_dd * dd[j] + dm_dhalf * 0.5 * p(W) * dscale[j];
       const double shade = 1 - p(K) * cover;
       J(L0) = shade;
@@ -250,25 +244,74 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
       J(K) = -sheet_level * cover;
       J(S) = -dm_dcover * (zp * gauss(zp) - zm * gauss(zm)) / p(S) + dm_dd * p(S) * at.curvature;
       J(W) = dm_dhalf * 0.5 * at.width_scale;
-      H.template selfadjointView<Eigen::Lower>().rankUpdate(J, weight[i]);
-      b += weight[i] * residual[i] * J;
+      H.template selfadjointView<Eigen::Lower>().rankUpdate(J, weight_[i]);
+      b += weight_[i] * residual[i] * J;
     }
-    const double before = cost(residual);
-    bool improved = false;
-    Vector delta;
     H = H.template selfadjointView<Eigen::Lower>();
+  }
+
+  // A step's parameters within what a printed line can be.
+  bool plausible(const Vector& q) const {
+    return q(S) >= 0.15 && q(S) <= 4 && q(K) > 0 && q(W) >= 0.2 && q(W) <= 4 * line_px_ + 2;
+  }
+
+  const std::vector<double>& weights() const { return weight_; }
+
+ private:
+  double model(const Vector& q, const Sample& sample, const Where& at) const {
+    const Eigen::Vector2d r = (sample.x - origin_) / scale_;
+    const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
+    const double half = 0.5 * q(W) * at.width_scale;
+    const double d = at.d + 0.5 * q(S) * q(S) * at.curvature;  // see Where::curvature
+    return sheet_level * (1 - q(K) * (cdf((d + half) / q(S)) - cdf((d - half) / q(S))));
+  }
+
+  const std::vector<Sample>& samples_;
+  double line_px_;
+  Eigen::Vector2d origin_;
+  double scale_;
+  std::vector<double> weight_;
+};
+
+// Levenberg-Marquardt over the geometry and the photometry (LineModel), reweighted robustly after
+// each accepted step.
+template <typename Geometry>
+LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const Eigen::Vector2d& origin, double scale,
+                       Geometry& geometry) {
+  using Model = LineModel<Geometry>;
+  constexpr int G = Model::G, P = Model::P;
+  LineFitResult result;
+  result.pixels = samples.size();
+  if (samples.size() < 12 * static_cast<std::size_t>(P)) return result;
+  Model fit(samples, line_px, origin, scale);
+  typename Model::Vector p;
+  if (!fit.start(geometry, p)) return result;
+  std::vector<double> residual, trial;
+  std::vector<Where> located, trial_located;
+  Geometry geom = geometry;
+  fit.evaluate(p, geom, residual, &located);
+  fit.reweigh(residual, p(Model::L0));
+  double lambda = 1e-3;
+  const std::array<double, G> g0 = geometry.get();
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    result.iterations = static_cast<std::size_t>(iteration + 1);
+    typename Model::Matrix H;
+    typename Model::Vector b, delta;
+    fit.normalEquations(p, geom, residual, located, H, b);
+    const double before = fit.cost(residual);
+    bool improved = false;
     for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
-      Eigen::Matrix<double, P, P> A = H;
+      typename Model::Matrix A = H;
       for (int j = 0; j < P; ++j) A(j, j) += lambda * (H(j, j) + 1e-9);
       delta = A.ldlt().solve(b);
-      const Vector q = p + delta;
-      if (!delta.allFinite() || q(S) < 0.15 || q(S) > 4 || q(K) <= 0 || q(W) < 0.2 || q(W) > 4 * line_px + 2) {
+      const typename Model::Vector q = p + delta;
+      if (!delta.allFinite() || !fit.plausible(q)) {
         lambda *= 4;
         continue;
       }
       Geometry candidate = geom;
-      evaluate(q, candidate, trial, &trial_located);
-      if (candidate.plausible() && cost(trial) <= before) {
+      fit.evaluate(q, candidate, trial, &trial_located);
+      if (candidate.plausible() && fit.cost(trial) <= before) {
         p = q;
         geom = candidate;
         residual.swap(trial);
@@ -280,20 +323,21 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
       }
     }
     if (!improved) break;
-    robustWeights(residual);
+    fit.reweigh(residual, p(Model::L0));
     if (delta.template head<G>().cwiseAbs().maxCoeff() < 2e-4) break;  // px: far below the noise
   }
   const std::array<double, G> g1 = geom.get();
   double moved = 0;
   for (std::size_t j = 0; j < static_cast<std::size_t>(G); ++j) moved = std::max(moved, std::abs(g1[j] - g0[j]));
   double sum = 0, wsum = 0;
+  const std::vector<double>& weight = fit.weights();
   for (std::size_t i = 0; i < samples.size(); ++i) sum += weight[i] * residual[i] * residual[i], wsum += weight[i];
-  result.blur = p(S);
-  result.contrast = p(K);
-  result.width = p(W);
-  result.rms = wsum > 0 ? std::sqrt(sum / wsum) / p(L0) : 1.0;
+  result.blur = p(Model::S);
+  result.contrast = p(Model::K);
+  result.width = p(Model::W);
+  result.rms = wsum > 0 ? std::sqrt(sum / wsum) / p(Model::L0) : 1.0;
   // The line must really be there: some contrast, most pixels agreeing with the model.
-  result.ok = std::isfinite(moved) && p(K) > 0.1 && wsum > 0.5 * static_cast<double>(samples.size());
+  result.ok = std::isfinite(moved) && p(Model::K) > 0.1 && wsum > 0.5 * static_cast<double>(samples.size());
   if (result.ok) geometry = geom;
   return result;
 }

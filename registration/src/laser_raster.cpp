@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 namespace stampscan::registration::detail {
 
@@ -57,6 +58,115 @@ Raster buildRaster(const std::vector<Profile>& sweep, const HeadTrack& track, co
   return R;
 }
 
+namespace {
+
+// One bright region of the interiors' mask (a candidate), as connectedComponentsWithStats found it.
+struct Region {
+  int label, area, x0, y0, width, height;
+  double cx, cy;  // its centroid, px
+};
+
+// A ring's or a cell's interior is convex; the four-pointed gaps between touching rings are not.
+bool convexEnough(const cv::Mat& labels, const Region& g) {
+  const cv::Mat mask = labels(cv::Rect(g.x0, g.y0, g.width, g.height)) == g.label;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  double hull_area = 0;
+  if (!contours.empty()) {
+    std::vector<cv::Point> hull;
+    cv::convexHull(contours.front(), hull);
+    hull_area = cv::contourArea(hull);
+  }
+  return hull_area > 0 && g.area >= 0.85 * hull_area;
+}
+
+// The region's sheet level (the median of its pixels), or nothing when it touches a gap in the data.
+std::optional<double> sheetLevel(const Raster& R, const cv::Mat& labels, const cv::Mat& gaps, const Region& g) {
+  std::vector<double> level;
+  for (int r = g.y0; r < g.y0 + g.height; ++r)
+    for (int c = g.x0; c < g.x0 + g.width; ++c)
+      if (labels.at<int>(r, c) == g.label) {
+        if (gaps.at<std::uint8_t>(r, c)) return std::nullopt;
+        level.push_back(R.intensity.at<float>(r, c));
+      }
+  return median(level);
+}
+
+// The sub-pixel inner edge along rays from the centroid, isotropic on the part: one point per ray
+// that crosses the line (dark, then bright again) on valid data; the widest gap between such rays.
+struct InnerEdge {
+  std::vector<Vec3> points;
+  double max_gap_deg = 0;
+};
+
+InnerEdge innerEdge(const Raster& R, const InteriorSearch& params, double cx, double cy, double sheet_mid) {
+  InnerEdge edge;
+  int last_ray = -1, first_ray = -1;
+  const double reach = 1.5 * params.inner_reach_mm * std::exp(params.max_strain);
+  const double dark = params.ink_ratio * sheet_mid;
+  std::vector<double> values;
+  for (int k = 0; k < 360; ++k) {
+    const double th = 2 * std::numbers::pi * k / 360;
+    const double ux = std::cos(th) / R.col_mm, uy = std::sin(th) / R.row_mm;  // px per mm along the ray
+    const double step = 0.25 / std::hypot(ux, uy);                            // a quarter pixel, in mm
+    // March until the ray has crossed the line; it needs valid data only that far.
+    values.clear();
+    bool broken = false, in_ink = false, crossed = false;
+    for (double s = 0; s <= reach && !crossed; s += step) {
+      const double v = R.sample(cx + s * ux, cy + s * uy);
+      if (std::isnan(v)) {
+        broken = true;
+        break;
+      }
+      values.push_back(v);
+      if (v < dark) in_ink = true;
+      else if (in_ink) crossed = true;
+    }
+    if (broken || !crossed || values.size() < 4) continue;
+    const double ink = *std::min_element(values.begin(), values.end());
+    const double mid = 0.5 * (sheet_mid + ink);
+    for (std::size_t i = 1; i < values.size(); ++i)
+      if (values[i] < mid && values[i - 1] >= mid) {
+        const double f = (values[i - 1] - mid) / (values[i - 1] - values[i]);
+        const double s = (static_cast<double>(i - 1) + f) * step;
+        Vec3 p;
+        if (R.lift(cx + s * ux, cy + s * uy, p)) {
+          edge.points.push_back(p);
+          if (last_ray >= 0) edge.max_gap_deg = std::max(edge.max_gap_deg, static_cast<double>(k - last_ray));
+          if (first_ray < 0) first_ray = k;
+          last_ray = k;
+        }
+        break;
+      }
+  }
+  if (first_ray >= 0) edge.max_gap_deg = std::max(edge.max_gap_deg, static_cast<double>(360 - last_ray + first_ray));
+  return edge;
+}
+
+// The plane through the edge (its normal towards the sensor), and the edge in it.
+Interior interiorOf(const Raster& R, const cv::Mat& labels, const Region& g, std::vector<Vec3> edge) {
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& p : edge) mean += p;
+  mean /= static_cast<double>(edge.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : edge) cov += (p - mean) * (p - mean).transpose();
+  Vec3 normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+  if (normal.dot(R.viewpoint - mean) < 0) normal = -normal;
+  const Eigen::Matrix3d frame = fitting::frameAround(normal);
+  Interior in;
+  for (const Vec3& p : edge) in.plane.emplace_back(frame.col(0).dot(p - mean), frame.col(1).dot(p - mean));
+  in.edge = std::move(edge);
+  in.mean = mean;
+  in.normal = normal;
+  in.frame = frame;
+  for (int r = g.y0; r < g.y0 + g.height; ++r)
+    for (int c = g.x0; c < g.x0 + g.width; ++c)
+      if (labels.at<int>(r, c) == g.label) in.pixels.push_back(R.at(r, c));
+  return in;
+}
+
+}  // namespace
+
 std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& params, RingDetectionStats& st) {
   std::vector<Interior> out;
   // Too short a sweep, or one without two neighbouring returns to measure the spacing: nothing.
@@ -76,117 +186,38 @@ std::vector<Interior> findInteriors(const Raster& R, const InteriorSearch& param
   cv::Mat gaps;
   cv::dilate(~R.valid, gaps, cv::Mat());
   for (int label = 1; label < n; ++label) {
-    const int area = comp_stats.at<int>(label, cv::CC_STAT_AREA);
-    if (area < 0.5 * min_area || area > max_area) continue;  // lines, background, merged cells
+    const Region g{label,
+                   comp_stats.at<int>(label, cv::CC_STAT_AREA),
+                   comp_stats.at<int>(label, cv::CC_STAT_LEFT),
+                   comp_stats.at<int>(label, cv::CC_STAT_TOP),
+                   comp_stats.at<int>(label, cv::CC_STAT_WIDTH),
+                   comp_stats.at<int>(label, cv::CC_STAT_HEIGHT),
+                   centroids.at<double>(label, 0),
+                   centroids.at<double>(label, 1)};
+    if (g.area < 0.5 * min_area || g.area > max_area) continue;  // lines, background, merged cells
     ++st.candidates;
-    const int x0 = comp_stats.at<int>(label, cv::CC_STAT_LEFT), y0 = comp_stats.at<int>(label, cv::CC_STAT_TOP);
-    const int bw = comp_stats.at<int>(label, cv::CC_STAT_WIDTH), bh = comp_stats.at<int>(label, cv::CC_STAT_HEIGHT);
-    if (bw < 5 || bh < 5) {
+    if (g.width < 5 || g.height < 5 || !convexEnough(labels, g)) {
       ++st.rejected_size;
       continue;
     }
-    // A ring's or a cell's interior is convex; the four-pointed gaps between touching rings are not.
-    {
-      const cv::Mat mask = labels(cv::Rect(x0, y0, bw, bh)) == label;
-      std::vector<std::vector<cv::Point>> contours;
-      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-      double hull_area = 0;
-      if (!contours.empty()) {
-        std::vector<cv::Point> hull;
-        cv::convexHull(contours.front(), hull);
-        hull_area = cv::contourArea(hull);
-      }
-      if (hull_area <= 0 || area < 0.85 * hull_area) {
-        ++st.rejected_size;
-        continue;
-      }
-    }
-    if (x0 <= 1 || y0 <= 1 || x0 + bw >= R.cols - 1 || y0 + bh >= R.rows - 1) {
+    if (g.x0 <= 1 || g.y0 <= 1 || g.x0 + g.width >= R.cols - 1 || g.y0 + g.height >= R.rows - 1) {
       ++st.rejected_gap;
       continue;
     }
-    bool touches_gap = false;
-    std::vector<double> sheet_level;
-    for (int r = y0; r < y0 + bh && !touches_gap; ++r)
-      for (int c = x0; c < x0 + bw; ++c)
-        if (labels.at<int>(r, c) == label) {
-          if (gaps.at<std::uint8_t>(r, c)) touches_gap = true;
-          sheet_level.push_back(R.intensity.at<float>(r, c));
-        }
-    if (touches_gap) {
+    const std::optional<double> sheet_mid = sheetLevel(R, labels, gaps, g);
+    if (!sheet_mid) {
       ++st.rejected_gap;
       continue;
     }
-    const double sheet_mid = median(sheet_level);
-    // 3. Sub-pixel inner edge along rays from the centroid, isotropic on the part.
-    const double cx = centroids.at<double>(label, 0), cy = centroids.at<double>(label, 1);
-    std::vector<Vec3> edge;
-    int last_ray = -1, first_ray = -1;
-    double max_gap_deg = 0;
-    const double reach = 1.5 * params.inner_reach_mm * std::exp(params.max_strain);
-    for (int k = 0; k < 360; ++k) {
-      const double th = 2 * std::numbers::pi * k / 360;
-      const double ux = std::cos(th) / R.col_mm, uy = std::sin(th) / R.row_mm;  // px per mm along the ray
-      const double step = 0.25 / std::hypot(ux, uy);                            // a quarter pixel, in mm
-      // March until the ray has crossed the line (dark, then bright again); it needs valid data only
-      // that far.
-      std::vector<double> values;
-      bool broken = false, in_ink = false, crossed = false;
-      const double dark = params.ink_ratio * sheet_mid;
-      for (double s = 0; s <= reach && !crossed; s += step) {
-        const double v = R.sample(cx + s * ux, cy + s * uy);
-        if (std::isnan(v)) {
-          broken = true;
-          break;
-        }
-        values.push_back(v);
-        if (v < dark) in_ink = true;
-        else if (in_ink) crossed = true;
-      }
-      if (broken || !crossed || values.size() < 4) continue;
-      const double ink = *std::min_element(values.begin(), values.end());
-      const double mid = 0.5 * (sheet_mid + ink);
-      for (std::size_t i = 1; i < values.size(); ++i)
-        if (values[i] < mid && values[i - 1] >= mid) {
-          const double f = (values[i - 1] - mid) / (values[i - 1] - values[i]);
-          const double s = (static_cast<double>(i - 1) + f) * step;
-          Vec3 p;
-          if (R.lift(cx + s * ux, cy + s * uy, p)) {
-            edge.push_back(p);
-            if (last_ray >= 0) max_gap_deg = std::max(max_gap_deg, static_cast<double>(k - last_ray));
-            if (first_ray < 0) first_ray = k;
-            last_ray = k;
-          }
-          break;
-        }
-    }
-    if (first_ray >= 0) max_gap_deg = std::max(max_gap_deg, static_cast<double>(360 - last_ray + first_ray));
-    // Only whole rings: an arc leaves the ellipse's axes poorly determined.
-    if (edge.size() < static_cast<std::size_t>(params.min_edge_share * 360) || max_gap_deg > params.max_edge_gap_deg) {
+    // 3. The inner edge; only whole rings: an arc leaves the ellipse's axes poorly determined.
+    InnerEdge edge = innerEdge(R, params, g.cx, g.cy, *sheet_mid);
+    if (edge.points.size() < static_cast<std::size_t>(params.min_edge_share * 360) ||
+        edge.max_gap_deg > params.max_edge_gap_deg) {
       ++st.rejected_gap;
       continue;
     }
     // 4. The plane through the edge, and the edge in it.
-    Vec3 mean = Vec3::Zero();
-    for (const Vec3& p : edge) mean += p;
-    mean /= static_cast<double>(edge.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const Vec3& p : edge) cov += (p - mean) * (p - mean).transpose();
-    Vec3 normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
-    if (normal.dot(R.viewpoint - mean) < 0) normal = -normal;
-    const Eigen::Matrix3d frame = fitting::frameAround(normal);
-    std::vector<Eigen::Vector2d> plane;
-    for (const Vec3& p : edge) plane.emplace_back(frame.col(0).dot(p - mean), frame.col(1).dot(p - mean));
-    Interior in;
-    in.edge = std::move(edge);
-    in.plane = std::move(plane);
-    in.mean = mean;
-    in.normal = normal;
-    in.frame = frame;
-    for (int r = y0; r < y0 + bh; ++r)
-      for (int c = x0; c < x0 + bw; ++c)
-        if (labels.at<int>(r, c) == label) in.pixels.push_back(R.at(r, c));
-    out.push_back(std::move(in));
+    out.push_back(interiorOf(R, labels, g, std::move(edge.points)));
   }
   return out;
 }

@@ -83,7 +83,7 @@ std::vector<Vec3> depthPriorOf(const std::vector<Profile>& profiles, const HeadT
 
 std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
                                                       std::int64_t clock_offset_ns, std::int64_t latency_ns,
-                                                      double max_track_error_mm, const std::string& scene) {
+                                                      double max_track_error_mm, trace::Scene scene) {
   std::vector<std::vector<Profile>> out;
   for (const auto& w : trace.sweeps)
     if (w.is(scene)) out.push_back(profilesIn(trace, track, w, clock_offset_ns, latency_ns, max_track_error_mm));
@@ -226,7 +226,7 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
   StageClock clock;
   std::vector<SweepWindow> part;
   for (const auto& w : trace.sweeps)
-    if (w.is("part")) part.push_back(w);
+    if (w.is(trace::Scene::Part)) part.push_back(w);
   const HeadTrack track(trace.head);
   std::vector<std::vector<GridElement>> per_sweep(part.size());
   std::vector<RingDetectionStats> stats(part.size());
@@ -293,10 +293,13 @@ bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint3
   const bool circles = grid_ == "circle";
   std::vector<Vec3> prior = laser_positions;
   prior.insert(prior.end(), depth_prior_.begin(), depth_prior_.end());
-  auto view = circles ? measureStereoPair(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
-                                          prior, rings_, view_id)
-                      : measureStereoSquares(trace.part_left[v].image, trace.part_right[v].image, rig, track.poseAt(t),
-                                             prior, squares_, view_id);
+  const StereoView input{.left = trace.part_left[v].image,
+                         .right = trace.part_right[v].image,
+                         .rig = rig,
+                         .machine_from_head = track.poseAt(t),
+                         .prior = prior,
+                         .index = view_id};
+  auto view = circles ? measureStereoPair(input, rings_) : measureStereoSquares(input, squares_);
   if (view.size() >= 10) {
     std::vector<Vec3> source;
     for (const auto& g : view) source.push_back(g.position);

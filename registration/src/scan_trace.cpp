@@ -47,22 +47,22 @@ void ScanTraceBuilder::add(std::string_view topic, std::span<const std::byte> by
       out_.clock_pairs[c.device].emplace_back(c.station_time_ns, c.device_time_ns);
     } else if (topic == msg::topics::kCmmEvent) {
       const auto e = msg::decode<msg::CmmEvent>(bytes);
-      if (e.kind == "sweep_begin") {
+      if (e.kind == msg::CmmEventKind::SweepBegin) {
         sweep_begin_ = e.station_time_ns;
         sweep_label_ = e.detail;
-      } else if (e.kind == "sweep_end" && sweep_begin_ >= 0 && e.detail == sweep_label_) {
+      } else if (e.kind == msg::CmmEventKind::SweepEnd && sweep_begin_ >= 0 && e.detail == sweep_label_) {
         out_.sweeps.push_back({sweep_label_, sweep_begin_, e.station_time_ns});
         sweep_begin_ = -1;
-      } else if (e.kind == "sweep_discarded" && !out_.sweeps.empty() && out_.sweeps.back().label == e.detail) {
+      } else if (e.kind == msg::CmmEventKind::SweepDiscarded && !out_.sweeps.empty() && out_.sweeps.back().label == e.detail) {
         out_.sweeps.pop_back();  // it lost profiles and was run again
       }
     } else if (topic == msg::topics::kScene) {
       const auto s = msg::decode<msg::SceneMarker>(bytes);
-      scene_ = s.phase == "begin" ? s.scene : "";
+      scene_ = s.phase == "begin" ? std::optional<msg::Scene>(s.scene) : std::nullopt;
     } else if (topic == msg::topics::kCameraLeft || topic == msg::topics::kCameraRight) {
-      const bool plate = scene_ == "calibration_plate";
+      const bool plate = scene_ == msg::Scene::CalibrationPlate;
       if (!plate) ++out_.part_frames;
-      if (!plate && !(keep_part_frames_ && scene_ == "part")) return;
+      if (!plate && !(keep_part_frames_ && scene_ == msg::Scene::Part)) return;
       auto f = msg::decode<msg::CameraFrame>(bytes);
       const std::uint64_t trigger = f.trigger_id;
       auto& pair = pending_pairs_[trigger];

@@ -260,9 +260,12 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   return out;
 }
 
-std::vector<GridElement> measureStereoPair(const cv::Mat& left_image, const cv::Mat& right_image, const StereoRig& rig,
-                                           const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior,
-                                           const RingDetectionParams& params, std::uint32_t view, StereoStats* stats) {
+std::vector<GridElement> measureStereoPair(const StereoView& input, const RingDetectionParams& params, StereoStats* stats) {
+  const cv::Mat &left_image = input.left, &right_image = input.right;
+  const StereoRig& rig = input.rig;
+  const Eigen::Isometry3d& machine_from_head = input.machine_from_head;
+  const std::vector<Vec3>& prior = input.prior;
+  const std::uint32_t view = input.index;
   StereoStats local;
   StereoStats& st = stats ? *stats : local;
   const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);

@@ -147,130 +147,142 @@ std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pi
   return out;
 }
 
-std::vector<GridElement> measureStereoSquares(const cv::Mat& left_image, const cv::Mat& right_image, const StereoRig& rig,
-                                              const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior,
-                                              const SquareDetectionParams& params, std::uint32_t view, StereoStats* stats) {
+namespace {
+
+// The printed square's corners about its centre, counter-clockwise.
+std::array<Eigen::Vector2d, 4> printedSquare(double pitch) {
+  const double half = 0.5 * pitch;
+  return {Eigen::Vector2d(-half, -half), Eigen::Vector2d(half, -half), Eigen::Vector2d(half, half),
+          Eigen::Vector2d(-half, half)};
+}
+
+// A matched cell's four nodes in the machine frame. Both images go round the cell the same way, so
+// the same node is one of the four cyclic shifts: the one whose rays meet best, within 0.2 mm for
+// its worst node. Nothing when none does.
+std::optional<std::array<Vec3, 4>> triangulateNodes(const ImageCell& L, const ImageCell& R, const StereoRig& rig,
+                                                    const detail::PairPoses& poses) {
+  const std::vector<Eigen::Vector2d> ln = detail::normalised(std::vector<Eigen::Vector2d>(L.nodes.begin(), L.nodes.end()), rig.left);
+  const std::vector<Eigen::Vector2d> rn = detail::normalised(std::vector<Eigen::Vector2d>(R.nodes.begin(), R.nodes.end()), rig.right);
+  const Vec3 o1 = poses.machine_from_left.translation(), o2 = poses.machine_from_right.translation();
+  std::optional<std::array<Vec3, 4>> nodes;
+  double best_gap = 0.2;  // mm, for the worst node
+  for (std::size_t shift = 0; shift < 4; ++shift) {
+    std::array<Vec3, 4> X;
+    double worst = 0;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const Vec3 d1 = (poses.machine_from_left.linear() * Vec3(ln[i].x(), ln[i].y(), 1)).normalized();
+      const std::size_t j = (i + shift) % 4;
+      const Vec3 d2 = (poses.machine_from_right.linear() * Vec3(rn[j].x(), rn[j].y(), 1)).normalized();
+      double gap = 0;
+      X[i] = detail::midpoint(o1, d1, o2, d2, &gap);
+      worst = std::max(worst, gap);
+    }
+    if (worst < best_gap) best_gap = worst, nodes = X;
+  }
+  return nodes;
+}
+
+// The element of a cell from its four nodes: the cell's plane through its corners (normal from the
+// diagonals, facing the cameras), the corners in it about their mean (`corners`), and the strain of
+// the deformation gradient that takes the printed square onto them. Nothing for a twisted cell or
+// one that is no parallelogram.
+std::optional<GridElement> cellElement(const std::array<Vec3, 4>& nodes, const Vec3& eyes, const SquareDetectionParams& params,
+                                       std::array<Eigen::Vector2d, 4>& corners) {
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& X : nodes) centre += 0.25 * X;
+  Vec3 normal = (nodes[2] - nodes[0]).cross(nodes[3] - nodes[1]).normalized();
+  if (normal.dot(eyes - centre) < 0) normal = -normal;
+  const Eigen::Matrix3d frame = fitting::frameAround(normal);
+  // Four corners of a cell on a smooth sheet lie nearly in a plane; a cell twisted over a doubly
+  // curved corner, or a wrong match, does not.
+  double twist = 0;
+  for (const Vec3& X : nodes) twist = std::max(twist, std::abs(normal.dot(X - centre)));
+  if (twist > 0.1) return std::nullopt;
+  std::array<Eigen::Vector2d, 4> q;
+  for (std::size_t i = 0; i < 4; ++i) q[i] = {frame.col(0).dot(nodes[i] - centre), frame.col(1).dot(nodes[i] - centre)};
+  if (signedArea(q) < 0) std::swap(q[1], q[3]);  // the same cycle, run the other way
+  Eigen::Vector2d t = Eigen::Vector2d::Zero();
+  for (const auto& x : q) t += 0.25 * x;
+  for (auto& x : q) x -= t;
+  double misfit = 0;
+  const Eigen::Matrix2d F = deformationGradient(q, printedSquare(params.pitch), params.pitch, &misfit);
+  GridElement g;
+  if (misfit > 0.03 || !detail::elementFromStretch(F * F.transpose(), frame, params, g)) return std::nullopt;
+  g.position = centre + t.x() * frame.col(0) + t.y() * frame.col(1);
+  g.fit_rms = misfit;
+  corners = q;
+  return g;
+}
+
+// The four nodes span a chord plane: where the sheet bends, the cell's centre on the surface lies
+// off it (0.03 mm on a 60 mm dome, 0.4 mm over a 4 mm punch radius), and its sides are arcs longer
+// than the chords between the nodes (1 % over a 5 mm radius). A quadric height field through the
+// nodes of the cell and its neighbours gives the surface there and its curvature. False when the
+// cell does not sit with its neighbours.
+bool bendOntoSurface(GridElement& g, const std::array<Eigen::Vector2d, 4>& corners, const std::vector<Vec3>& all_nodes,
+                     const SquareDetectionParams& params) {
+  fitting::QuadricPatch::Sums sums(fitting::frameAround(g.normal), g.position, params.pitch);
+  for (const Vec3& X : all_nodes)
+    if ((X - g.position).norm() < 2.3 * params.pitch) sums.add(X, 1.0);
+  if (sums.count() < 12) return true;  // too few neighbours to tell: the chord plane's element stands
+  const auto patch = fitting::QuadricPatch::fit(sums);
+  const double offset = patch ? patch->heightAtOrigin() : std::numeric_limits<double>::quiet_NaN();
+  // Over a 4 mm punch radius the offset is about 0.25 mm; more means the cell does not sit with its
+  // neighbours (a wrong match, or a cell over a doubly curved corner): no element.
+  if (!std::isfinite(offset) || std::abs(offset) > 0.3) return false;
+  const auto square = printedSquare(params.pitch);
+  const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
+  const std::optional<Vec3> centre =
+      centreOnLattice(all_nodes, g.position, frame, deformationGradient(corners, square, params.pitch, nullptr), params.pitch);
+  g.position = centre ? *centre : Vec3(g.position + offset * g.normal);
+  // Each node's distance from the centre as the arc of the normal section through it.
+  const Eigen::Matrix2d K = patch->hessianAtOrigin();
+  std::array<Eigen::Vector2d, 4> arcs = corners;
+  for (auto& x : arcs) x = detail::chordToArc(x, K);
+  const Eigen::Matrix2d F = deformationGradient(arcs, square, params.pitch, nullptr);
+  GridElement bent = g;
+  if (!detail::elementFromStretch(F * F.transpose(), frame, params, bent)) return false;
+  g = bent;
+  return true;
+}
+
+}  // namespace
+
+std::vector<GridElement> measureStereoSquares(const StereoView& input, const SquareDetectionParams& params, StereoStats* stats) {
   StereoStats local;
   StereoStats& st = stats ? *stats : local;
-  const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);
+  const StereoRig& rig = input.rig;
+  const detail::PairPoses poses = detail::pairPoses(rig, input.machine_from_head, input.prior);
   if (poses.prior_depth <= 0) return {};
   const double pitch_px = params.pitch * rig.left.matrix(0, 0) / poses.prior_depth;
   // Matched within half a pitch, as for rings.
   const auto [left, right, matches] = detail::detectAndMatch(
-      left_image, right_image, [&](const cv::Mat& image) { return detectImageCells(image, pitch_px, params); }, rig,
-      poses, prior, 0.5 * pitch_px, st);
+      input.left, input.right, [&](const cv::Mat& image) { return detectImageCells(image, pitch_px, params); }, rig,
+      poses, input.prior, 0.5 * pitch_px, st);
 
   const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
-  const double half = 0.5 * params.pitch;
-  // The printed square's corners, counter-clockwise.
-  const std::array<Eigen::Vector2d, 4> square{Eigen::Vector2d(-half, -half), Eigen::Vector2d(half, -half),
-                                              Eigen::Vector2d(half, half), Eigen::Vector2d(-half, half)};
   std::vector<GridElement> out;
   std::vector<std::array<Eigen::Vector2d, 4>> corners;  // each element's nodes about its centre, in its plane
   std::vector<Vec3> all_nodes;      // every cell's triangulated nodes, for the surface at each centre
   for (const detail::StereoMatch& m : matches) {
-    const ImageCell& L = left[m.left];
-    const ImageCell& R = right[m.right];
-    const std::vector<Eigen::Vector2d> ln = detail::normalised(std::vector<Eigen::Vector2d>(L.nodes.begin(), L.nodes.end()), rig.left);
-    const std::vector<Eigen::Vector2d> rn = detail::normalised(std::vector<Eigen::Vector2d>(R.nodes.begin(), R.nodes.end()), rig.right);
-    const Vec3 o1 = poses.machine_from_left.translation(), o2 = poses.machine_from_right.translation();
-    // The same node in both images: both go round the cell the same way, so one of the four cyclic
-    // shifts, the one whose rays meet best.
-    std::array<Vec3, 4> nodes{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
-    double best_gap = 0.2;  // mm, for the worst node
-    bool found = false;
-    for (std::size_t shift = 0; shift < 4; ++shift) {
-      std::array<Vec3, 4> X;
-      double worst = 0;
-      for (std::size_t i = 0; i < 4; ++i) {
-        const Vec3 d1 = (poses.machine_from_left.linear() * Vec3(ln[i].x(), ln[i].y(), 1)).normalized();
-        const std::size_t j = (i + shift) % 4;
-        const Vec3 d2 = (poses.machine_from_right.linear() * Vec3(rn[j].x(), rn[j].y(), 1)).normalized();
-        double gap = 0;
-        X[i] = detail::midpoint(o1, d1, o2, d2, &gap);
-        worst = std::max(worst, gap);
-      }
-      if (worst < best_gap) best_gap = worst, nodes = X, found = true;
-    }
-    if (!found) {
-      ++st.rejected_fit;
-      continue;
-    }
-    // The cell's plane through its corners (normal from the diagonals, facing the cameras).
-    Vec3 centre = Vec3::Zero();
-    for (const Vec3& X : nodes) centre += 0.25 * X;
-    Vec3 normal = (nodes[2] - nodes[0]).cross(nodes[3] - nodes[1]).normalized();
-    if (normal.dot(eyes - centre) < 0) normal = -normal;
-    const Eigen::Matrix3d frame = fitting::frameAround(normal);
-    // Four corners of a cell on a smooth sheet lie nearly in a plane; a cell twisted over a
-    // doubly curved corner, or a wrong match, does not.
-    double twist = 0;
-    for (const Vec3& X : nodes) twist = std::max(twist, std::abs(normal.dot(X - centre)));
-    if (twist > 0.1) {
-      ++st.rejected_fit;
-      continue;
-    }
+    const std::optional<std::array<Vec3, 4>> nodes = triangulateNodes(left[m.left], right[m.right], rig, poses);
     std::array<Eigen::Vector2d, 4> q;
-    for (std::size_t i = 0; i < 4; ++i) q[i] = {frame.col(0).dot(nodes[i] - centre), frame.col(1).dot(nodes[i] - centre)};
-    if (signedArea(q) < 0) std::swap(q[1], q[3]);  // the same cycle, run the other way
-    Eigen::Vector2d t = Eigen::Vector2d::Zero();
-    for (const auto& x : q) t += 0.25 * x;
-    for (auto& x : q) x -= t;
-    double misfit = 0;
-    const Eigen::Matrix2d F = deformationGradient(q, square, params.pitch, &misfit);
-    GridElement g;
-    if (misfit > 0.03 || !detail::elementFromStretch(F * F.transpose(), frame, params, g)) {
+    std::optional<GridElement> g = nodes ? cellElement(*nodes, eyes, params, q) : std::nullopt;
+    if (!g) {
       ++st.rejected_fit;
       continue;
     }
-    g.position = centre + t.x() * frame.col(0) + t.y() * frame.col(1);
+    g->edge_points = 8;  // two images' four nodes
+    g->source = Source::Stereo;
+    g->view = input.index;
+    out.push_back(*g);
     corners.push_back(q);
-    g.fit_rms = misfit;
-    g.edge_points = 8;  // two images' four nodes
-    g.source = Source::Stereo;
-    g.view = view;
-    out.push_back(g);
-    all_nodes.insert(all_nodes.end(), nodes.begin(), nodes.end());
+    all_nodes.insert(all_nodes.end(), nodes->begin(), nodes->end());
     ++st.matched;
-  }
-  // The four nodes span a chord plane: where the sheet bends, the cell's centre on the surface lies
-  // off it (0.03 mm on a 60 mm dome, 0.4 mm over a 4 mm punch radius), and its sides are arcs
-  // longer than the chords between the nodes (1 % over a 5 mm radius). A quadric height field
-  // through the nodes of the cell and its neighbours gives the surface there and its curvature.
-  std::vector<bool> consistent(out.size(), true);
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    GridElement& g = out[k];
-    fitting::QuadricPatch::Sums sums(fitting::frameAround(g.normal), g.position, params.pitch);
-    for (const Vec3& X : all_nodes)
-      if ((X - g.position).norm() < 2.3 * params.pitch) sums.add(X, 1.0);
-    if (sums.count() < 12) continue;
-    const auto patch = fitting::QuadricPatch::fit(sums);
-    const double offset = patch ? patch->heightAtOrigin() : std::numeric_limits<double>::quiet_NaN();
-    // Over a 4 mm punch radius the offset is about 0.25 mm; more means the cell does not sit with
-    // its neighbours (a wrong match, or a cell over a doubly curved corner): no element.
-    if (!std::isfinite(offset) || std::abs(offset) > 0.3) {
-      consistent[k] = false;
-      continue;
-    }
-    const Eigen::Matrix3d frame = fitting::frameAround(g.normal);
-    const std::optional<Vec3> centre =
-        centreOnLattice(all_nodes, g.position, frame, deformationGradient(corners[k], square, params.pitch, nullptr), params.pitch);
-    g.position = centre ? *centre : Vec3(g.position + offset * g.normal);
-    // Each node's distance from the centre as the arc of the normal section through it.
-    const Eigen::Matrix2d K = patch->hessianAtOrigin();
-    std::array<Eigen::Vector2d, 4> arcs = corners[k];
-    for (auto& x : arcs) x = detail::chordToArc(x, K);
-    const Eigen::Matrix2d F = deformationGradient(arcs, square, params.pitch, nullptr);
-    GridElement bent = g;
-    if (!detail::elementFromStretch(F * F.transpose(), frame, params, bent)) {
-      consistent[k] = false;
-      continue;
-    }
-    g = bent;
   }
   std::vector<GridElement> kept;
   for (std::size_t k = 0; k < out.size(); ++k) {
-    if (consistent[k]) kept.push_back(out[k]);
+    if (bendOntoSurface(out[k], corners[k], all_nodes, params)) kept.push_back(out[k]);
     else --st.matched, ++st.rejected_fit;
   }
   return kept;

@@ -76,16 +76,16 @@ fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid, const E
   truth.positions.resize(n);
   truth.normals.resize(n);
   truth.strain.resize(n);
-  for (const char* name : {"major_strain", "minor_strain", "major_dir_x", "major_dir_y", "major_dir_z",
-                           "material_u", "material_v"})
+  for (const char* name : {fitting::kMajorStrain, fitting::kMinorStrain, fitting::kMajorDirection[0],
+                           fitting::kMajorDirection[1], fitting::kMajorDirection[2], kMaterialU, kMaterialV})
     truth.scalars[name].resize(n);
-  auto& major = truth.scalars["major_strain"];
-  auto& minor = truth.scalars["minor_strain"];
-  auto& dx = truth.scalars["major_dir_x"];
-  auto& dy = truth.scalars["major_dir_y"];
-  auto& dz = truth.scalars["major_dir_z"];
-  auto& mu = truth.scalars["material_u"];
-  auto& mv = truth.scalars["material_v"];
+  auto& major = truth.scalars[fitting::kMajorStrain];
+  auto& minor = truth.scalars[fitting::kMinorStrain];
+  auto& dx = truth.scalars[fitting::kMajorDirection[0]];
+  auto& dy = truth.scalars[fitting::kMajorDirection[1]];
+  auto& dz = truth.scalars[fitting::kMajorDirection[2]];
+  auto& mu = truth.scalars[kMaterialU];
+  auto& mv = truth.scalars[kMaterialV];
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     const Deformation d = part.deformationOfMaterial(elements[i]);
     truth.positions[i] = machine_from_datum * d.point;

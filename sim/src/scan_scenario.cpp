@@ -154,7 +154,7 @@ class Planner {
     return h.pose().linear() * mount_.linear();
   }
 
-  void sweep(const char* scene, std::uint32_t index, const Vec3& sensor_from, const Vec3& sensor_to, double a, double b,
+  void sweep(acquisition::Scene scene, std::uint32_t index, const Vec3& sensor_from, const Vec3& sensor_to, double a, double b,
              double speed) {
     acquisition::SweepStep s;
     s.scene = scene;
@@ -165,7 +165,7 @@ class Planner {
     plan_.steps.emplace_back(s);
   }
 
-  void view(const char* scene, std::uint32_t index, const Vec3& head, double a, double b) {
+  void view(acquisition::Scene scene, std::uint32_t index, const Vec3& head, double a, double b) {
     acquisition::StereoStep v;
     v.scene = scene;
     v.index = index;
@@ -202,7 +202,7 @@ class Planner {
       const Vec3 centre = Vec3(x0 + k * step, 0.5 * (r.min.y() + r.max.y()), z_mid) + d.standoff * R.col(2);
       const double half = 0.5 * (r.max.y() - r.min.y()) + lead;
       const double direction = k % 2 ? -1.0 : 1.0;
-      sweep(acquisition::kScenePart, static_cast<std::uint32_t>(k), centre - direction * half * along,
+      sweep(acquisition::Scene::Part, static_cast<std::uint32_t>(k), centre - direction * half * along,
             centre + direction * half * along, 0, b, p_.sweep_speed);
     }
   }
@@ -229,7 +229,7 @@ class Planner {
         const HeadState h{Vec3::Zero(), a, b, 0};
         const Vec3 target(at.x(), at.y(), z_mid);
         const Vec3 head = target + h.pose().linear() * Vec3(0, 0, rig_drop_ + p_.stereo_standoff);
-        view(acquisition::kScenePart, index++, head, a, b);
+        view(acquisition::Scene::Part, index++, head, a, b);
       }
   }
 
@@ -321,7 +321,7 @@ class OrderedEmitter {
 struct Activity {
   enum Kind { Travel, Sweep, Trigger } kind = Travel;
   const Scene* scene = nullptr;
-  std::string scene_name;  // marker name; empty: no marker
+  acquisition::Scene plan_scene = acquisition::Scene::Part;  // the step's scene, for its marker (a travel has none)
   std::uint32_t index = 0;
   bool first_of_scene = false, last_of_scene = false;
 };
@@ -362,29 +362,29 @@ class SessionGenerator {
   }
 
  private:
-  const Scene* sceneNamed(const std::string& name) const {
-    if (name == acquisition::kScenePart) return part_scene_.get();
-    if (name == acquisition::kSceneSphere) return sphere_scene_.get();
-    if (name == acquisition::kSceneSecondSphere) return second_sphere_scene_.get();
+  const Scene* sceneNamed(acquisition::Scene name) const {
+    if (name == acquisition::Scene::Part) return part_scene_.get();
+    if (name == acquisition::Scene::ReferenceSphere) return sphere_scene_.get();
+    if (name == acquisition::Scene::SecondSphere) return second_sphere_scene_.get();
     return plate_scene_.get();
   }
 
   // The plan's steps as moves of the simulated CMM: the same plan the ScanRunner plays on a cell.
   void play(const acquisition::ScanPlan& plan) {
-    auto sceneOf = [&](std::size_t k) -> std::string {
-      if (k >= plan.steps.size()) return {};
+    auto sceneOf = [&](std::size_t k) -> std::optional<acquisition::Scene> {
+      if (k >= plan.steps.size()) return std::nullopt;
       return std::visit([](const auto& step) { return step.scene; }, plan.steps[k]);
     };
     for (std::size_t k = 0; k < plan.steps.size(); ++k) {
-      const std::string scene = sceneOf(k);
+      const acquisition::Scene scene = *sceneOf(k);
       const bool first = k == 0 || sceneOf(k - 1) != scene, last = sceneOf(k + 1) != scene;
       if (const auto* w = std::get_if<acquisition::SweepStep>(&plan.steps[k])) {
         travelTo(toVec(w->start), w->start.a, w->start.b, plan.travel_speed);
-        trajectory_.moveTo(toVec(w->end), w->end.a, w->end.b, w->speed, scene + " sweep " + std::to_string(w->index));
+        trajectory_.moveTo(toVec(w->end), w->end.a, w->end.b, w->speed, trace::sweepLabel(scene, w->index));
         addSegment({Activity::Sweep, sceneNamed(scene), scene, w->index, first, last});
       } else {
         const auto& v = std::get<acquisition::StereoStep>(plan.steps[k]);
-        if (scene == acquisition::kScenePlate) truth_.plate_poses.push_back(platePose(p_));
+        if (scene == acquisition::Scene::CalibrationPlate) truth_.plate_poses.push_back(platePose(p_));
         travelTo(toVec(v.pose), v.pose.a, v.pose.b, plan.travel_speed);
         trajectory_.dwell(v.settle_s, "settle and trigger");
         addSegment({Activity::Trigger, sceneNamed(scene), scene, v.index, first, last});
@@ -447,10 +447,10 @@ class SessionGenerator {
       const auto& seg = segments[s];
       const Activity& act = activities_[s];
       const std::int64_t t0 = toNs(seg.t0), t1 = toNs(seg.t1);
-      if (progress_) progress_(work_done / std::max(work_total, 1e-9), act.kind == Activity::Travel ? "moving" : act.scene_name);
+      if (progress_) progress_(work_done / std::max(work_total, 1e-9), act.kind == Activity::Travel ? std::string("moving") : std::string(toString(act.plan_scene)));
       // CMM events and scene markers.
-      if (act.kind != Activity::Travel && act.first_of_scene) marker(t0, act.scene_name, "begin", act.index);
-      event(t0, act.kind == Activity::Sweep ? "sweep_begin" : "move_begin", seg.label);
+      if (act.kind != Activity::Travel && act.first_of_scene) marker(t0, act.plan_scene, "begin", act.index);
+      event(t0, act.kind == Activity::Sweep ? msg::CmmEventKind::SweepBegin : msg::CmmEventKind::MoveBegin, seg.label);
       // Position reports at 250 Hz, PLC state at 10 Hz, clock pairs once a second.
       for (; next_position < t1; next_position += position_period) {
         const HeadState h = trajectory_.at(static_cast<double>(next_position) * 1e-9);
@@ -468,8 +468,8 @@ class SessionGenerator {
       for (; next_sync < t1; next_sync += sync_period) clockSyncs(next_sync, jitter);
       if (act.kind == Activity::Sweep) profiles(seg, act);
       if (act.kind == Activity::Trigger) frames(seg, act);
-      event(t1, act.kind == Activity::Sweep ? "sweep_end" : "move_end", seg.label);
-      if (act.kind != Activity::Travel && act.last_of_scene) marker(t1, act.scene_name, "end", act.index);
+      event(t1, act.kind == Activity::Sweep ? msg::CmmEventKind::SweepEnd : msg::CmmEventKind::MoveEnd, seg.label);
+      if (act.kind != Activity::Travel && act.last_of_scene) marker(t1, act.plan_scene, "end", act.index);
       emitter_.flushBefore(kSessionStartNs + t1);
       work_done += workOf(s);
     }
@@ -486,7 +486,7 @@ class SessionGenerator {
     return 0;
   }
 
-  void event(std::int64_t t, const char* kind, const std::string& detail) {
+  void event(std::int64_t t, msg::CmmEventKind kind, const std::string& detail) {
     msg::CmmEvent e;
     e.station_time_ns = kSessionStartNs + t;
     e.kind = kind;
@@ -494,7 +494,7 @@ class SessionGenerator {
     emitter_.add(msg::topics::kCmmEvent, e.station_time_ns + toNs(0.002), msg::encode(e));
   }
 
-  void marker(std::int64_t t, const std::string& scene, const char* phase, std::uint32_t index) {
+  void marker(std::int64_t t, acquisition::Scene scene, const char* phase, std::uint32_t index) {
     msg::SceneMarker m;
     m.station_time_ns = kSessionStartNs + t;
     m.scene = scene;

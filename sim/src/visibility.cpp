@@ -1,6 +1,7 @@
 #include "stampscan/sim/visibility.hpp"
 
 #include "stampscan/sim/cmm_motion.hpp"
+#include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scene.hpp"
 
 #include <tbb/parallel_for.h>
@@ -99,7 +100,7 @@ bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, c
 
 ElementVisibility visibleElements(const ScanParams& world, const acquisition::ScanPlan& plan, const fitting::Cloud& truth,
                                   const VisibilityParams& params) {
-  const auto mu = truth.scalars.find("material_u"), mv = truth.scalars.find("material_v");
+  const auto mu = truth.scalars.find(kMaterialU), mv = truth.scalars.find(kMaterialV);
   if (mu == truth.scalars.end() || mv == truth.scalars.end() || truth.normals.size() != truth.size())
     throw std::invalid_argument("visibleElements: the truth cloud needs normals and material_u/v (sim::groundTruth)");
   const std::unique_ptr<FormedPart> part = makePart(world);
@@ -110,14 +111,14 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   std::vector<Sweep> sweeps;
   std::vector<std::array<Eigen::Isometry3d, 2>> views;
   for (const acquisition::PlanStep& step : plan.steps) {
-    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart) {
+    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::Scene::Part) {
       const Eigen::Isometry3d a = headPose(s->start) * cell.head_from_digitizer;
       const Eigen::Isometry3d b = headPose(s->end) * cell.head_from_digitizer;
       const Vec3 travel = b.translation() - a.translation();
       const double run_up = acquisition::sweepRunUp(s->speed, params.acceleration, params.report_interval_s);
       const double share = travel.norm() > 0 ? run_up / travel.norm() : 1.0;
       sweeps.push_back({a, travel, share, 1.0 - share});
-    } else if (const auto* v = std::get_if<acquisition::StereoStep>(&step); v && v->scene == acquisition::kScenePart) {
+    } else if (const auto* v = std::get_if<acquisition::StereoStep>(&step); v && v->scene == acquisition::Scene::Part) {
       const Eigen::Isometry3d head = headPose(v->pose);
       views.push_back({head * cell.head_from_left, head * cell.head_from_right});
     }
@@ -184,7 +185,7 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
 void predictElements(acquisition::ScanPlan& plan, const ElementVisibility& visibility) {
   std::size_t k = 0;
   for (acquisition::PlanStep& step : plan.steps)
-    if (auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart)
+    if (auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::Scene::Part)
       s->expected_elements = k < visibility.laser_per_sweep.size() ? visibility.laser_per_sweep[k++] : 0;
 }
 

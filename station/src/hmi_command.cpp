@@ -12,6 +12,7 @@
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/verify_job.hpp"
 #include "program_library.hpp"
+#include "stop_signals.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "virtual_world_options.hpp"
 
@@ -128,8 +129,6 @@ struct HmiCommandOptions {
   std::uint64_t seed = 1;
 };
 
-std::atomic<int> g_hmi_stop{0};
-extern "C" void onHmiStop(int sig) { g_hmi_stop = sig; }
 // On the built-in virtual cell: SIGUSR1 opens the cell's door, SIGUSR2 closes it, so that a fault
 // can be rehearsed (and tested) on the panel. The handler only records which; the watcher acts.
 std::atomic<int> g_virtual_door{0};
@@ -143,6 +142,186 @@ int hashPasswordFromStdin() {
     return 1;
   }
   std::printf("%s\n", hmi::hashPassword(password).c_str());
+  return 0;
+}
+
+
+hmi::HmiOptions panelOptions(const HmiCommandOptions& opt, bool listen_given, const acquisition::CellConfig& config) {
+  const acquisition::CellConfig::Panel& panel = config.panel;
+  hmi::HmiOptions options;
+  options.listen = listen_given ? opt.listen : panel.listen;
+  options.users_file = !opt.users.empty() ? opt.users : panel.users_file;
+  options.web_dir = opt.web;
+  options.server_names = panel.server_names;
+  options.behind_tls_front = panel.behindTlsFront();
+  options.allow_plain_http = opt.allow_plain_http;
+  return options;
+}
+
+// --front-config: the site file of the panel's TLS front on standard output.
+int printFrontConfig(const acquisition::CellConfig& config, const hmi::HmiOptions& options) {
+  const acquisition::CellConfig::Panel& panel = config.panel;
+  if (!panel.behindTlsFront())
+    throw std::runtime_error(config.source + ": [hmi] has no tls_certificate and tls_key: the panel has no TLS "
+                                             "front to configure");
+  hmi::TlsFront front;
+  front.cell_name = config.name;
+  front.upstream = options.listen;
+  front.server_names = panel.server_names;
+  front.certificate = fs::absolute(panel.tls_certificate).string();
+  front.key = fs::absolute(panel.tls_key).string();
+  front.https_port = panel.https_port;
+  front.http_port = panel.http_port;
+  std::fputs(hmi::nginxSite(front).c_str(), stdout);
+  return 0;
+}
+
+// The scan the panel starts without a program: on the virtual cell, its sample pan's region (the
+// program sim-pan-circle-sample), as `station scan`; a real cell scans only programs.
+ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cell, const sim::ScanParams& world,
+                         const HmiCommandOptions& opt, const fs::path& calibration_dir) {
+  ScanJobOptions scan;
+  if (virtual_cell) {
+    const acquisition::PartProgram sample =
+        programFromLibrary(sim::simulatedProgramName(world.part, world.grid.kind, true), config, true, opt.runs);
+    scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
+    scan.plan.name = sample.name + ", laser and stereo, with calibration scenes";
+    scan.part_program = PartProgramRef{sample.name, sample.folder.string()};
+  }
+  scan.run.limits = config.limits;
+  scan.run.session = acquisition::describeSession(config.geometry, scan.plan);
+  scan.runs_dir = opt.runs;
+  scan.results_database = config.results_database;
+  scan.calibration_dir = calibration_dir;
+  scan.calibration_policy = config.calibration;
+  return scan;
+}
+
+// The verification of the digitizer: every sphere sweep of the calibration and the ball bar, as
+// `station verify` (the stereo pair's check on the plate stays with the command, whose cameras take
+// the calibration's resolution).
+VerifyJobOptions panelVerify(const acquisition::CellConfig& config, const fs::path& calibration_dir, std::uint64_t seed) {
+  acquisition::CalibrationScenes sphere_scenes = acquisition::calibrationScenes(config.calibration, 1.0, seed);
+  VerifyJobOptions verify;
+  verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
+  verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
+  if (const auto& bar = config.geometry.ball_bar) {
+    verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
+    sphere_scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
+  }
+  verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
+  verify.run.limits = config.limits;
+  verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
+  verify.run.session.part_id = "reference sphere";
+  verify.results_database = calibrationResultsDatabase(config.results_database, calibration_dir);
+  return verify;
+}
+
+// The calibration: the cell's calibration scenes (every sphere sweep and plate view) at the hosted
+// cameras' resolution, as `station calibrate`.
+CalibrateJobOptions panelCalibrate(const acquisition::CellConfig& config, const fs::path& calibration_dir,
+                                   const std::string& results_database, std::uint64_t seed) {
+  CalibrateJobOptions calibrate;
+  calibrate.plan = calibrationScenesOf(
+      acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, seed)), true, true);
+  calibrate.run.limits = config.limits;
+  calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
+  calibrate.run.session.part_id = "calibration";
+  calibrate.calibration_dir = calibration_dir;
+  calibrate.policy = config.calibration;
+  calibrate.results_database = results_database;
+  return calibrate;
+}
+
+void printServing(const acquisition::CellConfig& config, const hmi::HmiServer& server, const hmi::HmiOptions& options,
+                  bool hosted) {
+  std::printf("station hmi: %s%s on %s%s\n", config.name.c_str(), hosted ? " (hosted in this process)" : "",
+              server.url().c_str(),
+              options.behind_tls_front ? " (login required; served through its TLS front)"
+              : server.loginRequired() ? " (login required)"
+                                       : "");
+  if (server.loginRequired() && !options.behind_tls_front)
+    std::fprintf(stderr, "station hmi: warning: served off loopback without TLS (--allow-plain-http): passwords and "
+                         "session cookies travel in clear text\n");
+  if (config.plc_line_start)
+    std::printf("station hmi: the line's PLC may start scans: the handshake registers of the PLC at %s:%d (unit %d) "
+                "are watched\n",
+                config.plc.host.c_str(), config.plc.port, config.plc_unit_id);
+  std::fflush(stdout);
+}
+
+// Serves until SIGINT or SIGTERM (stop_signals.hpp, as the commands on the cell). Beside the server
+// a watcher thread logs the cell's health (first once the devices have had time to connect, then
+// every minute) and, on the virtual cell, opens and closes its door on SIGUSR1 and SIGUSR2.
+void serveUntilStopped(hmi::HmiServer& server, HostedVirtualCell* hosted) {
+  const StopSignalGuard stop([&server](const std::string&) { server.stop(); });
+  std::atomic<bool> done{false};
+  if (hosted) {
+    std::signal(SIGUSR1, onVirtualDoor);
+    std::signal(SIGUSR2, onVirtualDoor);
+  }
+  std::thread watcher([&] {
+    hmi::HealthLog health_log;
+    auto next_health = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!done) {
+      if (std::chrono::steady_clock::now() >= next_health) {
+        try {
+          health_log.update(server.health());
+        } catch (const std::exception& e) {
+          hmi::logLine(hmi::kLogWarning, std::string("warning: the cell's health could not be checked: ") + e.what());
+        }
+        next_health = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      }
+      if (const int door = g_virtual_door.exchange(0); door != 0 && hosted) {
+        if (door == SIGUSR1) hosted->cell().plc().openDoor();
+        else hosted->cell().plc().closeDoor();
+        std::printf("station hmi: the virtual cell's door is %s\n", door == SIGUSR1 ? "open" : "closed");
+        std::fflush(stdout);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  });
+  server.run();
+  done = true;
+  watcher.join();
+}
+
+int runHmi(const HmiCommandOptions& opt, bool listen_given) {
+  if (opt.hash_password) return hashPasswordFromStdin();
+  const bool virtual_cell = opt.cell.hosted();
+  acquisition::CellConfig config = opt.cell.load();
+  const hmi::HmiOptions options = panelOptions(opt, listen_given, config);
+  if (opt.front_config) return printFrontConfig(config, options);
+  // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
+  hmi::HmiServer::checkOptions(options);
+
+  sim::ScanParams world = worldOnCell(sim::ScanParams::quick(), config, virtual_cell);
+  world.part = sim::PartKind::Pan;
+  world.seed = opt.seed;
+  hmi::CellSetup setup;
+  setup.calibration_dir = calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
+  setup.scan = panelScan(config, virtual_cell, world, opt, setup.calibration_dir);
+  setup.verify = panelVerify(config, setup.calibration_dir, world.seed);
+  setup.calibrate = panelCalibrate(config, setup.calibration_dir, setup.verify->results_database, world.seed);
+
+  // The embedded virtual cell first: hosting may re-execute this program (umockdev).
+  std::unique_ptr<HostedVirtualCell> hosted;
+  if (virtual_cell) {
+    hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, true);
+    config = hosted->config();
+    setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid, sim::machineFromDatum(world)),
+                                       hosted->cell().truth().digitizer_latency_ns};
+  }
+  setup.programs = panelPrograms(config, virtual_cell, opt.runs, world, virtual_cell ? &hosted : nullptr);
+  setup.line_start = config.plc_line_start;
+  acquisition::Cell cell(config);
+  setup.cell = &cell;
+  hmi::HmiServer server(std::move(setup), options);
+  server.bind();
+  printServing(config, server, options, hosted != nullptr);
+  if (!opt.ready_file.empty()) std::ofstream(opt.ready_file) << server.url() << '\n';
+  serveUntilStopped(server, hosted.get());
+  std::printf("station hmi: stopped\n");
   return 0;
 }
 
@@ -171,155 +350,7 @@ CommandRunner addHmiCommand(CLI::App& app) {
   cmd->add_flag("--front-config", opt->front_config,
                 "Print the site file of the panel's TLS front (Debian's nginx) for the cell file's [hmi] section, "
                 "and exit");
-  return [opt, listen]() {
-    if (opt->hash_password) return hashPasswordFromStdin();
-    const bool virtual_cell = opt->cell.hosted();
-    acquisition::CellConfig config = opt->cell.load();
-    const acquisition::CellConfig::Panel& panel = config.panel;
-    hmi::HmiOptions options;
-    options.listen = listen->count() > 0 ? opt->listen : panel.listen;
-    options.users_file = !opt->users.empty() ? opt->users : panel.users_file;
-    options.web_dir = opt->web;
-    options.server_names = panel.server_names;
-    options.behind_tls_front = panel.behindTlsFront();
-    options.allow_plain_http = opt->allow_plain_http;
-    if (opt->front_config) {
-      if (!panel.behindTlsFront())
-        throw std::runtime_error(config.source + ": [hmi] has no tls_certificate and tls_key: the panel has no TLS "
-                                                 "front to configure");
-      hmi::TlsFront front;
-      front.cell_name = config.name;
-      front.upstream = options.listen;
-      front.server_names = panel.server_names;
-      front.certificate = fs::absolute(panel.tls_certificate).string();
-      front.key = fs::absolute(panel.tls_key).string();
-      front.https_port = panel.https_port;
-      front.http_port = panel.http_port;
-      std::fputs(hmi::nginxSite(front).c_str(), stdout);
-      return 0;
-    }
-    // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
-    hmi::HmiServer::checkOptions(options);
-
-    // The scan the panel starts without a program: on the virtual cell, its sample pan's region (the
-    // program sim-pan-circle-sample), as `station scan`; a real cell scans only programs.
-    sim::ScanParams world = worldOnCell(sim::ScanParams::quick(), config, virtual_cell);
-    world.part = sim::PartKind::Pan;
-    world.seed = opt->seed;
-    hmi::CellSetup setup;
-    if (virtual_cell) {
-      const acquisition::PartProgram sample =
-          programFromLibrary(sim::simulatedProgramName(world.part, world.grid.kind, true), config, true, opt->runs);
-      setup.scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
-      setup.scan.plan.name = sample.name + ", laser and stereo, with calibration scenes";
-      setup.scan.part_program = PartProgramRef{sample.name, sample.folder.string()};
-    }
-    setup.scan.run.limits = config.limits;
-    setup.scan.run.session = acquisition::describeSession(config.geometry, setup.scan.plan);
-    setup.scan.runs_dir = opt->runs;
-    setup.scan.results_database = config.results_database;
-    setup.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
-    setup.scan.calibration_dir = setup.calibration_dir;
-    setup.scan.calibration_policy = config.calibration;
-    // The verification of the digitizer: every sphere sweep of the calibration and the ball bar, as
-    // `station verify` (the stereo pair's check on the plate stays with the command, whose cameras
-    // take the calibration's resolution).
-    acquisition::CalibrationScenes sphere_scenes = acquisition::calibrationScenes(config.calibration, 1.0, world.seed);
-    VerifyJobOptions verify;
-    verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
-    verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
-    if (const auto& bar = config.geometry.ball_bar) {
-      verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
-      sphere_scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
-    }
-    verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
-    verify.run.limits = config.limits;
-    verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
-    verify.run.session.part_id = "reference sphere";
-    verify.results_database = calibrationResultsDatabase(config.results_database, setup.calibration_dir);
-    setup.verify = verify;
-    // The calibration: the cell's calibration scenes (every sphere sweep and plate view) at the
-    // hosted cameras' resolution, as `station calibrate`.
-    CalibrateJobOptions calibrate;
-    calibrate.plan = calibrationScenesOf(
-        acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, world.seed)), true, true);
-    calibrate.run.limits = config.limits;
-    calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
-    calibrate.run.session.part_id = "calibration";
-    calibrate.calibration_dir = setup.calibration_dir;
-    calibrate.policy = config.calibration;
-    calibrate.results_database = verify.results_database;
-    setup.calibrate = calibrate;
-
-    // The embedded virtual cell first: hosting may re-execute this program (umockdev).
-    std::unique_ptr<HostedVirtualCell> hosted;
-    if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, true);
-      config = hosted->config();
-      setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid, sim::machineFromDatum(world)),
-                                         hosted->cell().truth().digitizer_latency_ns};
-    }
-    setup.programs = panelPrograms(config, virtual_cell, opt->runs, world, virtual_cell ? &hosted : nullptr);
-    setup.line_start = config.plc_line_start;
-    acquisition::Cell cell(config);
-    setup.cell = &cell;
-    hmi::HmiServer server(std::move(setup), options);
-    server.bind();
-    std::printf("station hmi: %s%s on %s%s\n", config.name.c_str(), hosted ? " (hosted in this process)" : "",
-                server.url().c_str(),
-                options.behind_tls_front ? " (login required; served through its TLS front)"
-                : server.loginRequired() ? " (login required)"
-                                         : "");
-    if (server.loginRequired() && !options.behind_tls_front)
-      std::fprintf(stderr, "station hmi: warning: served off loopback without TLS (--allow-plain-http): passwords and "
-                           "session cookies travel in clear text\n");
-    if (config.plc_line_start)
-      std::printf("station hmi: the line's PLC may start scans: the handshake registers of the PLC at %s:%d (unit %d) "
-                  "are watched\n",
-                  config.plc.host.c_str(), config.plc.port, config.plc_unit_id);
-    std::fflush(stdout);
-    if (!opt->ready_file.empty()) std::ofstream(opt->ready_file) << server.url() << '\n';
-
-    g_hmi_stop = 0;
-    const auto previous_int = std::signal(SIGINT, onHmiStop);
-    const auto previous_term = std::signal(SIGTERM, onHmiStop);
-    std::atomic<bool> done{false};
-    if (hosted) {
-      std::signal(SIGUSR1, onVirtualDoor);
-      std::signal(SIGUSR2, onVirtualDoor);
-    }
-    std::thread watcher([&] {
-      // The cell's health into the log (the journal): first once the devices have had time to
-      // connect, then every minute.
-      hmi::HealthLog health_log;
-      auto next_health = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-      while (!done && !g_hmi_stop) {
-        if (std::chrono::steady_clock::now() >= next_health) {
-          try {
-            health_log.update(server.health());
-          } catch (const std::exception& e) {
-            hmi::logLine(hmi::kLogWarning, std::string("warning: the cell's health could not be checked: ") + e.what());
-          }
-          next_health = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-        }
-        if (const int door = g_virtual_door.exchange(0); door != 0 && hosted) {
-          if (door == SIGUSR1) hosted->cell().plc().openDoor();
-          else hosted->cell().plc().closeDoor();
-          std::printf("station hmi: the virtual cell's door is %s\n", door == SIGUSR1 ? "open" : "closed");
-          std::fflush(stdout);
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      }
-      server.stop();
-    });
-    server.run();
-    done = true;
-    watcher.join();
-    std::signal(SIGINT, previous_int);
-    std::signal(SIGTERM, previous_term);
-    std::printf("station hmi: stopped\n");
-    return 0;
-  };
+  return [opt, listen]() { return runHmi(*opt, listen->count() > 0); };
 }
 
 }  // namespace stampscan::station

@@ -81,7 +81,7 @@ CommandRunner addReportCommand(CLI::App& app) {
     std::printf("  verdict     %s: %s\n", report::toString(s.verdict), s.verdict_reason.c_str());
     std::printf("  time        %.2f s (images, PDF and HTML %.2f s)\n", s.seconds, s.drawing_seconds);
     // In the cell's results database, else in the results.sqlite of the runs folder that holds the run.
-    const results::RunRecord recorded = results_database.empty()
+    const results::RunRow recorded = results_database.empty()
                                             ? results::recordRunInResults(s.run_dir)
                                             : results::recordRunInResults(s.run_dir, results_database);
     std::printf("  recorded    %s\n", recorded.run_id.c_str());

@@ -1,6 +1,7 @@
-// `station sample`: write the synthetic sample pan as a scanned-looking Cloud4D PLY.
-// `station demo`: the main job until the scan pipeline exists: make the sample, fit it, write the
-// fitted cloud and a strain-coloured mesh, and report the error against the known true surface.
+// `station sample`: write the synthetic sample pan as a scanned-looking Cloud4D PLY (a cloud for
+// trying `station fit` and the fitter's benchmark without a cell).
+// `station demo`: the fitter alone on that sample: make it, fit it, write the fitted cloud and a
+// strain-coloured mesh, and report the error against the known true surface.
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/sim/sample_cloud.hpp"
 #include "stampscan/station/commands.hpp"

@@ -32,6 +32,219 @@ struct ScanOptions {
   VirtualWorldOptions world;
 };
 
+void addScanOptions(CLI::App* cmd, ScanOptions& opt) {
+  opt.cell.addTo(cmd);
+  cmd->add_option("--plan", opt.plan,
+                  "Scan plan (TOML), the part's steps in its datum frame (placed on the cell's fixture); with "
+                  "--replay, the plan as the machine ran it; default: the part program's");
+  cmd->add_option("--part", opt.part,
+                  "Virtual cell without --program: its own part on the fixture (scanned as the program "
+                  "sim-PART-GRID, or sim-PART-GRID-sample for its sample region)")
+      ->check(CLI::IsMember({"pan", "dome"}));
+  cmd->add_option("--grid", opt.grid, "Virtual cell without --program: its part's printed grid")
+      ->check(CLI::IsMember({"circle", "square"}));
+  cmd->add_option("--part-id", opt.part_id, "The part's id, for the run folder and the record");
+  cmd->add_option("-o,--runs", opt.runs, "Folder of run folders (created when missing)");
+  cmd->add_option("--material", opt.material, "The sheet's material, for the forming-limit report (see `station report "
+                                               "--list-materials`; default DC04)");
+  cmd->add_option("--program", opt.part_program,
+                  "The part program to scan: its name in the cell's program library ([programs] library; on a virtual "
+                  "cell RUNS_DIR/programs, where it writes its own sim-dome-circle, sim-pan-square, ...), or its folder. "
+                  "Its plan, grid and material; --part and --grid do not apply");
+  cmd->add_option("--press-program", opt.press_program,
+                  "The press program the part comes from, for the report and the history (default: the part program's)");
+  cmd->add_flag("--whole-part", opt.whole_part,
+                "Virtual cell without --program: scan its whole part (default: its 40 x 30 mm sample region, at a "
+                "quarter of the cameras' resolution, about 40 s)");
+  cmd->add_flag("--laser-only", opt.laser_only, "Leave the stereo views out of the plan (built-in or the program's)");
+  cmd->add_flag("--calibrated", opt.calibrated,
+                "Leave the calibration scenes out of the built-in plan and measure with the calibration in use (from "
+                "`station calibrate`; refused when it is missing, failed, expired or not this cell's)");
+  cmd->add_option("--calibration-dir", opt.calibration_dir,
+                  "The cell's calibration folder (default: the cell's [calibration] dir, else RUNS_DIR/calibration)");
+  opt.world.addTo(cmd);
+  cmd->add_option("--replay", opt.replay,
+                  "Run a recorded trace again on the virtual cell (the CMM follows its head track, the digitizer and "
+                  "the cameras serve its profiles and frames) and compare the result with `station process` on it");
+  cmd->add_flag("--dry-run", opt.dry_run, "Check the plan against the cell and print it; nothing moves");
+  cmd->add_flag("--accept-damaged", opt.accept_damaged,
+                "Exit 0 even when the scan lost data (missing stereo views, sweeps over the profile-loss limit)");
+  cmd->add_flag("-q,--quiet", opt.quiet, "No progress bar");
+}
+
+// The part program to scan, with its material and press program unless given: the one named, or
+// without a program, a plan or a recording to replay, the virtual cell's own sample (the sample
+// region of its part: quarter-resolution images, half the calibration scenes; or the whole part).
+// A real cell has no part of its own.
+std::optional<acquisition::PartProgram> programOf(ScanOptions& opt, const acquisition::CellConfig& config, bool quick,
+                                                  const report::MaterialLibrary& materials) {
+  const bool virtual_cell = opt.cell.hosted();
+  if (opt.part_program.empty() && opt.plan.empty() && opt.replay.empty()) {
+    if (!virtual_cell)
+      throw std::runtime_error(config.source + ": which part? Give its program (--program NAME or FOLDER) or a scan "
+                               "plan (--plan FILE); a real cell has no built-in part");
+    opt.part_program = sim::simulatedProgramName(opt.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
+                                                 sim::gridKindFromString(opt.grid), quick);
+  }
+  if (opt.part_program.empty()) return std::nullopt;
+  acquisition::PartProgram program = programToScan(opt.part_program, config, virtual_cell, opt.runs);
+  if (opt.material.empty()) opt.material = program.material;
+  if (opt.press_program.empty()) opt.press_program = program.press_program;
+  if (!opt.material.empty()) (void)materials.find(opt.material);
+  return program;
+}
+
+// The plan: a recording's (a replay plays it on a cell that serves the recording), the program's,
+// or a plan file's, the last two placed on the cell's fixture.
+std::shared_ptr<sim::CellReplay> choosePlan(ScanOptions& opt, const acquisition::CellConfig& config,
+                                            const std::optional<acquisition::PartProgram>& program, bool quick,
+                                            sim::ScanParams& world, ScanJobOptions& job) {
+  std::shared_ptr<sim::CellReplay> replay;
+  if (!opt.replay.empty()) {
+    if (!opt.cell.hosted()) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
+    if (!opt.dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
+    sim::PreparedReplay prepared = sim::prepareReplay(opt.replay, opt.accept_damaged, opt.plan);
+    job.plan = std::move(prepared.plan);
+    job.run.session = prepared.session;
+    world.part = prepared.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+    if (opt.part_id == "sample" && !prepared.session.part_id.empty()) opt.part_id = prepared.session.part_id;
+    replay = std::move(prepared.replay);
+    job.replayed_trace = opt.replay;
+  } else if (program && opt.plan.empty()) {
+    job.plan = programPlan(*program, config, acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, world.seed),
+                           !opt.calibrated);
+  } else {
+    // A plan file, like a program's plan, gives the part's steps in its datum frame.
+    job.plan = acquisition::placeOnFixture(acquisition::loadScanPlan(opt.plan), config.geometry, config.limits.index_step);
+  }
+  if (opt.plan.empty() && !replay) {
+    if (opt.laser_only)
+      std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
+    job.plan.name = (program ? program->name : job.plan.part.kind) + (opt.laser_only ? ", laser" : ", laser and stereo") +
+                    (opt.calibrated ? ", on the calibration in use" : ", with calibration scenes");
+  }
+  return replay;
+}
+
+void printResult(const ScanJobResult& r, const ScanJobOptions& job, bool hosted, const sim::CellReplay* replay) {
+  std::printf("  measured    %zu grid elements (%zu measurements); cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply "
+              "%.2f s after it\n",
+              r.elements, r.measurements, r.cloud4d_seconds, r.measure_seconds);
+  std::printf("  calibration digitizer: %s; cameras: %s\n", r.digitizer_calibration.c_str(), r.camera_calibration.c_str());
+  if (r.accuracy && hosted)
+    std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "
+                "thickness strain RMS %.4f; latency %.3f ms (true %.3f)\n",
+                r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
+                static_cast<double>(r.digitizer.latency_ns) * 1e-6,
+                static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
+  if (r.accuracy && r.accuracy->visible > 0)
+    std::printf("  visible     %zu of %zu visible elements found (%.1f %%; a sensor sees them whole from a pose of the "
+                "plan); %zu more found that none sees whole\n",
+                r.accuracy->visible_found, r.accuracy->visible,
+                100.0 * static_cast<double>(r.accuracy->visible_found) / static_cast<double>(r.accuracy->visible),
+                r.accuracy->found_not_visible);
+  if (r.accuracy && hosted && r.accuracy->with_uncertainty > 0)
+    std::printf("  uncertainty %.1f %% of %zu elements' true strain within their stated expanded uncertainty (k = 2)\n",
+                100.0 * r.accuracy->within_expanded_uncertainty, r.accuracy->with_uncertainty);
+  if (const auto& f = r.surface_accuracy; f && hosted && f->elements > 0)
+    std::printf("  surface     strain RMS %.4f at %zu elements (theirs %.4f), %.4f at %zu points halfway between "
+                "them; %zu of %zu points within the grid without strain\n",
+                f->at_elements_rms, f->elements, f->elements_own_rms, f->between_rms, f->between, f->without_strain,
+                f->within_grid);
+  if (replay) printReplay(*replay, r);
+  if (r.report) {
+    std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",
+                report::toString(r.report->verdict), r.report->verdict_reason.c_str(), r.report->material.c_str(),
+                r.report->seconds);
+  }
+  std::printf("  results     %s\n", r.run_dir.c_str());
+}
+
+// 0, or 1 when the report failed or the scan lost data (unless accepted).
+int exitStatus(const ScanJobResult& r, bool accept_damaged) {
+  if (!r.history_error.empty())
+    std::fprintf(stderr, "station: warning: the run is complete but not in the results history: %s\n",
+                 r.history_error.c_str());
+  if (!r.report_error.empty()) {
+    std::fprintf(stderr, "station: error: the scan is measured, but its report failed: %s (run `station report %s` "
+                         "once the cause is fixed)\n", r.report_error.c_str(), r.run_dir.c_str());
+    return 1;
+  }
+  if (r.data_loss) {
+    if (!accept_damaged) {
+      std::fprintf(stderr, "station: error: the scan lost data: %s. The results lack those elements (run.json says "
+                           "so); scan again, or pass --accept-damaged to accept such a result\n", r.data_loss->c_str());
+      return 1;
+    }
+    std::printf("  accepted    an incomplete scan (--accept-damaged): %s\n", r.data_loss->c_str());
+  }
+  return 0;
+}
+
+int runScan(ScanOptions& opt) {
+  const bool virtual_cell = opt.cell.hosted();
+  acquisition::CellConfig config = opt.cell.load();
+  // An unknown material is refused before anything moves (the report at the end would fail).
+  const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
+  if (!opt.material.empty()) (void)materials.find(opt.material);
+  const bool quick = !opt.whole_part && opt.part_program.empty();
+  const std::optional<acquisition::PartProgram> program = programOf(opt, config, quick, materials);
+
+  // The virtual world: the program's part (or --part's, for a plan file) on the cell.
+  sim::ScanParams world = worldOnCell(quick ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
+  world.part = opt.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
+  world.grid.kind = sim::gridKindFromString(opt.grid);
+  if (program && virtual_cell) world = sim::worldForProgram(world, *program);
+  opt.world.applyTo(world);
+  world.calibration = !opt.calibrated;
+  ScanJobOptions job;
+  job.calibration_policy = config.calibration;
+  job.calibration_dir = calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
+  job.run.limits = config.limits;
+  const std::shared_ptr<sim::CellReplay> replay = choosePlan(opt, config, program, quick, world, job);
+  if (opt.dry_run) {
+    const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
+    printDryRun(job.plan, config, job.run.limits, problems);
+    return problems.empty() ? 0 : 1;
+  }
+
+  // The embedded virtual cell first: hosting may re-execute this program (umockdev).
+  std::unique_ptr<HostedVirtualCell> hosted;
+  if (virtual_cell) {
+    hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
+    config = hosted->config();
+    // The planner's prediction of what each sweep sees, against which the scan is checked, too.
+    if (!replay) job.truth = hosted->truthOfScan(world, job.plan);
+  }
+  acquisition::Cell cell(config);
+  job.part_id = opt.part_id;
+  job.runs_dir = opt.runs;
+  job.results_database = config.results_database;
+  job.material = opt.material;
+  job.materials = &materials;
+  job.program = opt.press_program;
+  if (program) job.part_program = PartProgramRef{program->name, program->folder.string()};
+  // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
+  // recording's).
+  if (!replay) job.run.session = acquisition::describeSession(config.geometry, job.plan);
+  job.run.session.part_id = opt.part_id;
+
+  std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
+              hosted ? " (hosted in this process)" : "");
+  if (program)
+    std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
+                program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),
+                program->sheet_thickness_mm, program->model.triangles.size());
+  TerminalObserver observer(opt.quiet);
+  ScanJob scan(cell, &observer);
+  ScanJobResult r;
+  {
+    const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
+    r = scan.run(job);
+  }
+  printResult(r, job, hosted != nullptr, replay.get());
+  return exitStatus(r, opt.accept_damaged);
+}
 
 }  // namespace
 
@@ -39,197 +252,8 @@ CommandRunner addScanCommand(CLI::App& app) {
   auto opt = std::make_shared<ScanOptions>();
   CLI::App* cmd = app.add_subcommand("scan", "Scan a part on the cell: checks, the plan's sweeps, then the measured "
                                              "strain (default: the sample pan on the built-in virtual cell)");
-  opt->cell.addTo(cmd);
-  cmd->add_option("--plan", opt->plan,
-                  "Scan plan (TOML), the part's steps in its datum frame (placed on the cell's fixture); with "
-                  "--replay, the plan as the machine ran it; default: the part program's");
-  cmd->add_option("--part", opt->part,
-                  "Virtual cell without --program: its own part on the fixture (scanned as the program "
-                  "sim-PART-GRID, or sim-PART-GRID-sample for its sample region)")
-      ->check(CLI::IsMember({"pan", "dome"}));
-  cmd->add_option("--grid", opt->grid, "Virtual cell without --program: its part's printed grid")
-      ->check(CLI::IsMember({"circle", "square"}));
-  cmd->add_option("--part-id", opt->part_id, "The part's id, for the run folder and the record");
-  cmd->add_option("-o,--runs", opt->runs, "Folder of run folders (created when missing)");
-  cmd->add_option("--material", opt->material, "The sheet's material, for the forming-limit report (see `station report "
-                                               "--list-materials`; default DC04)");
-  cmd->add_option("--program", opt->part_program,
-                  "The part program to scan: its name in the cell's program library ([programs] library; on a virtual "
-                  "cell RUNS_DIR/programs, where it writes its own sim-dome-circle, sim-pan-square, ...), or its folder. "
-                  "Its plan, grid and material; --part and --grid do not apply");
-  cmd->add_option("--press-program", opt->press_program,
-                  "The press program the part comes from, for the report and the history (default: the part program's)");
-  cmd->add_flag("--whole-part", opt->whole_part,
-                "Virtual cell without --program: scan its whole part (default: its 40 x 30 mm sample region, at a "
-                "quarter of the cameras' resolution, about 40 s)");
-  cmd->add_flag("--laser-only", opt->laser_only, "Leave the stereo views out of the plan (built-in or the program's)");
-  cmd->add_flag("--calibrated", opt->calibrated,
-                "Leave the calibration scenes out of the built-in plan and measure with the calibration in use (from "
-                "`station calibrate`; refused when it is missing, failed, expired or not this cell's)");
-  cmd->add_option("--calibration-dir", opt->calibration_dir,
-                  "The cell's calibration folder (default: the cell's [calibration] dir, else RUNS_DIR/calibration)");
-  opt->world.addTo(cmd);
-  cmd->add_option("--replay", opt->replay,
-                  "Run a recorded trace again on the virtual cell (the CMM follows its head track, the digitizer and "
-                  "the cameras serve its profiles and frames) and compare the result with `station process` on it");
-  cmd->add_flag("--dry-run", opt->dry_run, "Check the plan against the cell and print it; nothing moves");
-  cmd->add_flag("--accept-damaged", opt->accept_damaged,
-                "Exit 0 even when the scan lost data (missing stereo views, sweeps over the profile-loss limit)");
-  cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
-  return [opt]() {
-    const bool virtual_cell = opt->cell.hosted();
-    acquisition::CellConfig config = opt->cell.load();
-    // An unknown material is refused before anything moves (the report at the end would fail).
-    const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
-    if (!opt->material.empty()) (void)materials.find(opt->material);
-
-    // Without a program, a plan or a recording to replay, the virtual cell's own sample: the sample
-    // region of its part (a quick session: quarter-resolution images, half the calibration scenes),
-    // or the whole part. A real cell has no part of its own.
-    const bool quick = !opt->whole_part && opt->part_program.empty();
-    if (opt->part_program.empty() && opt->plan.empty() && opt->replay.empty()) {
-      if (!virtual_cell)
-        throw std::runtime_error(config.source + ": which part? Give its program (--program NAME or FOLDER) or a scan "
-                                 "plan (--plan FILE); a real cell has no built-in part");
-      opt->part_program = sim::simulatedProgramName(opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
-                                                    sim::gridKindFromString(opt->grid), quick);
-    }
-    // The part program: its plan, grid and material.
-    std::optional<acquisition::PartProgram> program;
-    if (!opt->part_program.empty()) {
-      program = programToScan(opt->part_program, config, virtual_cell, opt->runs);
-      if (opt->material.empty()) opt->material = program->material;
-      if (opt->press_program.empty()) opt->press_program = program->press_program;
-      if (!opt->material.empty()) (void)materials.find(opt->material);
-    }
-
-    // The virtual world: the program's part (or --part's, for a plan file) on the cell.
-    sim::ScanParams world = worldOnCell(quick ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
-    world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-    world.grid.kind = sim::gridKindFromString(opt->grid);
-    if (program && virtual_cell) world = sim::worldForProgram(world, *program);
-    opt->world.applyTo(world);
-    world.calibration = !opt->calibrated;
-    ScanJobOptions job;
-    job.calibration_policy = config.calibration;
-    job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration, opt->runs);
-    job.run.limits = config.limits;
-    // A replay plays the recording's plan on a cell that serves the recording.
-    std::shared_ptr<sim::CellReplay> replay;
-    if (!opt->replay.empty()) {
-      if (!virtual_cell) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
-      if (!opt->dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
-      sim::PreparedReplay prepared = sim::prepareReplay(opt->replay, opt->accept_damaged, opt->plan);
-      job.plan = std::move(prepared.plan);
-      job.run.session = prepared.session;
-      world.part = prepared.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-      if (opt->part_id == "sample" && !prepared.session.part_id.empty()) opt->part_id = prepared.session.part_id;
-      replay = std::move(prepared.replay);
-      job.replayed_trace = opt->replay;
-    } else if (program && opt->plan.empty()) {
-      job.plan = programPlan(*program, config, acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, world.seed),
-                             !opt->calibrated);
-    } else {
-      // A plan file, like a program's plan, gives the part's steps in its datum frame.
-      job.plan = acquisition::placeOnFixture(acquisition::loadScanPlan(opt->plan), config.geometry, config.limits.index_step);
-    }
-    if (opt->plan.empty() && !replay) {
-      if (opt->laser_only)
-        std::erase_if(job.plan.steps, [](const acquisition::PlanStep& s) { return std::holds_alternative<acquisition::StereoStep>(s); });
-      job.plan.name = (program ? program->name : job.plan.part.kind) + (opt->laser_only ? ", laser" : ", laser and stereo") +
-                      (opt->calibrated ? ", on the calibration in use" : ", with calibration scenes");
-    }
-    if (opt->dry_run) {
-      const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
-      printDryRun(job.plan, config, job.run.limits, problems);
-      return problems.empty() ? 0 : 1;
-    }
-
-    // The embedded virtual cell first: hosting may re-execute this program (umockdev).
-    std::unique_ptr<HostedVirtualCell> hosted;
-    if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
-      config = hosted->config();
-      if (!replay) {
-        // The planner's prediction of what each sweep sees, against which the scan is checked, too.
-        job.truth = hosted->truthOfScan(world, job.plan);
-      }
-    }
-    acquisition::Cell cell(config);
-    job.part_id = opt->part_id;
-    job.runs_dir = opt->runs;
-    job.results_database = config.results_database;
-    job.material = opt->material;
-    job.materials = &materials;
-    job.program = opt->press_program;
-    if (program) job.part_program = PartProgramRef{program->name, program->folder.string()};
-    // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
-    // recording's).
-    if (!replay) job.run.session = acquisition::describeSession(config.geometry, job.plan);
-    job.run.session.part_id = opt->part_id;
-
-    std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
-                hosted ? " (hosted in this process)" : "");
-    if (program)
-      std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
-                  program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),
-                  program->sheet_thickness_mm, program->model.triangles.size());
-    TerminalObserver observer(opt->quiet);
-    ScanJob scan(cell, &observer);
-    ScanJobResult r;
-    {
-      const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
-      r = scan.run(job);
-    }
-    std::printf("  measured    %zu grid elements (%zu measurements); cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply "
-                "%.2f s after it\n",
-                r.elements, r.measurements, r.cloud4d_seconds, r.measure_seconds);
-    std::printf("  calibration digitizer: %s; cameras: %s\n", r.digitizer_calibration.c_str(), r.camera_calibration.c_str());
-    if (r.accuracy && hosted)
-      std::printf("  accuracy    against the simulated part: %zu of %zu elements matched, position RMS %.4f mm, "
-                  "thickness strain RMS %.4f; latency %.3f ms (true %.3f)\n",
-                  r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
-                  static_cast<double>(r.digitizer.latency_ns) * 1e-6,
-                  static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
-    if (r.accuracy && r.accuracy->visible > 0)
-      std::printf("  visible     %zu of %zu visible elements found (%.1f %%; a sensor sees them whole from a pose of the "
-                  "plan); %zu more found that none sees whole\n",
-                  r.accuracy->visible_found, r.accuracy->visible,
-                  100.0 * static_cast<double>(r.accuracy->visible_found) / static_cast<double>(r.accuracy->visible),
-                  r.accuracy->found_not_visible);
-    if (r.accuracy && hosted && r.accuracy->with_uncertainty > 0)
-      std::printf("  uncertainty %.1f %% of %zu elements' true strain within their stated expanded uncertainty (k = 2)\n",
-                  100.0 * r.accuracy->within_expanded_uncertainty, r.accuracy->with_uncertainty);
-    if (const auto& f = r.surface_accuracy; f && hosted && f->elements > 0)
-      std::printf("  surface     strain RMS %.4f at %zu elements (theirs %.4f), %.4f at %zu points halfway between "
-                  "them; %zu of %zu points within the grid without strain\n",
-                  f->at_elements_rms, f->elements, f->elements_own_rms, f->between_rms, f->between, f->without_strain,
-                  f->within_grid);
-    if (replay) printReplay(*replay, r);
-    if (r.report) {
-      std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",
-                  report::toString(r.report->verdict), r.report->verdict_reason.c_str(), r.report->material.c_str(),
-                  r.report->seconds);
-    }
-    std::printf("  results     %s\n", r.run_dir.c_str());
-    if (!r.history_error.empty())
-      std::fprintf(stderr, "station: warning: the run is complete but not in the results history: %s\n",
-                   r.history_error.c_str());
-    if (!r.report_error.empty()) {
-      std::fprintf(stderr, "station: error: the scan is measured, but its report failed: %s (run `station report %s` "
-                           "once the cause is fixed)\n", r.report_error.c_str(), r.run_dir.c_str());
-      return 1;
-    }
-    if (r.data_loss) {
-      if (!opt->accept_damaged) {
-        std::fprintf(stderr, "station: error: the scan lost data: %s. The results lack those elements (run.json says "
-                             "so); scan again, or pass --accept-damaged to accept such a result\n", r.data_loss->c_str());
-        return 1;
-      }
-      std::printf("  accepted    an incomplete scan (--accept-damaged): %s\n", r.data_loss->c_str());
-    }
-    return 0;
-  };
+  addScanOptions(cmd, *opt);
+  return [opt]() { return runScan(*opt); };
 }
 
 }  // namespace stampscan::station

@@ -56,7 +56,7 @@ inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::Ce
   std::printf("station scan --dry-run: plan '%s' on %s\n", plan.name.c_str(), cell.name.c_str());
   std::printf("  part        %s, %s grid\n", plan.part.kind.c_str(), plan.part.grid.c_str());
   std::printf("  steps       %zu sweeps (%zu on the part, %zu on the reference sphere), %zu stereo views\n",
-              plan.sweepCount(), plan.sweepCount(acquisition::kScenePart), plan.sweepCount(acquisition::kSceneSphere),
+              plan.sweepCount(), plan.sweepCount(acquisition::Scene::Part), plan.sweepCount(acquisition::Scene::ReferenceSphere),
               plan.stereoCount());
   std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
   for (const std::string& p : problems) std::printf("  problem     %s\n", p.c_str());

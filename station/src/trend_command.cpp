@@ -3,8 +3,8 @@
 // station/results/.
 #include "stampscan/results/results_store.hpp"
 #include "stampscan/results/trend.hpp"
-#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
+#include "results_store_choice.hpp"
 
 #include <cctype>
 #include <cstdio>
@@ -15,7 +15,8 @@ namespace stampscan::station {
 
 namespace {
 struct TrendCommandOptions {
-  std::string runs = "stampscan-runs", db, cell, program, png;
+  ResultsStoreChoice store;
+  std::string program, png;
   std::size_t window = results::TrendParams{}.window;
 };
 
@@ -33,32 +34,17 @@ CommandRunner addTrendCommand(CLI::App& app) {
       "trend", "Max thinning, min safety margin and verdict per part of a press program over time (table and PNG), "
                "with a warning when the last parts drift towards the margin");
   cmd->add_option("--program", opt->program, "The press program")->required();
-  CLI::Option* runs = cmd->add_option("-o,--runs", opt->runs, "Folder of run folders, holding results.sqlite")
-                          ->capture_default_str();
-  CLI::Option* db = cmd->add_option("--db", opt->db, "A PostgreSQL results database instead (postgresql://...)")->excludes(runs);
-  cmd->add_option("--cell", opt->cell, "The results database the cell file names ([results] database)")
-      ->excludes(runs)
-      ->excludes(db);
+  opt->store.addTo(cmd);
   cmd->add_option("--png", opt->png,
                   "The image to write (default: trend-<program>.png in the runs folder; with --db, here)");
   cmd->add_option("--window", opt->window, "Parts the drift rule looks back (and ahead)")
       ->capture_default_str()
       ->check(CLI::Range(2, 1000));
   return [opt]() {
-    if (!opt->db.empty() && !results::isDatabaseUrl(opt->db))
-      throw std::runtime_error("trend: --db " + opt->db + ": expected a postgresql:// URL");
-    if (!opt->cell.empty()) {
-      const std::string configured = acquisition::loadCellConfig(opt->cell).results_database;
-      if (configured.empty())
-        throw std::runtime_error(opt->cell + ": names no results database ([results] database): pass -o RUNS_DIR");
-      (results::isDatabaseUrl(configured) ? opt->db : opt->runs) = configured;
-    }
-    results::StoreOptions store_options;
-    store_options.read_only = true;
-    const auto store = results::openResultsStore(opt->db.empty() ? opt->runs : opt->db, store_options);
+    const auto store = opt->store.openReadOnly("trend");
     results::RunFilter filter;
     filter.program = opt->program;
-    const std::vector<results::RunRecord> runs_found = store->queryRuns(filter);
+    const std::vector<results::RunRow> runs_found = store->queryRuns(filter);
     if (runs_found.empty())
       throw std::runtime_error("trend: no runs of program \"" + opt->program + "\" in " + store->location());
     results::TrendParams params;
@@ -66,7 +52,7 @@ CommandRunner addTrendCommand(CLI::App& app) {
     const results::TrendAnalysis trend = results::analyzeTrend(runs_found, params);
     const std::filesystem::path image =
         !opt->png.empty()       ? std::filesystem::path(opt->png)
-        : opt->db.empty()       ? std::filesystem::path(opt->runs) / defaultImageName(opt->program)
+        : opt->store.db.empty() ? std::filesystem::path(opt->store.runs) / defaultImageName(opt->program)
                                 : std::filesystem::path(defaultImageName(opt->program));
     results::writeTrendImage(trend, opt->program, image);
     std::printf("station trend --program %s (%s)\n", opt->program.c_str(), store->location().c_str());

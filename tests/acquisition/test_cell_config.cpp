@@ -227,9 +227,9 @@ TEST(CellPlans, AnIndexingHeadsPlanUsesOnlyItsStops) {
   MachineLimits limits;
   limits.index_step = 7.5 * kDeg;
   ScanPlan plan;
-  plan.steps.emplace_back(StereoStep{kScenePart, 0, HeadPose{{0, 0, 300}, 15 * kDeg, -7.5 * kDeg}, 0.4});
+  plan.steps.emplace_back(StereoStep{Scene::Part, 0, HeadPose{{0, 0, 300}, 15 * kDeg, -7.5 * kDeg}, 0.4});
   EXPECT_TRUE(checkPlan(plan, limits).empty());
-  plan.steps.emplace_back(StereoStep{kScenePart, 1, HeadPose{{0, 0, 300}, 2 * kDeg, 0}, 0.4});
+  plan.steps.emplace_back(StereoStep{Scene::Part, 1, HeadPose{{0, 0, 300}, 2 * kDeg, 0}, 0.4});
   const auto problems = checkPlan(plan, limits);
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("head tilt 2 deg is not a stop of the indexing head (every 7.5 deg)"), std::string::npos)
@@ -248,8 +248,8 @@ TEST(CellPlans, TheSimulatedWorldAndItsPlansFollowTheCellFile) {
     const ScanPlan plan = sim::planScan(world);
     const auto problems = checkPlan(plan, b.limits);
     EXPECT_TRUE(problems.empty()) << problems.front();
-    EXPECT_GT(plan.sweepCount(kScenePart), 0u);
-    EXPECT_GT(plan.sweepCount(kSceneSecondSphere), 0u);
+    EXPECT_GT(plan.sweepCount(Scene::Part), 0u);
+    EXPECT_GT(plan.sweepCount(Scene::SecondSphere), 0u);
     trace::SessionDescription expected = describeSession(b.geometry, plan);
     expected.plan.clear();
     EXPECT_EQ(sim::describeSession(world), expected);
@@ -271,9 +271,9 @@ TEST(CellPlans, TheSimulatedWorldAndItsPlansFollowTheCellFile) {
 TEST(CellPlans, CalibrationScenesArePlannedFromTheCellFile) {
   const CellConfig b = loadCellConfig(kSecondCell);
   const ScanPlan plan = calibrationPlan(b, {12, 8, 4, 3});
-  EXPECT_EQ(plan.stereoCount(kScenePlate), 12u);
-  EXPECT_EQ(plan.sweepCount(kSceneSphere), 8u);
-  EXPECT_EQ(plan.sweepCount(kSceneSecondSphere), 4u);
+  EXPECT_EQ(plan.stereoCount(Scene::CalibrationPlate), 12u);
+  EXPECT_EQ(plan.sweepCount(Scene::ReferenceSphere), 8u);
+  EXPECT_EQ(plan.sweepCount(Scene::SecondSphere), 4u);
   const auto problems = checkPlan(plan, b.limits);
   EXPECT_TRUE(problems.empty()) << problems.front();
   const Eigen::Vector3d mount(8, -5, -140);
@@ -286,7 +286,7 @@ TEST(CellPlans, CalibrationScenesArePlannedFromTheCellFile) {
                                   .toRotationMatrix();
     const Eigen::Vector3d mirror = Eigen::Vector3d(p.position[0], p.position[1], p.position[2]) +
                                    (Eigen::AngleAxisd(p.b, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(p.a, Eigen::Vector3d::UnitX())) * mount;
-    const auto& c = sweep->scene == kSceneSphere ? b.geometry.sphere.centre_mm : b.geometry.ball_bar->centre_mm;
+    const auto& c = sweep->scene == Scene::ReferenceSphere ? b.geometry.sphere.centre_mm : b.geometry.ball_bar->centre_mm;
     // Along the sensor's view (its z), the ball lies within the measuring range of the standoff.
     const double depth = (mirror - Eigen::Vector3d(c[0], c[1], c[2])).dot(R.col(2));
     EXPECT_NEAR(depth, 110, 0.5 * 70) << sweep->scene << " " << sweep->index;
@@ -316,8 +316,8 @@ TEST(CellPlans, TheCellFileSetsHowManyCalibrationScenes) {
   EXPECT_EQ(calibrationScenes(few, 0.1).sphere_sweeps, 4);
   EXPECT_THROW(calibrationScenes(few, 0.0), std::invalid_argument);
   const ScanPlan plan = calibrationPlan(b, all);
-  EXPECT_EQ(plan.stereoCount(kScenePlate), 14u);
-  EXPECT_EQ(plan.sweepCount(kSceneSphere), 10u);
+  EXPECT_EQ(plan.stereoCount(Scene::CalibrationPlate), 14u);
+  EXPECT_EQ(plan.sweepCount(Scene::ReferenceSphere), 10u);
 }
 
 }  // namespace

@@ -25,9 +25,9 @@ TEST(ScanPlan, PlanFileRoundTrip) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = sim::PartKind::Dome;
   const ScanPlan plan = sim::planScan(p);
-  ASSERT_GT(plan.sweepCount(kScenePart), 0u);
-  ASSERT_GT(plan.sweepCount(kSceneSphere), 0u);
-  ASSERT_GT(plan.stereoCount(kScenePlate), 0u);
+  ASSERT_GT(plan.sweepCount(Scene::Part), 0u);
+  ASSERT_GT(plan.sweepCount(Scene::ReferenceSphere), 0u);
+  ASSERT_GT(plan.stereoCount(Scene::CalibrationPlate), 0u);
   const ScanPlan back = parseScanPlan(toToml(plan), "round-trip");
   EXPECT_EQ(back.name, plan.name);
   EXPECT_EQ(back.part, plan.part);
@@ -107,10 +107,10 @@ TEST(ScanPlan, APartPlanMovesWithTheFixtureAndTheCalibrationScenesStay) {
       if (const auto* w = std::get_if<SweepStep>(&s)) return std::vector<HeadPose>{w->start, w->end};
       return std::vector<HeadPose>{std::get<StereoStep>(s).pose};
     };
-    const std::string scene = std::visit([](const auto& s) { return s.scene; }, plan.steps[k]);
+    const Scene scene = std::visit([](const auto& s) { return s.scene; }, plan.steps[k]);
     const std::vector<HeadPose> before = poses(plan.steps[k]), after = poses(placed.steps[k]);
     for (std::size_t i = 0; i < before.size(); ++i) {
-      if (scene != kScenePart) {
+      if (scene != Scene::Part) {
         expectSamePose(after[i], before[i]);
         continue;
       }
@@ -139,7 +139,7 @@ TEST(ScanPlan, OnATiltedFixtureTheDigitizerAimsAsPlannedAndAnIndexingHeadKeepsIt
     const ScanPlan placed = placeOnFixture(plan, cell, index_step);
     for (std::size_t k = 0; k < plan.steps.size(); ++k) {
       const auto* w = std::get_if<SweepStep>(&plan.steps[k]);
-      if (w == nullptr || w->scene != kScenePart) continue;
+      if (w == nullptr || w->scene != Scene::Part) continue;
       const auto& moved = std::get<SweepStep>(placed.steps[k]);
       const Eigen::Isometry3d want = machine_from_datum * trace::headPose(at(w->start), w->start.a, w->start.b) * head_from_digitizer;
       const Eigen::Isometry3d got = trace::headPose(at(moved.start), moved.start.a, moved.start.b) * head_from_digitizer;

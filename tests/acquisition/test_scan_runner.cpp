@@ -138,7 +138,7 @@ class ScanRunnerTest : public ::testing::Test {
   }
   CellDevices devices() { return {*cmm_, *plc_, *digitizer_, left_.get(), right_.get()}; }
   bool shutterOpen() { return cell_->plc().coil(drivers::plc::Coil::LaserShutterOpenRequest); }
-  static bool hasEvent(const std::vector<msg::CmmEvent>& events, const std::string& kind) {
+  static bool hasEvent(const std::vector<msg::CmmEvent>& events, msg::CmmEventKind kind) {
     return std::any_of(events.begin(), events.end(), [&](const msg::CmmEvent& e) { return e.kind == kind; });
   }
 
@@ -163,9 +163,9 @@ TEST_F(ScanRunnerTest, RunsAShortPlanAndRecordsWhatTheDevicesSent) {
   EXPECT_GT(sink_.positions(), 10u);
   EXPECT_GT(sink_.plcStates(), 5u);
   const auto events = sink_.events();
-  EXPECT_TRUE(hasEvent(events, "sweep_begin"));
-  EXPECT_TRUE(hasEvent(events, "sweep_end"));
-  EXPECT_FALSE(hasEvent(events, "abort"));
+  EXPECT_TRUE(hasEvent(events, msg::CmmEventKind::SweepBegin));
+  EXPECT_TRUE(hasEvent(events, msg::CmmEventKind::SweepEnd));
+  EXPECT_FALSE(hasEvent(events, msg::CmmEventKind::Abort));
   const auto md = sink_.metadata();
   ASSERT_TRUE(md.count("cell"));
   EXPECT_EQ(md.at("cell").at("plan"), "one sweep");
@@ -206,7 +206,7 @@ TEST_F(ScanRunnerTest, ADoorOpenedMidSweepStopsTheScanCleanly) {
   EXPECT_EQ(r.sweeps_done, 0u);
   EXPECT_FALSE(cell_->cmm().status().moving);
   EXPECT_FALSE(shutterOpen());
-  EXPECT_TRUE(hasEvent(sink_.events(), "abort"));
+  EXPECT_TRUE(hasEvent(sink_.events(), msg::CmmEventKind::Abort));
   EXPECT_FALSE(r.safety_events.empty());
 }
 
@@ -249,8 +249,8 @@ TEST_F(ScanRunnerTest, ASweepThatLostProfilesIsRunAgain) {
   EXPECT_EQ(r.sweeps_repeated, 1u);
   EXPECT_GE(r.lost_profiles, 50u);
   const auto events = sink_.events();
-  EXPECT_TRUE(hasEvent(events, "sweep_discarded"));
-  EXPECT_EQ(std::count_if(events.begin(), events.end(), [](const msg::CmmEvent& e) { return e.kind == "sweep_end"; }), 2);
+  EXPECT_TRUE(hasEvent(events, msg::CmmEventKind::SweepDiscarded));
+  EXPECT_EQ(std::count_if(events.begin(), events.end(), [](const msg::CmmEvent& e) { return e.kind == msg::CmmEventKind::SweepEnd; }), 2);
 }
 
 TEST_F(ScanRunnerTest, StereoViewsNeedTheCameras) {
@@ -330,7 +330,7 @@ TEST_F(ScanRunnerStereoTest, ALostCameraMarksItsViewsMissingAndTheScanGoesOn) {
   EXPECT_EQ(r.views_done + r.views_missing, 2u);
   EXPECT_GE(r.views_missing, 1u);
   EXPECT_EQ(r.sweeps_done, 1u);
-  EXPECT_TRUE(hasEvent(sink_.events(), "view_missing"));
+  EXPECT_TRUE(hasEvent(sink_.events(), msg::CmmEventKind::ViewMissing));
 }
 
 }  // namespace

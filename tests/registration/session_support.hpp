@@ -92,8 +92,8 @@ class DecodedSession final : public sim::TraceSink {
     std::int64_t begin = -1;
     for (const msg::CmmEvent& e : events) {
       if (e.detail.rfind(prefix, 0) != 0) continue;
-      if (e.kind == "sweep_begin") begin = e.station_time_ns;
-      if (e.kind == "sweep_end" && begin >= 0) out.emplace_back(begin, e.station_time_ns), begin = -1;
+      if (e.kind == msg::CmmEventKind::SweepBegin) begin = e.station_time_ns;
+      if (e.kind == msg::CmmEventKind::SweepEnd && begin >= 0) out.emplace_back(begin, e.station_time_ns), begin = -1;
     }
     return out;
   }

@@ -13,7 +13,7 @@ namespace msg = stampscan::trace;
 void event(ScanTraceBuilder& b, std::int64_t t, const std::string& kind, const std::string& detail) {
   msg::CmmEvent e;
   e.station_time_ns = t;
-  e.kind = kind;
+  e.kind = msg::cmmEventKindFromString(kind);
   e.detail = detail;
   b.add(msg::topics::kCmmEvent, msg::encode(e));
 }
@@ -36,7 +36,7 @@ void frame(ScanTraceBuilder& b, const std::string& camera, std::uint64_t trigger
   b.add(camera == "left" ? msg::topics::kCameraLeft : msg::topics::kCameraRight, msg::encode(f));
 }
 
-void marker(ScanTraceBuilder& b, const std::string& scene, const std::string& phase) {
+void marker(ScanTraceBuilder& b, msg::Scene scene, const std::string& phase) {
   msg::SceneMarker m;
   m.scene = scene;
   m.phase = phase;
@@ -89,12 +89,12 @@ TEST(ScanTraceBuilder, ASweepOpenAtACutEndsWithTheLastPosition) {
 
 TEST(ScanTraceBuilder, FramesArePairedIntoTheirScene) {
   ScanTraceBuilder b(true);
-  marker(b, "calibration_plate", "begin");
+  marker(b, msg::Scene::CalibrationPlate, "begin");
   frame(b, "left", 1);
   frame(b, "right", 1);
   frame(b, "left", 2);  // its partner never comes
-  marker(b, "calibration_plate", "end");
-  marker(b, "part", "begin");
+  marker(b, msg::Scene::CalibrationPlate, "end");
+  marker(b, msg::Scene::Part, "begin");
   frame(b, "right", 3);
   frame(b, "left", 3);
   const ScanTrace& t = b.trace();

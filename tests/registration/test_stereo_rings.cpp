@@ -106,9 +106,10 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind g
     const Eigen::Isometry3d head = s.headAt(pair.left.device_time_ns - offset).pose();
     // The part's own surface as the depth prior (in the station, the laser's).
     const cv::Mat left = test_support::DecodedSession::image(pair.left), right = test_support::DecodedSession::image(pair.right);
-    const auto g = grid == sim::GridKind::Circle
-                       ? registration::measureStereoPair(left, right, rig, head, prior, {}, view, &stats)
-                       : registration::measureStereoSquares(left, right, rig, head, prior, {}, view, &stats);
+    const registration::StereoView input{
+        .left = left, .right = right, .rig = rig, .machine_from_head = head, .prior = prior, .index = view};
+    const auto g = grid == sim::GridKind::Circle ? registration::measureStereoPair(input, {}, &stats)
+                                                 : registration::measureStereoSquares(input, {}, &stats);
     ++view;
     found.insert(found.end(), g.begin(), g.end());
     const sim::CameraIntrinsics* cams[2] = {&truth.left, &truth.right};

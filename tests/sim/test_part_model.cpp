@@ -196,9 +196,9 @@ TEST(PartModel, SimulatedProgramsLoadAsPartPrograms) {
       params.grid.kind = grid;
       params.calibration = false;
       EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(planScan(params)));
-      EXPECT_GT(p.plan.sweepCount(acquisition::kScenePart), 0u);
-      EXPECT_GT(p.plan.stereoCount(acquisition::kScenePart), 0u);
-      EXPECT_EQ(p.plan.sweepCount(acquisition::kSceneSphere), 0u);
+      EXPECT_GT(p.plan.sweepCount(acquisition::Scene::Part), 0u);
+      EXPECT_GT(p.plan.stereoCount(acquisition::Scene::Part), 0u);
+      EXPECT_EQ(p.plan.sweepCount(acquisition::Scene::ReferenceSphere), 0u);
       // The model read back is the part (checked loosely here; closely in the tests above).
       EXPECT_LT(worstDeviation(p.model, *part, 300), 0.03);
     }

@@ -118,7 +118,7 @@ TEST(ScanSession, MessagesComeInLogTimeOrderAndDecode) {
 
 TEST(ScanSession, ScenesAreBracketedAndCamerasPaired) {
   const Session& s = dome();
-  std::map<std::string, std::vector<std::string>> phases;
+  std::map<msg::Scene, std::vector<std::string>> phases;
   std::map<std::uint64_t, std::vector<msg::CameraFrame>> by_trigger;
   for (const Stored& m : s.sink.messages) {
     if (m.topic == msg::topics::kScene) {
@@ -130,8 +130,8 @@ TEST(ScanSession, ScenesAreBracketedAndCamerasPaired) {
       by_trigger[f.trigger_id].push_back(f);
     }
   }
-  for (const char* scene : {"calibration_plate", "reference_sphere", "part"})
-    EXPECT_EQ(phases[scene], (std::vector<std::string>{"begin", "end"})) << scene;
+  for (const msg::Scene scene : {msg::Scene::CalibrationPlate, msg::Scene::ReferenceSphere, msg::Scene::Part})
+    EXPECT_EQ(phases[scene], (std::vector<std::string>{"begin", "end"})) << msg::toString(scene);
   ASSERT_EQ(by_trigger.size(), 5u);
   const CellTruth& truth = s.summary.truth;
   for (const auto& [trigger, frames] : by_trigger) {
@@ -167,7 +167,8 @@ TEST(ScanSession, ProfilesPlacedWithTheTrueCalibrationLieOnPartAndSphere) {
   const Session& s = dome();
   const CellTruth& truth = s.summary.truth;
   PositionTrack track;
-  std::string scene;
+  bool in_scene = false;
+  msg::Scene scene = msg::Scene::Part;
   for (const Stored& m : s.sink.messages)
     if (m.topic == msg::topics::kCmmPosition) track.reports.push_back(msg::decode<msg::CmmPosition>(m.bytes));
   const DomePart part;
@@ -176,9 +177,10 @@ TEST(ScanSession, ProfilesPlacedWithTheTrueCalibrationLieOnPartAndSphere) {
   for (const Stored& m : s.sink.messages) {
     if (m.topic == msg::topics::kScene) {
       const auto marker = msg::decode<msg::SceneMarker>(m.bytes);
-      scene = marker.phase == "begin" ? marker.scene : "";
+      in_scene = marker.phase == "begin";
+      scene = marker.scene;
     }
-    if (m.topic != msg::topics::kLaserProfile || scene.empty() || scene == "calibration_plate") continue;
+    if (m.topic != msg::topics::kLaserProfile || !in_scene || scene == msg::Scene::CalibrationPlate) continue;
     const auto p = msg::decode<msg::LaserProfile>(m.bytes);
     const std::int64_t exposure = p.device_time_ns - truth.digitizer_clock_offset_ns - truth.digitizer_latency_ns;
     const Eigen::Isometry3d sensor = track.at(exposure).pose() * truth.head_from_digitizer;
@@ -189,7 +191,7 @@ TEST(ScanSession, ProfilesPlacedWithTheTrueCalibrationLieOnPartAndSphere) {
       const double angle = p.angle_min + static_cast<double>(i) * p.angle_increment;
       const Vec3 ray(std::sin(angle), 0, -std::cos(angle));
       const Vec3 x = sensor * (static_cast<double>(p.range[i]) * ray);
-      if (scene == "part") {
+      if (scene == msg::Scene::Part) {
         part_sq += std::pow(part.distance(x), 2);
         ++part_n;
       } else {
@@ -222,9 +224,9 @@ TEST(ScanSession, PlcTimelineAndTheShutterOpenOnlyForSweeps) {
   for (const Stored& m : s.sink.messages) {
     if (m.topic == msg::topics::kCmmEvent) {
       const auto e = msg::decode<msg::CmmEvent>(m.bytes);
-      if (e.kind == "sweep_begin") in_sweep = true;
-      if (e.kind == "sweep_end") in_sweep = false;
-      if (e.kind == "move_begin" && e.detail != "load part" && e.detail != "unload part") {
+      if (e.kind == msg::CmmEventKind::SweepBegin) in_sweep = true;
+      if (e.kind == msg::CmmEventKind::SweepEnd) in_sweep = false;
+      if (e.kind == msg::CmmEventKind::MoveBegin && e.detail != "load part" && e.detail != "unload part") {
         moving = true;
         // The CMM moves only with the door closed and the part clamped.
         EXPECT_TRUE(last.door_closed && last.part_clamped) << "motion at " << e.station_time_ns;

@@ -117,7 +117,7 @@ TEST(Visibility, ASweepMeasuresNothingInItsRunUps) {
   EXPECT_LT(measured.visibleCount(), whole.visibleCount());
   acquisition::ScanPlan shortened = plan;
   for (auto& step : shortened.steps)
-    if (auto* sweep = std::get_if<acquisition::SweepStep>(&step); sweep && sweep->scene == acquisition::kScenePart) {
+    if (auto* sweep = std::get_if<acquisition::SweepStep>(&step); sweep && sweep->scene == acquisition::Scene::Part) {
       Eigen::Vector3d a(sweep->start.position[0], sweep->start.position[1], sweep->start.position[2]);
       Eigen::Vector3d b(sweep->end.position[0], sweep->end.position[1], sweep->end.position[2]);
       const double run_up = acquisition::sweepRunUp(sweep->speed, acquisition::MachineLimits{}.acceleration);
@@ -136,7 +136,7 @@ TEST(Visibility, NothingIsVisibleToAPlanWithoutPartStepsOrOutOfTheDigitizersRang
   const fitting::Cloud truth = sim::groundTruth(*sim::makePart(p), p.grid);
   acquisition::ScanPlan plan = sim::planScan(p);
   std::erase_if(plan.steps, [](const acquisition::PlanStep& s) {
-    return std::visit([](const auto& step) { return step.scene == acquisition::kScenePart; }, s);
+    return std::visit([](const auto& step) { return step.scene == acquisition::Scene::Part; }, s);
   });
   EXPECT_EQ(sim::visibleElements(p, plan, truth).visibleCount(), 0u);
   // The same sweeps 200 mm higher: the part is beyond the measuring range.

@@ -44,7 +44,7 @@ TEST(ScanShortfall, ASweepThatFoundMuchLessThanPredictedIsNamed) {
     plan.steps.emplace_back(w);
   }
   acquisition::SweepStep sphere;
-  sphere.scene = acquisition::kSceneSphere;
+  sphere.scene = acquisition::Scene::ReferenceSphere;
   plan.steps.insert(plan.steps.begin(), sphere);  // not a part sweep: not counted
   const auto found = [](std::vector<std::size_t> per_sweep) {
     std::vector<registration::GridElement> m;
@@ -295,7 +295,7 @@ TEST_F(StationTest, CtrlCEndsAScanCleanly) {
   bool abort_event = false;
   const trace::TraceHealth health = reader.readMessages([&](const trace::TraceMessage& m) {
     if (m.channel && m.channel->topic == trace::topics::kCmmEvent)
-      abort_event |= trace::decode<trace::CmmEvent>(m.data).kind == "abort";
+      abort_event |= trace::decode<trace::CmmEvent>(m.data).kind == trace::CmmEventKind::Abort;
     return true;
   });
   EXPECT_TRUE(health.healthy());

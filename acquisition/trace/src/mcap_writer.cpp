@@ -337,7 +337,6 @@ void McapWriter::close() {
 
 bool McapWriter::isOpen() const { return impl_ && impl_->fd >= 0 && !impl_->failed; }
 const std::filesystem::path& McapWriter::path() const { return impl_->path; }
-std::uint64_t McapWriter::bytesWritten() const { return impl_->offset; }
 const Statistics& McapWriter::statistics() const { return impl_->stats; }
 
 }  // namespace stampscan::trace

@@ -4,6 +4,8 @@
 // the elements.
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 
+#include <ostream>
+
 #include <bit>
 #include <cstring>
 #include <type_traits>
@@ -125,7 +127,7 @@ MessageSchema schemaOf<CmmPosition>() {
 }
 template <>
 MessageSchema schemaOf<CmmEvent>() {
-  return {"stampscan_msgs/msg/CmmEvent", "# CMM event: move or sweep begin/end, error, abort.\n"
+  return {"stampscan_msgs/msg/CmmEvent", "# CMM event: move_begin, move_end, sweep_begin, sweep_end, sweep_discarded, view_missing, abort.\n"
                                          "int64 station_time_ns\nstring kind\nstring detail\n"};
 }
 template <>
@@ -158,7 +160,7 @@ MessageSchema schemaOf<PlcState>() {
 template <>
 MessageSchema schemaOf<SceneMarker>() {
   return {"stampscan_msgs/msg/SceneMarker",
-          "# Brackets a phase of the scan: scene is calibration_plate, reference_sphere or part.\n"
+          "# Brackets a phase of the scan: scene is part, reference_sphere, calibration_plate or second_sphere.\n"
           "int64 station_time_ns\nstring scene\nstring phase\nuint32 index\nstring detail\n"};
 }
 
@@ -185,10 +187,77 @@ std::vector<std::byte> encode(const CmmPosition& m) {
   w.put(m.head_b);
   return w.take();
 }
+namespace {
+constexpr std::pair<CmmEventKind, std::string_view> kCmmEventKinds[] = {
+    {CmmEventKind::MoveBegin, "move_begin"},   {CmmEventKind::MoveEnd, "move_end"},
+    {CmmEventKind::SweepBegin, "sweep_begin"}, {CmmEventKind::SweepEnd, "sweep_end"},
+    {CmmEventKind::SweepDiscarded, "sweep_discarded"}, {CmmEventKind::ViewMissing, "view_missing"},
+    {CmmEventKind::Abort, "abort"},
+};
+}  // namespace
+
+std::string_view toString(CmmEventKind kind) {
+  for (const auto& [k, text] : kCmmEventKinds)
+    if (k == kind) return text;
+  return "unknown";
+}
+
+CmmEventKind cmmEventKindFromString(std::string_view text) {
+  for (const auto& [k, name] : kCmmEventKinds)
+    if (name == text) return k;
+  return CmmEventKind::Unknown;
+}
+
+namespace {
+constexpr std::pair<Scene, std::string_view> kScenes[] = {
+    {Scene::Part, "part"},
+    {Scene::ReferenceSphere, "reference_sphere"},
+    {Scene::CalibrationPlate, "calibration_plate"},
+    {Scene::SecondSphere, "second_sphere"},
+};
+}  // namespace
+
+std::string_view toString(Scene scene) {
+  for (const auto& [s, text] : kScenes)
+    if (s == scene) return text;
+  return "part";  // every enumerator is listed above
+}
+
+std::optional<Scene> sceneFromString(std::string_view text) {
+  for (const auto& [s, name] : kScenes)
+    if (name == text) return s;
+  return std::nullopt;
+}
+
+std::ostream& operator<<(std::ostream& out, Scene scene) { return out << toString(scene); }
+std::ostream& operator<<(std::ostream& out, CmmEventKind kind) { return out << toString(kind); }
+
+std::string sceneNames() {
+  std::string names;
+  for (const auto& [s, name] : kScenes) {
+    if (!names.empty()) names += ", ";
+    names += name;
+  }
+  return names;
+}
+
+std::string sweepLabel(Scene scene, std::uint32_t index) {
+  std::string label(toString(scene));
+  label += " sweep ";
+  label += std::to_string(index);
+  return label;
+}
+
+bool isSweepOf(const std::string& label, Scene scene) {
+  std::string prefix(toString(scene));
+  prefix += " sweep ";
+  return label.rfind(prefix, 0) == 0;
+}
+
 std::vector<std::byte> encode(const CmmEvent& m) {
   CdrWriter w;
   w.put(m.station_time_ns);
-  w.put(m.kind);
+  w.put(std::string(toString(m.kind)));
   w.put(m.detail);
   return w.take();
 }
@@ -238,7 +307,7 @@ std::vector<std::byte> encode(const PlcState& m) {
 std::vector<std::byte> encode(const SceneMarker& m) {
   CdrWriter w;
   w.put(m.station_time_ns);
-  w.put(m.scene);
+  w.put(std::string(toString(m.scene)));
   w.put(m.phase);
   w.put(m.index);
   w.put(m.detail);
@@ -264,7 +333,7 @@ CmmEvent decode<CmmEvent>(std::span<const std::byte> bytes) {
   CdrReader r(bytes, "CmmEvent");
   CmmEvent m;
   m.station_time_ns = r.get<std::int64_t>("station_time_ns");
-  m.kind = r.getString("kind");
+  m.kind = cmmEventKindFromString(r.getString("kind"));
   m.detail = r.getString("detail");
   return m;
 }
@@ -334,7 +403,10 @@ SceneMarker decode<SceneMarker>(std::span<const std::byte> bytes) {
   CdrReader r(bytes, "SceneMarker");
   SceneMarker m;
   m.station_time_ns = r.get<std::int64_t>("station_time_ns");
-  m.scene = r.getString("scene");
+  const std::string scene = r.getString("scene");
+  const std::optional<Scene> known = sceneFromString(scene);
+  if (!known) throw MessageError("SceneMarker.scene: '" + scene + "' is none of " + sceneNames());
+  m.scene = *known;
   m.phase = r.getString("phase");
   m.index = r.get<std::uint32_t>("index");
   m.detail = r.getString("detail");

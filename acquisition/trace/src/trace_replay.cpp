@@ -18,10 +18,6 @@ std::chrono::steady_clock::time_point steadyAt(std::int64_t ns) {
 }
 }  // namespace
 
-ReplayClock steadyReplayClock() {
-  return {steadyNow, [](std::int64_t due) { std::this_thread::sleep_until(steadyAt(due)); }};
-}
-
 TraceReplayer::TraceReplayer(const std::filesystem::path& trace, ReplayOptions options, ReplayClock clock)
     : reader_(trace), options_(std::move(options)), clock_(std::move(clock)) {
   if (!(options_.speed >= 0) || !std::isfinite(options_.speed))

@@ -36,7 +36,7 @@ std::optional<CmmPosition> positionIn(const std::vector<ipp::Argument>& items) {
   return CmmPosition{*x, *y, *z};
 }
 
-std::int64_t stationNowNs() {
+std::int64_t steadyNowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
@@ -237,7 +237,7 @@ void IppCmm::onMoveReportLine(const ipp::Reply& reply, bool with_orientation) {
   }
   if (!callback) return;
   MoveReport report;
-  report.station_time_ns = stationNowNs();
+  report.arrival_steady_ns = steadyNowNs();
   const std::optional<CmmPosition> position = positionIn(reply.data);
   if (!position) {
     fault("protocol", "move report without X(), Y(), Z(): " + ipp::formatArguments(reply.data));

@@ -382,7 +382,6 @@ DeviceStatus UsbDigitizer::readStatus() {
                             decodeStatus);
 }
 
-const Identity& UsbDigitizer::deviceIdentity() const { return impl_->identity; }
 
 void UsbDigitizer::start(ProfileCallback on_profile) {
   Impl& d = *impl_;

@@ -6,6 +6,7 @@
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/hmi/run_files.hpp"
 #include "stampscan/hmi/strain_views.hpp"
+#include "stampscan/run_folder/run_record.hpp"
 
 #include <cmath>
 #include <fstream>
@@ -36,10 +37,13 @@ double numberParam(const httplib::Request& req, const char* name, std::optional<
   throw BadRequest(std::string("'") + name + "' must be a number, not '" + text + "'");
 }
 
-json runJson(const fs::path& dir) {
-  std::ifstream in(dir / "run.json");
-  json j = json::parse(in, nullptr, false);
-  return j.is_object() ? j : json::object();
+// A run's record (run.json), for its program and part id; an empty one when the folder has none.
+run_folder::RunRecord runRecordOf(const fs::path& dir) {
+  try {
+    return run_folder::readRunRecord(dir).value_or(run_folder::RunRecord{});
+  } catch (const run_folder::RunRecordError& e) {
+    throw BadRequest(e.what());
+  }
 }
 
 // Rounded so that the JSON stays short: a micrometre, a millionth of strain.
@@ -109,8 +113,9 @@ void compareRoute(HmiServer::Impl& impl, const httplib::Request& req, httplib::R
   }
   const double max_distance = numberParam(req, "max_distance", 2.54);
   if (!(max_distance > 0) || max_distance > 20) throw BadRequest("'max_distance' must be more than 0 and at most 20 mm");
-  const json run_a = runJson(dir_a), run_b = runJson(dir_b);
-  const std::string program_a = run_a.value("program", ""), program_b = run_b.value("program", "");
+  const run_folder::RunRecord run_a = runRecordOf(dir_a), run_b = runRecordOf(dir_b);
+  const std::string& program_a = run_a.program;
+  const std::string& program_b = run_b.program;
   // Elements are matched by place: that means something only on parts of one press program.
   if (program_a != program_b)
     throw BadRequest("run A is of program '" + program_a + "', run B of '" + program_b + "': compare two runs of one program");
@@ -118,8 +123,8 @@ void compareRoute(HmiServer::Impl& impl, const httplib::Request& req, httplib::R
   const RunElements b = loadRunElements(dir_b / "cloud4d.ply");
   const Comparison c = compareRuns(a, b, quantity, max_distance);
 
-  json out = {{"a", {{"run_id", dir_a.filename().string()}, {"part_id", run_a.value("part_id", "")}, {"elements", a.size()}}},
-              {"b", {{"run_id", dir_b.filename().string()}, {"part_id", run_b.value("part_id", "")}, {"elements", b.size()}}},
+  json out = {{"a", {{"run_id", dir_a.filename().string()}, {"part_id", run_a.part_id}, {"elements", a.size()}}},
+              {"b", {{"run_id", dir_b.filename().string()}, {"part_id", run_b.part_id}, {"elements", b.size()}}},
               {"program", program_a}, {"strain", toString(quantity)}, {"max_distance_mm", max_distance},
               {"matched", c.matched}, {"unmatched", a.size() - c.matched}, {"mean", round3(c.mean)},
               {"rms", round3(c.rms)}, {"min", round3(c.min)}, {"max", round3(c.max)}};

@@ -61,11 +61,6 @@ void EventHub::close() {
   subscribers_.clear();
 }
 
-std::size_t EventHub::subscribers() const {
-  std::lock_guard lock(mutex_);
-  return subscribers_.size();
-}
-
 std::string formatServerSentEvent(const HubEvent& event) {
   return "id: " + std::to_string(event.id) + "\nevent: " + event.name + "\ndata: " + event.json + "\n\n";
 }

@@ -118,7 +118,7 @@ acquisition::CellConfig configInUse(const CellJobs& jobs) {
   return config;
 }
 
-json runRecordJson(const results::RunRecord& r) {
+json runRowJson(const results::RunRow& r) {
   const auto opt = [](const auto& v) -> json { return v ? json(*v) : json(nullptr); };
   return {{"run_id", r.run_id},
           {"part_id", r.part_id},

@@ -24,7 +24,7 @@ nlohmann::json checksJson(const std::vector<registration::RecordCheck>& checks);
 nlohmann::json calibrationJson(const std::filesystem::path& calibration_dir, const acquisition::CellConfig& cell);
 // The cell's config with the calibration rules the jobs apply now (maintenance may have changed them).
 acquisition::CellConfig configInUse(const CellJobs& jobs);
-nlohmann::json runRecordJson(const results::RunRecord& r);
+nlohmann::json runRowJson(const results::RunRow& r);
 nlohmann::json statusJson(const JobStatus& s);
 // The cell's answer to the line, by the names of REGISTER_MAP.md's tables; and the whole handshake.
 nlohmann::json lineAnswerJson(const drivers::plc::CellAnswer& a);

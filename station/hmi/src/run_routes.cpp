@@ -5,6 +5,7 @@
 #include "server_impl.hpp"
 #include "stampscan/hmi/run_files.hpp"
 #include "stampscan/results/results_store.hpp"
+#include "stampscan/run_folder/run_record.hpp"
 
 #include <fstream>
 
@@ -41,14 +42,14 @@ void listRuns(HmiServer::Impl& impl, const httplib::Request& req, httplib::Respo
   if (fs::exists(db, ec)) {
     results::StoreOptions options;
     options.read_only = true;
-    std::vector<results::RunRecord> records;
+    std::vector<results::RunRow> records;
     try {
       records = results::openResultsStore(impl.runsDir().string(), options)->queryRuns(filter);
     } catch (const results::ResultsError& e) {
       return sendError(res, 400, e.what());
     }
     // Newest first, as the history table shows them.
-    for (auto it = records.rbegin(); it != records.rend(); ++it) runs.push_back(runRecordJson(*it));
+    for (auto it = records.rbegin(); it != records.rend(); ++it) runs.push_back(runRowJson(*it));
   }
   sendJson(res, {{"runs", runs}, {"database", db.string()}});
 }
@@ -62,8 +63,16 @@ void runDetails(HmiServer::Impl& impl, const httplib::Request& req, httplib::Res
       names.push_back(entry.path().filename().string());
   std::sort(names.begin(), names.end());
   for (const auto& n : names) files.push_back(n);
+  // run.json through its one reader: what the panel shows is what the report and the history read.
+  json run = nullptr, run_problem = nullptr;
+  try {
+    if (const auto record = run_folder::readRunRecord(dir)) run = run_folder::toJson(*record);
+  } catch (const run_folder::RunRecordError& e) {
+    run_problem = e.what();
+  }
   sendJson(res, {{"run_id", dir.filename().string()},
-                 {"run", readJsonFile(dir / "run.json")},
+                 {"run", run},
+                 {"run_problem", run_problem},
                  {"report", readJsonFile(dir / "report.json")},
                  {"files", files}});
 }

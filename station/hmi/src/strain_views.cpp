@@ -26,14 +26,15 @@ RunElements loadRunElements(const fs::path& cloud4d) {
   if (!cloud.hasStrain())
     throw std::runtime_error(cloud4d.string() + ": no vertex property 'strain' (the thickness strain of a Cloud4D)");
   RunElements e;
-  e.major = std::move(scalar("major_strain"));
-  e.minor = std::move(scalar("minor_strain"));
+  e.major = std::move(scalar(fitting::kMajorStrain));
+  e.minor = std::move(scalar(fitting::kMinorStrain));
   e.thickness = std::move(cloud.strain);
   e.positions = std::move(cloud.positions);
   e.normals = std::move(cloud.normals);
   const auto has = [&](const char* name) { return cloud.scalars.contains(name); };
-  if (has("major_dir_x") && has("major_dir_y") && has("major_dir_z")) {
-    const auto &x = cloud.scalars["major_dir_x"], &y = cloud.scalars["major_dir_y"], &z = cloud.scalars["major_dir_z"];
+  if (has(fitting::kMajorDirection[0]) && has(fitting::kMajorDirection[1]) && has(fitting::kMajorDirection[2])) {
+    const auto &x = cloud.scalars[fitting::kMajorDirection[0]], &y = cloud.scalars[fitting::kMajorDirection[1]],
+               &z = cloud.scalars[fitting::kMajorDirection[2]];
     e.directions.reserve(e.size());
     for (std::size_t i = 0; i < e.size(); ++i) {
       Vec3 d(x[i], y[i], z[i]);

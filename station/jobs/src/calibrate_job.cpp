@@ -100,7 +100,7 @@ DigitizerOutcome calibrateDigitizerOn(const registration::ScanTrace& trace, cons
       trace, track, sp.nominal.clock_offset_ns, 0, registration::MeasureParams{}.max_track_error_mm);
   std::vector<std::string> labels;
   for (const auto& w : trace.sweeps)
-    if (w.is(acquisition::kSceneSphere)) labels.push_back(w.label);
+    if (w.is(acquisition::Scene::ReferenceSphere)) labels.push_back(w.label);
   std::vector<std::size_t> kept(sweeps.size());
   for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = i;
   const auto calibrateOn = [&](const std::vector<std::size_t>& use) {
@@ -350,8 +350,8 @@ acquisition::ScanPlan calibrationScenesOf(const acquisition::ScanPlan& plan, boo
   acquisition::ScanPlan out = plan;
   out.name = std::string("calibration of the ") + (digitizer && cameras ? "digitizer and the cameras" : digitizer ? "digitizer" : "cameras");
   std::erase_if(out.steps, [&](const acquisition::PlanStep& s) {
-    if (const auto* sweep = std::get_if<acquisition::SweepStep>(&s)) return !(digitizer && sweep->scene == acquisition::kSceneSphere);
-    return !(cameras && std::get<acquisition::StereoStep>(s).scene == acquisition::kScenePlate);
+    if (const auto* sweep = std::get_if<acquisition::SweepStep>(&s)) return !(digitizer && sweep->scene == acquisition::Scene::ReferenceSphere);
+    return !(cameras && std::get<acquisition::StereoStep>(s).scene == acquisition::Scene::CalibrationPlate);
   });
   if (out.steps.empty())
     throw std::runtime_error("the plan '" + plan.name + "' has no calibration scenes for the " +
@@ -366,13 +366,13 @@ CalibrateJobResult CalibrateJob::run(const CalibrateJobOptions& o) {
   if (!o.digitizer && !o.cameras) throw std::invalid_argument("CalibrateJob: no sensor to calibrate");
   for (const acquisition::PlanStep& s : o.plan.steps) {
     const auto* sweep = std::get_if<acquisition::SweepStep>(&s);
-    if (sweep ? sweep->scene != acquisition::kSceneSphere : std::get<acquisition::StereoStep>(s).scene != acquisition::kScenePlate)
+    if (sweep ? sweep->scene != acquisition::Scene::ReferenceSphere : std::get<acquisition::StereoStep>(s).scene != acquisition::Scene::CalibrationPlate)
       throw acquisition::ScanError("a calibration plan holds sphere sweeps and plate views only; '" + o.plan.name +
                                    "' has other steps");
   }
-  if (o.digitizer && o.plan.sweepCount(acquisition::kSceneSphere) == 0)
+  if (o.digitizer && o.plan.sweepCount(acquisition::Scene::ReferenceSphere) == 0)
     throw acquisition::ScanError("the plan '" + o.plan.name + "' has no reference-sphere sweeps for the digitizer");
-  if (o.cameras && o.plan.stereoCount(acquisition::kScenePlate) == 0)
+  if (o.cameras && o.plan.stereoCount(acquisition::Scene::CalibrationPlate) == 0)
     throw acquisition::ScanError("the plan '" + o.plan.name + "' has no plate views for the cameras");
   if (const auto problems = acquisition::checkPlan(o.plan, o.run.limits); !problems.empty())
     throw acquisition::ScanError("the plan cannot run on this cell: " + problems.front());

@@ -121,32 +121,32 @@ void LiveMeasurement::advance(std::size_t step) {
   if (const auto* sweep = std::get_if<acquisition::SweepStep>(&s)) {
     // The step's sweep window: the last of its label (a sweep run again after losing profiles has
     // its first run discarded).
-    const std::string label = sweep->scene + " sweep " + std::to_string(sweep->index);
-    if (sweep->scene == acquisition::kScenePart)
+    const std::string label = trace::sweepLabel(sweep->scene, sweep->index);
+    if (sweep->scene == acquisition::Scene::Part)
       for (auto w = mine_.sweeps.rbegin(); w != mine_.sweeps.rend(); ++w)
         if (w->label == label) {
           pending_sweeps_.push_back(*w);
           break;
         }
-    if (sweep->scene == acquisition::kSceneSphere && ++sphere_done_ == plan_.sweepCount(acquisition::kSceneSphere)) {
+    if (sweep->scene == acquisition::Scene::ReferenceSphere && ++sphere_done_ == plan_.sweepCount(acquisition::Scene::ReferenceSphere)) {
       measurer_.calibrateDigitizer(mine_);
       // The sphere's profiles are done with (those of a sweep already under way stay).
       std::int64_t last_end = 0;
       for (const auto& w : mine_.sweeps)
-        if (w.is(acquisition::kSceneSphere)) last_end = std::max(last_end, w.end_ns);
+        if (w.is(acquisition::Scene::ReferenceSphere)) last_end = std::max(last_end, w.end_ns);
       const registration::DigitizerCalibration& d = measurer_.digitizer();
       std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
     }
   } else {
     const auto& view = std::get<acquisition::StereoStep>(s);
-    if (view.scene == acquisition::kScenePlate) ++plate_done_;
+    if (view.scene == acquisition::Scene::CalibrationPlate) ++plate_done_;
   }
   // The cameras once every plate view is in and the head has moved on from the last one (the hand-
   // eye calibration needs the head track to reach past each view); the views are dropped only
   // once they have given a rig, else finish() tries again with the whole trace.
-  const std::size_t plates = plan_.stereoCount(acquisition::kScenePlate);
+  const std::size_t plates = plan_.stereoCount(acquisition::Scene::CalibrationPlate);
   if (plates > 0 && plate_done_ == plates && !plate_step_passed_) {
-    if (std::holds_alternative<acquisition::StereoStep>(s) && std::get<acquisition::StereoStep>(s).scene == acquisition::kScenePlate) {
+    if (std::holds_alternative<acquisition::StereoStep>(s) && std::get<acquisition::StereoStep>(s).scene == acquisition::Scene::CalibrationPlate) {
       // this step is the last plate view: wait for the next one
     } else {
       plate_step_passed_ = true;
@@ -159,7 +159,7 @@ void LiveMeasurement::advance(std::size_t step) {
   }
   // Part sweeps can be measured once the digitizer is calibrated (a plan without sphere sweeps uses
   // the stored calibration: the first part sweep then calibrates).
-  if (!pending_sweeps_.empty() && !measurer_.digitizerCalibrated() && plan_.sweepCount(acquisition::kSceneSphere) == 0)
+  if (!pending_sweeps_.empty() && !measurer_.digitizerCalibrated() && plan_.sweepCount(acquisition::Scene::ReferenceSphere) == 0)
     measurer_.calibrateDigitizer(mine_);
   if (measurer_.digitizerCalibrated() && !pending_sweeps_.empty()) {
     std::int64_t last_end = 0;
@@ -170,7 +170,7 @@ void LiveMeasurement::advance(std::size_t step) {
     pending_sweeps_.clear();
     const registration::DigitizerCalibration& d = measurer_.digitizer();
     std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
-    if (part_sweeps_measured_ == plan_.sweepCount(acquisition::kScenePart)) startShapeFit();
+    if (part_sweeps_measured_ == plan_.sweepCount(acquisition::Scene::Part)) startShapeFit();
   }
   measureReadyViews();
 }
@@ -180,10 +180,10 @@ void LiveMeasurement::measureReadyViews() {
   // part sweep of the plan is in.
   // A plan without plate views measures with the stored calibration, once the views' clock pairs are in.
   if (params_.with_stereo && !measurer_.camerasCalibrated() && params_.cameras &&
-      plan_.stereoCount(acquisition::kScenePlate) == 0)
+      plan_.stereoCount(acquisition::Scene::CalibrationPlate) == 0)
     measurer_.calibrateCameras(mine_);
   if (!params_.with_stereo || !measurer_.camerasCalibrated() ||
-      part_sweeps_measured_ < plan_.sweepCount(acquisition::kScenePart))
+      part_sweeps_measured_ < plan_.sweepCount(acquisition::Scene::Part))
     return;
   // (A view waits until the head track reaches past it: the CMM reports only while it moves.)
   while (!views_cancelled_ && !mine_.part_left.empty() &&
@@ -212,7 +212,7 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   startShapeFit();  // unless the last part sweep started it
   // Cameras that did not calibrate leave the stereo views out; the laser's elements stand.
   if (params_.with_stereo && !measurer_.camerasCalibrated()) measurer_.calibrateCameras(mine_);
-  part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::kScenePart));
+  part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::Scene::Part));
   measureReadyViews();
   return measurer_.finish();
 }

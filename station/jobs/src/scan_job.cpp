@@ -7,10 +7,11 @@
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/results/run_recording.hpp"
+#include "stampscan/run_folder/folder_name.hpp"
+#include "stampscan/run_folder/run_record.hpp"
 #include "stampscan/station/fit_runner.hpp"
 #include "live_measurement.hpp"
 
-#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -28,110 +29,102 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string runFolderName(const std::string& part_id) {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char stamp[32];
-  std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &tm);
-  std::string id;
-  for (char c : part_id) id.push_back(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_');
-  return std::string(stamp) + "-" + (id.empty() ? "part" : id);
-}
-
 // A fresh folder under `runs`: two scans of one part within a second get "-2", "-3", ...
 fs::path newRunFolder(const fs::path& runs, const std::string& part_id) {
   fs::create_directories(runs);
-  const std::string base = runFolderName(part_id);
+  const std::string base = run_folder::runFolderName(part_id, std::time(nullptr));
   for (int k = 1;; ++k) {
     const fs::path dir = runs / (k == 1 ? base : base + "-" + std::to_string(k));
     if (fs::create_directory(dir)) return dir;
   }
 }
 
-void writeJsonAtomically(const fs::path& file, const nlohmann::json& j) {
-  fitting::writeFileAtomically(file, j.dump(2) + "\n");
-}
-
-nlohmann::json runRecord(const ScanJobOptions& o, const acquisition::Cell& cell, const acquisition::ScanRunResult& r) {
-  nlohmann::json run = {{"part_id", o.part_id},
-                        {"plan", o.plan.name},
-                        {"cell", cell.config().name},
-                        {"trace", "trace.mcap"},
-                        {"completed", r.completed},
-                        {"scan", {{"sweeps", r.sweeps_done},
-                                  {"wall_seconds", r.wall_seconds},
-                                  {"motion_seconds", r.motion_seconds},
-                                  {"profiles", r.profiles},
-                                  {"lost_profiles", r.lost_profiles},
-                                  {"sweeps_repeated", r.sweeps_repeated},
-                                  {"sweeps_over_loss_limit", r.sweeps_over_loss_limit},
-                                  {"stereo_views", r.views_done},
-                                  {"stereo_views_missing", r.views_missing},
-                                  {"positions", r.positions},
-                                  {"spent_seconds", {{"moving", r.spent.moving},
-                                                     {"settling", r.spent.settling},
-                                                     {"waiting_for_frames", r.spent.frames},
-                                                     {"clock_sync", r.spent.clock_sync},
-                                                     {"digitizer_start_drain_stop", r.spent.digitizer},
-                                                     {"other", r.spent.other}}}}}};
-  for (const auto& d : r.devices)
-    run["devices"].push_back({{"family", d.family}, {"model", d.model}, {"serial", d.serial}, {"firmware", d.firmware}});
-  if (!r.completed) run["abort_reason"] = r.abort_reason;
-  if (!o.started_by.empty()) run["started_by"] = o.started_by;
-  if (!r.safety_events.empty()) run["safety_events"] = r.safety_events;
+run_folder::RunRecord runRecord(const ScanJobOptions& o, const acquisition::Cell& cell, const acquisition::ScanRunResult& r) {
+  run_folder::RunRecord run;
+  run.part_id = o.part_id;
+  run.plan = o.plan.name;
+  run.cell = cell.config().name;
+  run.completed = r.completed;
+  run_folder::ScanFigures& s = run.scan.emplace();
+  s.sweeps = static_cast<std::int64_t>(r.sweeps_done);
+  s.wall_seconds = r.wall_seconds;
+  s.motion_seconds = r.motion_seconds;
+  s.profiles = static_cast<std::int64_t>(r.profiles);
+  s.lost_profiles = static_cast<std::int64_t>(r.lost_profiles);
+  s.sweeps_repeated = static_cast<std::int64_t>(r.sweeps_repeated);
+  s.sweeps_over_loss_limit = static_cast<std::int64_t>(r.sweeps_over_loss_limit);
+  s.stereo_views = static_cast<std::int64_t>(r.views_done);
+  s.stereo_views_missing = static_cast<std::int64_t>(r.views_missing);
+  s.positions = static_cast<std::int64_t>(r.positions);
+  s.spent_seconds = {.moving = r.spent.moving,
+                     .settling = r.spent.settling,
+                     .waiting_for_frames = r.spent.frames,
+                     .clock_sync = r.spent.clock_sync,
+                     .digitizer_start_drain_stop = r.spent.digitizer,
+                     .other = r.spent.other};
+  for (const auto& d : r.devices) run.devices.push_back({d.family, d.model, d.serial, d.firmware});
+  if (!r.completed) run.abort_reason = r.abort_reason;
+  run.started_by = o.started_by;
+  run.safety_events = r.safety_events;
   // The cloud, the surface and the maps are in the machine frame; the part's datum frame (its nominal
   // model's) is here on the table.
   const acquisition::Fixture& fixture = cell.config().geometry.fixture;
-  run["fixture"] = {{"name", fixture.name},
-                    {"datum_mm", fixture.datum.position_mm},
-                    {"datum_rotation_deg", fixture.datum.rotation_deg}};
+  run.fixture.name = fixture.name;
+  for (int k = 0; k < 3; ++k) {
+    run.fixture.datum_mm[k] = fixture.datum.position_mm[k];
+    run.fixture.datum_rotation_deg[k] = fixture.datum.rotation_deg[k];
+  }
   return run;
 }
 
 // run.json's "measurement": what was measured and how fast, one measurement's uncertainty per path.
-nlohmann::json measurementRecord(const ScanJobResult& result, const registration::ScanMeasurement& m,
-                                 const nlohmann::json& surface) {
-  nlohmann::json record = {{"elements", result.elements},
-                           {"seconds_after_scan", result.measure_seconds},
-                           {"cloud4d_seconds_after_scan", result.cloud4d_seconds},
-                           {"digitizer_latency_ms", static_cast<double>(m.digitizer.latency_ns) * 1e-6},
-                           {"measurements", m.elements.size()}};
+run_folder::MeasurementFigures measurementRecord(const ScanJobResult& result, const registration::ScanMeasurement& m,
+                                                 const std::optional<run_folder::SurfaceFigures>& surface) {
+  run_folder::MeasurementFigures record;
+  record.elements = static_cast<std::int64_t>(result.elements);
+  record.seconds_after_scan = result.measure_seconds;
+  record.cloud4d_seconds_after_scan = result.cloud4d_seconds;
+  record.digitizer_latency_ms = static_cast<double>(m.digitizer.latency_ns) * 1e-6;
+  record.measurements = static_cast<std::int64_t>(m.elements.size());
   // One measurement's standard uncertainty per sensor path, and its part shared by the path's
   // measurements of one element (registration/element_merge.hpp), as this scan's twins showed them.
-  const auto noise = [](const registration::PathNoise& p) {
-    const auto number = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); };
-    return p.strain ? nlohmann::json{{"strain", *p.strain},
-                                     {"strain_shared", number(p.strain_shared)},
-                                     {"position_mm", *p.position_mm},
-                                     {"position_shared_mm", number(p.position_shared_mm)},
-                                     {"twin_pairs", p.twin_pairs}}
-                    : nlohmann::json(nullptr);
+  const auto noise = [](const registration::PathNoise& p) -> std::optional<run_folder::PathUncertainty> {
+    if (!p.strain) return std::nullopt;
+    return run_folder::PathUncertainty{.strain = *p.strain,
+                                       .strain_shared = p.strain_shared,
+                                       .position_mm = p.position_mm.value_or(0.0),
+                                       .position_shared_mm = p.position_shared_mm,
+                                       .twin_pairs = static_cast<std::int64_t>(p.twin_pairs)};
   };
-  record["uncertainty"] = {{"laser", noise(m.merged.laser)}, {"stereo", noise(m.merged.stereo)}};
-  if (m.sphere) record["sphere_residual_mm"] = m.sphere->rms_mm;
-  if (!surface.is_null()) record["surface"] = surface;
+  record.laser_uncertainty = noise(m.merged.laser);
+  record.stereo_uncertainty = noise(m.merged.stereo);
+  if (m.sphere) record.sphere_residual_mm = m.sphere->rms_mm;
+  record.surface = surface;
   return record;
 }
 
 // run.json's "accuracy": the scan against the simulator's truth (a virtual cell).
-nlohmann::json accuracyRecord(const ScanJobResult& result, const SimulationTruth& truth) {
+run_folder::AccuracyFigures accuracyRecord(const ScanJobResult& result, const SimulationTruth& truth) {
   const ScanAccuracy& a = *result.accuracy;
-  nlohmann::json record = {{"matched", a.matched},
-                           {"position_rms_mm", a.position_rms_mm},
-                           {"strain_rms", a.strain_rms},
-                           {"strain_within_expanded_uncertainty", a.within_expanded_uncertainty},
-                           {"true_latency_ms", static_cast<double>(truth.digitizer_latency_ns) * 1e-6}};
+  run_folder::AccuracyFigures record;
+  record.matched = static_cast<std::int64_t>(a.matched);
+  record.position_rms_mm = a.position_rms_mm;
+  record.strain_rms = a.strain_rms;
+  record.strain_within_expanded_uncertainty = a.within_expanded_uncertainty;
+  record.true_latency_ms = static_cast<double>(truth.digitizer_latency_ns) * 1e-6;
   if (!truth.visible.empty())
-    record["visible"] = {{"elements", a.visible}, {"found", a.visible_found}, {"found_not_visible", a.found_not_visible}};
+    record.visible = run_folder::VisibleFigures{.elements = static_cast<std::int64_t>(a.visible),
+                                                .found = static_cast<std::int64_t>(a.visible_found),
+                                                .found_not_visible = static_cast<std::int64_t>(a.found_not_visible)};
   if (const auto& f = result.surface_accuracy)
-    record["surface_strain"] = {{"elements", f->elements},
-                                {"at_elements_rms", f->at_elements_rms},
-                                {"elements_own_rms", f->elements_own_rms},
-                                {"between_points", f->between},
-                                {"between_rms", f->between_rms},
-                                {"within_grid_points", f->within_grid},
-                                {"within_grid_without_strain", f->without_strain}};
+    record.surface_strain =
+        run_folder::SurfaceStrainFigures{.elements = static_cast<std::int64_t>(f->elements),
+                                         .at_elements_rms = f->at_elements_rms,
+                                         .elements_own_rms = f->elements_own_rms,
+                                         .between_points = static_cast<std::int64_t>(f->between),
+                                         .between_rms = f->between_rms,
+                                         .within_grid_points = static_cast<std::int64_t>(f->within_grid),
+                                         .within_grid_without_strain = static_cast<std::int64_t>(f->without_strain)};
   return record;
 }
 
@@ -139,17 +132,17 @@ nlohmann::json accuracyRecord(const ScanJobResult& result, const SimulationTruth
 // measurements. (Compared measurement by measurement: a sweep's end that the replay measures one
 // element less would shift a merged element by half its twins' distance.) Fills the result's
 // figures and returns run.json's "replay".
-nlohmann::json compareWithRecording(const fs::path& recording, const registration::MeasureParams& measure,
+run_folder::ReplayFigures compareWithRecording(const fs::path& recording, const registration::MeasureParams& measure,
                                     const registration::ScanMeasurement& m, ScanJobResult& result) {
   const registration::ScanTrace recorded = registration::loadScanTrace(recording, {}, measure.with_stereo);
   const fitting::Cloud reference = registration::toCloud(registration::measureScan(recorded, measure, nullptr).elements);
   result.recording_measurements = reference.size();
   result.against_recording = accuracyAgainst(registration::toCloud(m.elements), reference);
-  return {{"recording", recording.string()},
-          {"reference_measurements", reference.size()},
-          {"matched", result.against_recording->matched},
-          {"position_rms_mm", result.against_recording->position_rms_mm},
-          {"strain_rms", result.against_recording->strain_rms}};
+  return {.recording = recording.string(),
+          .reference_measurements = static_cast<std::int64_t>(reference.size()),
+          .matched = static_cast<std::int64_t>(result.against_recording->matched),
+          .position_rms_mm = result.against_recording->position_rms_mm,
+          .strain_rms = result.against_recording->strain_rms};
 }
 
 // The runner's messages to the recorder (the file) and to the live trace (the measuring thread).
@@ -240,7 +233,7 @@ File loadInUse(const fs::path& file, const char* sensor, Load load) {
 
 CalibrationInUse calibrationFor(const ScanJobOptions& o, registration::MeasureParams& measure) {
   CalibrationInUse in_use;
-  if (o.plan.sweepCount(acquisition::kSceneSphere) == 0) {
+  if (o.plan.sweepCount(acquisition::Scene::ReferenceSphere) == 0) {
     in_use.digitizer_file = o.calibration_dir / "digitizer.json";
     in_use.digitizer = loadInUse<registration::DigitizerCalibrationFile>(in_use.digitizer_file, "digitizer",
                                                                          registration::loadDigitizerCalibration);
@@ -248,8 +241,8 @@ CalibrationInUse calibrationFor(const ScanJobOptions& o, registration::MeasurePa
     in_use.digitizer_text = in_use.digitizer_file.string() + " (record " + in_use.digitizer->provenance.record_id +
                             ", created " + in_use.digitizer->created + ")";
   }
-  const bool part_views = o.plan.stereoCount(acquisition::kScenePart) > 0;
-  const bool plate_views = o.plan.stereoCount(acquisition::kScenePlate) >= measure.min_plate_views;
+  const bool part_views = o.plan.stereoCount(acquisition::Scene::Part) > 0;
+  const bool plate_views = o.plan.stereoCount(acquisition::Scene::CalibrationPlate) >= measure.min_plate_views;
   if (part_views && plate_views) in_use.cameras_text = "calibrated on this scan's plate views";
   if (part_views && !plate_views) {
     in_use.cameras_file = o.calibration_dir / "cameras.json";
@@ -292,8 +285,8 @@ void checkAgainstSensors(const CalibrationInUse& in_use, const std::string& cell
 // The surface: the elements' strain on the shape fitted to the laser's returns, written as
 // fitted.ply and mesh.ply, and the Cloud4D again with the surface's strain at each element beside
 // the element's own. Without a shape (a plan without part sweeps) the surface of the elements
-// alone. Returns run.json's "measurement.surface" (null for the elements' own surface).
-nlohmann::json writeSurface(const fitting::ShapeSurface* shape, const SimulationTruth* truth, const fitting::PlyWriteOptions& w,
+// alone. Returns run.json's "measurement.surface" (nothing for the elements' own surface).
+std::optional<run_folder::SurfaceFigures> writeSurface(const fitting::ShapeSurface* shape, const SimulationTruth* truth, const fitting::PlyWriteOptions& w,
                             fitting::Cloud& cloud, ScanJobResult& result, ScanJobObserver& observer) {
   if (shape == nullptr) {
     FitOutcome fit = runFit(cloud, fitting::FitParams{}, FitRun{.with_mesh = true});
@@ -301,7 +294,7 @@ nlohmann::json writeSurface(const fitting::ShapeSurface* shape, const Simulation
     colorByStrain(fit.mesh.vertices);
     fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
     fitting::writePly(result.run_dir / "mesh.ply", fit.mesh, w);
-    return nullptr;
+    return std::nullopt;
   }
   const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
   fitting::writePly(result.run_dir / "fitted.ply", fit.surface, w);
@@ -311,13 +304,30 @@ nlohmann::json writeSurface(const fitting::ShapeSurface* shape, const Simulation
   if (truth) result.surface_accuracy = surfaceAccuracyAgainst(cloud, fit.surface, *truth);
   observer.stageDone("surface", std::to_string(fit.surface.size()) + " points, " +
                                     std::to_string(fit.mesh.triangles.size()) + " triangles");
-  return {{"laser_returns", fit.shape_points},
-          {"points", fit.surface.size()},
-          {"points_without_strain", fit.without_strain},
-          {"mesh_triangles", fit.mesh.triangles.size()},
-          {"shape_bandwidth_median_mm", fit.shape_stats.bandwidth.median},
-          {"strain_bandwidth_median_mm", fit.strain_bandwidth.median},
-          {"seconds", fit.seconds}};
+  return run_folder::SurfaceFigures{.laser_returns = static_cast<std::int64_t>(fit.shape_points),
+                                    .points = static_cast<std::int64_t>(fit.surface.size()),
+                                    .points_without_strain = static_cast<std::int64_t>(fit.without_strain),
+                                    .mesh_triangles = static_cast<std::int64_t>(fit.mesh.triangles.size()),
+                                    .shape_bandwidth_median_mm = fit.shape_stats.bandwidth.median,
+                                    .strain_bandwidth_median_mm = fit.strain_bandwidth.median,
+                                    .seconds = fit.seconds};
+}
+
+fitting::PlyWriteOptions plyOptions(const std::string& part_id) {
+  fitting::PlyWriteOptions w;
+  w.comment = "StampScan Cloud4D, part " + part_id;
+  return w;
+}
+
+// The Cloud4D: one point per printed element (its measurements by every sweep and view merged);
+// every measurement beside it.
+fitting::Cloud writeElements(const registration::ScanMeasurement& m, const std::string& part_id, const fs::path& run_dir) {
+  fitting::Cloud cloud = registration::toCloud(m.merged.elements);
+  fitting::writePly(run_dir / "cloud4d.ply", cloud, plyOptions(part_id));
+  fitting::PlyWriteOptions wm;
+  wm.comment = "StampScan measurements of the grid elements, part " + part_id;
+  fitting::writePly(run_dir / "measurements.ply", registration::toCloud(m.elements), wm);
+  return cloud;
 }
 
 }  // namespace
@@ -422,6 +432,51 @@ SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, con
   return a;
 }
 
+namespace {
+
+// run.json's figures of a measured run: the measurement, the accuracy on a virtual cell, the
+// replay's check, what the run lacks, and what it was given.
+void completeRecord(const ScanJobOptions& o, const registration::ScanMeasurement& m, const fitting::Cloud& cloud,
+                    const std::optional<run_folder::SurfaceFigures>& surface, const registration::MeasureParams& measure,
+                    ScanJobResult& result, ScanJobObserver& observer, run_folder::RunRecord& record) {
+  result.elements = cloud.size();
+  result.measurements = m.elements.size();
+  result.digitizer = m.digitizer;
+  if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
+  record.measurement = measurementRecord(result, m, surface);
+  if (o.truth) {
+    result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
+    record.accuracy = accuracyRecord(result, *o.truth);
+  }
+  if (!o.replayed_trace.empty()) record.replay = compareWithRecording(o.replayed_trace, measure, m, result);
+  result.data_loss = dataLoss(result.run);
+  // Data that arrived whole but measured much less than the plan predicts is as damaged a result.
+  if (const auto shortfall = measurementShortfall(o.plan, m.elements)) {
+    observer.stageDone("elements", "short of the plan: " + *shortfall);
+    result.data_loss = result.data_loss ? *result.data_loss + "; " + *shortfall : *shortfall;
+  }
+  record.data_loss = result.data_loss.value_or("");
+  record.material = o.material;
+  record.program = o.program;
+  if (o.part_program) record.part_program = run_folder::PartProgramUsed{o.part_program->name, o.part_program->folder};
+}
+
+// The report of what was measured: the verdict, the maps, the FLD, the PDF. A report that fails
+// leaves the measured run as it is and says why.
+void writeReport(const ScanJobOptions& o, ScanJobResult& result) {
+  try {
+    report::ReportOptions options;
+    options.material = o.material;
+    options.program = o.program;
+    options.materials = o.materials;
+    result.report = report::writeRunReport(result.run_dir, options);
+  } catch (const std::exception& e) {
+    result.report_error = e.what();
+  }
+}
+
+}  // namespace
+
 ScanJob::ScanJob(acquisition::Cell& cell, ScanJobObserver* observer) : cell_(cell), observer_(observer) {}
 
 void ScanJob::abort(const std::string& reason) {
@@ -450,7 +505,6 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   const std::string database = o.results_database.empty() ? o.runs_dir.string() : o.results_database;
   result.run_dir = newRunFolder(o.runs_dir, o.part_id);
   if (observer_) observer_->runFolder(result.run_dir);
-  const fs::path trace_file = result.run_dir / "trace.mcap";
   SerialObserver observer(observer_);
   acquisition::ScanRunParams run_params = o.run;
   run_params.before_motion = [&, previous = o.run.before_motion](const std::vector<drivers::DeviceIdentity>& devices) {
@@ -459,6 +513,8 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     if (in_use.digitizer || in_use.cameras)
       observer.checkPassed("calibration in use: made on this cell with these sensors, within its validity");
   };
+
+  // The scan, measured as it is recorded (the live measurement, on its own thread).
   registration::LiveScanTrace live(measure.with_stereo);
   std::optional<LiveMeasurement> measuring;
   measuring.emplace(live, o.plan, measure, &observer);
@@ -476,58 +532,32 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     std::function<void()> f;
     ~Forget() { f(); }
   } forget{forget_measuring};
-  {
-    trace::McapWriter writer(trace_file);
-    trace::TraceRecorder recorder(writer);
-    TeeSink tee(recorder, live);
-    const acquisition::StationClock clock;
-    acquisition::ScanRunner runner(cell_.devices(), tee, clock, &observer);
-    {
-      std::lock_guard lock(mutex_);
-      runner_ = &runner;
-      if (pending_abort_) runner.abort(*pending_abort_);
-    }
-    try {
-      result.run = runner.run(o.plan, run_params);
-    } catch (const acquisition::ScanError&) {
-      {
-        std::lock_guard lock(mutex_);
-        runner_ = nullptr;
-      }
-      observer.measuring(nullptr);
-      forget_measuring();
-      measuring.reset();
-      writer.close();
-      std::error_code ignored;
-      fs::remove_all(result.run_dir, ignored);  // nothing moved: no run to keep
-      throw;
-    } catch (...) {
-      std::lock_guard lock(mutex_);
-      runner_ = nullptr;
-      throw;
-    }
-    {
-      std::lock_guard lock(mutex_);
-      runner_ = nullptr;
-    }
-    writer.close();
+  const fs::path trace_file = result.run_dir / "trace.mcap";
+  try {
+    result.run = runOnCell(o.plan, run_params, live, observer, trace_file);
+  } catch (const acquisition::ScanError&) {
+    observer.measuring(nullptr);
+    forget_measuring();
+    measuring.reset();
+    std::error_code ignored;
+    fs::remove_all(result.run_dir, ignored);  // nothing moved: no run to keep
+    throw;
   }
   observer.measuring(nullptr);
   if (observer_) observer_->scanDone(result.run);
-  nlohmann::json record = runRecord(o, cell_, result.run);
-  record["calibration"] = {{"digitizer", result.digitizer_calibration}, {"cameras", result.camera_calibration}};
+  run_folder::RunRecord record = runRecord(o, cell_, result.run);
+  record.calibration = run_folder::CalibrationUsed{result.digitizer_calibration, result.camera_calibration};
   if (!result.run.completed) {
     forget_measuring();
     measuring.reset();
-    writeJsonAtomically(result.run_dir / "run.json", record);
+    run_folder::writeRunRecord(result.run_dir, record);
     recordInHistory(result.run_dir, database, "");  // as aborted, with its reason from run.json
     throw ScanStopped("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
-                             trace_file.string() + ")");
+                      trace_file.string() + ")");
   }
 
   // What the live measurement has not done yet, then the fit.
   const auto t0 = std::chrono::steady_clock::now();
-  registration::ScanMeasurement m = measuring->finish();
   // A stop after the motion (Ctrl-C, SIGTERM, the panel's abort): the trace and what was measured
   // are kept, and the run is recorded as incomplete; `station process` measures it again.
   const auto stopped = [&](const char* during) {
@@ -539,23 +569,16 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     if (!reason) return;
     forget_measuring();
     measuring.reset();
-    record["completed"] = false;
-    record["abort_reason"] = *reason + " " + during;
-    writeJsonAtomically(result.run_dir / "run.json", record);
+    record.completed = false;
+    record.abort_reason = *reason + " " + during;
+    run_folder::writeRunRecord(result.run_dir, record);
     recordInHistory(result.run_dir, database, "");
     throw ScanStopped("the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
-                             (fs::exists(result.run_dir / "cloud4d.ply") ? " and elements are" : " is") + " kept in " +
-                             result.run_dir.string() + "; `station process --with-stereo --fit` measures it again)");
+                      (fs::exists(result.run_dir / "cloud4d.ply") ? " and elements are" : " is") + " kept in " +
+                      result.run_dir.string() + "; `station process --with-stereo --fit` measures it again)");
   };
-  // The Cloud4D: one point per printed element (its measurements by every sweep and view merged);
-  // every measurement beside it.
-  fitting::Cloud cloud = registration::toCloud(m.merged.elements);
-  fitting::PlyWriteOptions w;
-  w.comment = "StampScan Cloud4D, part " + o.part_id;
-  fitting::writePly(result.run_dir / "cloud4d.ply", cloud, w);
-  fitting::PlyWriteOptions wm = w;
-  wm.comment = "StampScan measurements of the grid elements, part " + o.part_id;
-  fitting::writePly(result.run_dir / "measurements.ply", registration::toCloud(m.elements), wm);
+  const registration::ScanMeasurement m = measuring->finish();
+  fitting::Cloud cloud = writeElements(m, o.part_id, result.run_dir);
   result.cloud4d_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stopped("after its motion, while measuring");
   // The surface: its shape from the laser's returns (fitted since the last part sweep), the
@@ -564,42 +587,40 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   stopped("while its surface was fitted");
   forget_measuring();
   measuring.reset();
-  const nlohmann::json surface_record = writeSurface(shape.get(), o.truth ? &*o.truth : nullptr, w, cloud, result, observer);
+  const std::optional<run_folder::SurfaceFigures> surface =
+      writeSurface(shape.get(), o.truth ? &*o.truth : nullptr, plyOptions(o.part_id), cloud, result, observer);
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  result.elements = cloud.size();
-  result.measurements = m.elements.size();
-  result.digitizer = m.digitizer;
-  if (m.sphere) result.sphere_residual_mm = m.sphere->rms_mm;
-  record["measurement"] = measurementRecord(result, m, surface_record);
-  if (o.truth) {
-    result.accuracy = accuracyAgainst(cloud, o.truth->elements, o.truth->visible);
-    record["accuracy"] = accuracyRecord(result, *o.truth);
-  }
-  if (!o.replayed_trace.empty()) record["replay"] = compareWithRecording(o.replayed_trace, measure, m, result);
-  result.data_loss = dataLoss(result.run);
-  // Data that arrived whole but measured much less than the plan predicts is as damaged a result.
-  if (const auto shortfall = measurementShortfall(o.plan, m.elements)) {
-    observer.stageDone("elements", "short of the plan: " + *shortfall);
-    result.data_loss = result.data_loss ? *result.data_loss + "; " + *shortfall : *shortfall;
-  }
-  record["data_loss"] = result.data_loss ? nlohmann::json(*result.data_loss) : nlohmann::json(nullptr);
-  if (!o.material.empty()) record["material"] = o.material;
-  if (!o.program.empty()) record["program"] = o.program;
-  if (o.part_program) record["part_program"] = {{"name", o.part_program->name}, {"folder", o.part_program->folder}};
-  writeJsonAtomically(result.run_dir / "run.json", record);
-  // The report of what was measured: the verdict, the maps, the FLD, the PDF. A report that fails
-  // leaves the measured run as it is and says why.
-  try {
-    report::ReportOptions options;
-    options.material = o.material;
-    options.program = o.program;
-    options.materials = o.materials;
-    result.report = report::writeRunReport(result.run_dir, options);
-  } catch (const std::exception& e) {
-    result.report_error = e.what();
-  }
+
+  completeRecord(o, m, cloud, surface, measure, result, observer, record);
+  run_folder::writeRunRecord(result.run_dir, record);
+  writeReport(o, result);
   // Every run is a row of the results history, a failed report included (as failed, with why).
   result.history_error = recordInHistory(result.run_dir, database, result.report_error);
+  return result;
+}
+
+acquisition::ScanRunResult ScanJob::runOnCell(const acquisition::ScanPlan& plan, const acquisition::ScanRunParams& params,
+                                              trace::TraceSink& live, acquisition::ScanObserver& observer,
+                                              const fs::path& trace_file) {
+  trace::McapWriter writer(trace_file);
+  trace::TraceRecorder recorder(writer);
+  TeeSink tee(recorder, live);
+  const acquisition::StationClock clock;
+  acquisition::ScanRunner runner(cell_.devices(), tee, clock, &observer);
+  {
+    std::lock_guard lock(mutex_);
+    runner_ = &runner;
+    if (pending_abort_) runner.abort(*pending_abort_);
+  }
+  struct Forget {
+    ScanJob& job;
+    ~Forget() {
+      std::lock_guard lock(job.mutex_);
+      job.runner_ = nullptr;
+    }
+  } forget{*this};
+  acquisition::ScanRunResult result = runner.run(plan, params);
+  writer.close();
   return result;
 }
 
@@ -617,7 +638,7 @@ std::optional<std::string> measurementShortfall(const acquisition::ScanPlan& pla
                                                 const std::vector<registration::GridElement>& measurements) {
   std::vector<std::uint32_t> expected;
   for (const acquisition::PlanStep& step : plan.steps)
-    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::kScenePart)
+    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::Scene::Part)
       expected.push_back(s->expected_elements);
   std::vector<std::size_t> found(expected.size(), 0);
   for (const registration::GridElement& g : measurements)

@@ -46,11 +46,11 @@ acquisition::ScanPlan verificationStepsOf(const acquisition::ScanPlan& plan, std
   std::size_t kept_views = 0;
   std::erase_if(out.steps, [&](const acquisition::PlanStep& s) {
     if (const auto* view = std::get_if<acquisition::StereoStep>(&s))
-      return view->scene != acquisition::kScenePlate || kept_views++ >= plate_views;
+      return view->scene != acquisition::Scene::CalibrationPlate || kept_views++ >= plate_views;
     const auto& sweep = std::get<acquisition::SweepStep>(s);
-    return sweep.scene != acquisition::kSceneSphere && sweep.scene != acquisition::kSceneSecondSphere;
+    return sweep.scene != acquisition::Scene::ReferenceSphere && sweep.scene != acquisition::Scene::SecondSphere;
   });
-  if (out.sweepCount(acquisition::kSceneSphere) == 0) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
+  if (out.sweepCount(acquisition::Scene::ReferenceSphere) == 0) throw std::runtime_error("the plan '" + plan.name + "' has no reference-sphere sweeps to verify on");
   return out;
 }
 
@@ -63,10 +63,14 @@ void verifyWithCalibration(VerifyJobOptions& options, const fs::path& file) {
 VerifyJob::VerifyJob(acquisition::Cell& cell, acquisition::ScanObserver* observer)
     : cell_(cell), traced_(cell, observer) {}
 
-VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
-  const std::size_t second_sweeps = o.plan.sweepCount(acquisition::kSceneSecondSphere);
-  if (o.plan.stereoCount() != o.plan.stereoCount(acquisition::kScenePlate) ||
-      o.plan.sweepCount() != o.plan.sweepCount(acquisition::kSceneSphere) + second_sweeps)
+namespace {
+
+// A plan that holds other steps than the verification's, or lacks what its checks need, is refused
+// before anything moves.
+void checkVerificationPlan(const VerifyJobOptions& o) {
+  const std::size_t second_sweeps = o.plan.sweepCount(acquisition::Scene::SecondSphere);
+  if (o.plan.stereoCount() != o.plan.stereoCount(acquisition::Scene::CalibrationPlate) ||
+      o.plan.sweepCount() != o.plan.sweepCount(acquisition::Scene::ReferenceSphere) + second_sweeps)
     throw acquisition::ScanError("a verification plan holds sweeps over the reference sphere and the ball bar and views "
                                  "of the plate only; '" + o.plan.name + "' has other steps");
   if (o.plan.stereoCount() > 0 && !o.cameras)
@@ -78,7 +82,84 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
     throw acquisition::ScanError("the cell's description gives no reference-sphere radius: nothing to verify against");
   if (const auto problems = acquisition::checkPlan(o.plan, o.run.limits); !problems.empty())
     throw acquisition::ScanError("the plan cannot run on this cell: " + problems.front());
+}
 
+// The digitizer's calibration the sweeps are measured with: the one in use, or without one, a
+// calibration on these very sweeps (mount and latency); the clock offset is this trace's.
+registration::DigitizerCalibration calibrationToVerify(const VerifyJobOptions& o, const registration::ScanTrace& trace,
+                                                       const registration::HeadTrack& track,
+                                                       const std::vector<std::pair<std::int64_t, std::int64_t>>& pairs,
+                                                       double certified_diameter, VerifyJobResult& result) {
+  registration::CalibrationRecord& record = result.record;
+  registration::DigitizerCalibration calibration;
+  if (o.calibration) {
+    calibration = *o.calibration;
+    record.calibration = o.calibration_source;
+  } else {
+    registration::SphereCalibrationParams sp;
+    sp.sphere_radius = 0.5 * certified_diameter;
+    sp.nominal.head_from_digitizer = trace::toIsometry(o.run.session.head_from_digitizer_nominal);
+    sp.nominal.clock_offset_ns = registration::clockOffset(pairs);
+    registration::DigitizerCalibration nominal = sp.nominal;
+    result.calibrated = registration::calibrateDigitizer(allSphereProfiles(trace, track, nominal), track, sp);
+    calibration = result.calibrated->calibration;
+    record.calibration = "calibrated on these sweeps (no calibration in use): the check shows the sensor's noise and "
+                         "the calibration model's fit, not a stored calibration";
+    record.residuals.push_back({"calibration residual RMS", result.calibrated->rms_mm, "mm"});
+  }
+  calibration.clock_offset_ns = registration::clockOffset(pairs);  // changes at every power-up
+  return calibration;
+}
+
+// The length check: the second sphere is located and fitted like the first, with its own certified
+// diameter; the length is between the two least-squares centres.
+void checkBallBar(const VerifyJobOptions& o, const registration::ScanTrace& trace, const registration::HeadTrack& track,
+                  const registration::DigitizerCalibration& calibration, const registration::SphereVerificationParams& sp,
+                  VerifyJobResult& result) {
+  registration::CalibrationRecord& record = result.record;
+  registration::SphereVerificationParams second = sp;
+  second.certified_diameter_mm = o.ball_bar->second_diameter_mm;
+  std::vector<registration::Profile> profiles;
+  for (auto& sweep : registration::sphereSweepProfiles(trace, track, calibration.clock_offset_ns, calibration.latency_ns,
+                                                       registration::MeasureParams{}.max_track_error_mm,
+                                                       acquisition::Scene::SecondSphere))
+    profiles.insert(profiles.end(), sweep.begin(), sweep.end());
+  result.second_sphere = registration::verifySphere(registration::spherePoints(profiles, track, calibration), second);
+  result.distance_mm = (result.second_sphere->fit.centre - result.digitizer.fit.centre).norm();
+  result.length_error_mm = *result.distance_mm - o.ball_bar->distance_mm;
+  record.parameters.push_back({"certified sphere distance", o.ball_bar->distance_mm, "mm"});
+  record.parameters.push_back({"measured sphere distance", *result.distance_mm, "mm"});
+  record.residuals.push_back({"second sphere radial deviation RMS", result.second_sphere->fit.rms_mm, "mm"});
+  record.checks.push_back({"length measurement error E (digitizer, ball bar)", *result.length_error_mm,
+                           o.ball_bar->mpe_mm, "mm", std::abs(*result.length_error_mm) <= o.ball_bar->mpe_mm});
+}
+
+// The stereo pair's check on the plate views: flatness and the lengths between its dots.
+void checkStereoOnPlate(const VerifyJobOptions& o, const registration::ScanTrace& trace, VerifyJobResult& result) {
+  if (!o.run.session.plate) throw std::runtime_error("the cell's description gives no calibration plate to verify on");
+  registration::CalibrationRecord& record = result.record;
+  const trace::PlateRecord& plate = *o.run.session.plate;
+  std::vector<cv::Mat> left, right;
+  for (std::size_t i = 0; i < trace.plate_left.size() && i < trace.plate_right.size(); ++i) {
+    left.push_back(trace.plate_left[i].image);
+    right.push_back(trace.plate_right[i].image);
+  }
+  result.stereo = registration::verifyStereoOnPlate(left, right, o.cameras->stereo,
+                                                    {plate.columns, plate.rows, plate.pitch_mm}, o.stereo);
+  const registration::StereoPlateCheck& s = *result.stereo;
+  record.parameters.push_back({"plate length checked (longest)", s.longest_length_mm, "mm"});
+  record.residuals.push_back({"plate length error RMS (stereo pair)", s.rms_length_error_mm, "mm"});
+  record.residuals.push_back({"plate views (stereo pair)", static_cast<double>(s.views), ""});
+  record.checks.push_back({"flat form error F[Form.Pla] (stereo pair, plate)", s.form_error_mm, o.stereo.form_mpe_mm,
+                           "mm", s.form_passed});
+  record.checks.push_back({"length measurement error E (stereo pair, plate dots)", s.length_error_mm,
+                           o.stereo.length_mpe_mm, "mm", s.length_passed});
+}
+
+}  // namespace
+
+VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
+  checkVerificationPlan(o);
   VerifyJobResult result;
   registration::CalibrationRecord& record = result.record;
   record.kind = "verification";
@@ -100,33 +181,16 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
     throw std::runtime_error(result.trace_file.string() + ": no clock-sync pairs for the digitizer");
   const registration::HeadTrack track(trace.head);
   const double certified_diameter = 2 * *o.run.session.reference_sphere_radius_mm;
+  const registration::DigitizerCalibration calibration =
+      calibrationToVerify(o, trace, track, pairs->second, certified_diameter, result);
 
-  registration::DigitizerCalibration calibration;
-  if (o.calibration) {
-    calibration = *o.calibration;
-    record.calibration = o.calibration_source;
-  } else {
-    // No calibration in use: the sweeps calibrate the digitizer themselves (mount and latency).
-    registration::SphereCalibrationParams sp;
-    sp.sphere_radius = 0.5 * certified_diameter;
-    sp.nominal.head_from_digitizer = trace::toIsometry(o.run.session.head_from_digitizer_nominal);
-    sp.nominal.clock_offset_ns = registration::clockOffset(pairs->second);
-    registration::DigitizerCalibration nominal = sp.nominal;
-    result.calibrated = registration::calibrateDigitizer(allSphereProfiles(trace, track, nominal), track, sp);
-    calibration = result.calibrated->calibration;
-    record.calibration = "calibrated on these sweeps (no calibration in use): the check shows the sensor's noise and "
-                         "the calibration model's fit, not a stored calibration";
-    record.residuals.push_back({"calibration residual RMS", result.calibrated->rms_mm, "mm"});
-  }
-  calibration.clock_offset_ns = registration::clockOffset(pairs->second);  // changes at every power-up
-
+  // The reference sphere: ISO 10360-8's probing form and size errors.
   const std::vector<registration::Vec3> points =
       registration::spherePoints(allSphereProfiles(trace, track, calibration), track, calibration);
   registration::SphereVerificationParams sp = o.sphere;
   sp.certified_diameter_mm = certified_diameter;
   result.digitizer = registration::verifySphere(points, sp);
   const registration::SphereVerification& v = result.digitizer;
-
   record.parameters = calibrationValues(calibration);
   record.parameters.push_back({"certified sphere diameter", certified_diameter, "mm"});
   record.parameters.push_back({"fitted sphere diameter", 2 * v.fit.radius, "mm"});
@@ -138,52 +202,14 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   record.residuals.push_back({"points measured", static_cast<double>(v.points_measured), ""});
   record.checks.push_back({"probing form error P[Form.Sph.All] (digitizer)", v.form_error_mm, sp.form_mpe_mm, "mm", v.form_passed});
   record.checks.push_back({"probing size error P[Size.Sph.All] (digitizer)", v.size_error_mm, sp.size_mpe_mm, "mm", v.size_passed});
-  if (o.ball_bar) {
-    // The second sphere is located and fitted like the first, with its own certified diameter; the
-    // length is between the two least-squares centres.
-    registration::SphereVerificationParams second = sp;
-    second.certified_diameter_mm = o.ball_bar->second_diameter_mm;
-    std::vector<registration::Profile> profiles;
-    for (auto& sweep : registration::sphereSweepProfiles(trace, track, calibration.clock_offset_ns, calibration.latency_ns,
-                                                         registration::MeasureParams{}.max_track_error_mm,
-                                                         acquisition::kSceneSecondSphere))
-      profiles.insert(profiles.end(), sweep.begin(), sweep.end());
-    result.second_sphere = registration::verifySphere(registration::spherePoints(profiles, track, calibration), second);
-    result.distance_mm = (result.second_sphere->fit.centre - v.fit.centre).norm();
-    result.length_error_mm = *result.distance_mm - o.ball_bar->distance_mm;
-    record.parameters.push_back({"certified sphere distance", o.ball_bar->distance_mm, "mm"});
-    record.parameters.push_back({"measured sphere distance", *result.distance_mm, "mm"});
-    record.residuals.push_back({"second sphere radial deviation RMS", result.second_sphere->fit.rms_mm, "mm"});
-    record.checks.push_back({"length measurement error E (digitizer, ball bar)", *result.length_error_mm,
-                             o.ball_bar->mpe_mm, "mm", std::abs(*result.length_error_mm) <= o.ball_bar->mpe_mm});
-  } else {
-    record.notes.push_back("no length check: the cell gives no ball bar ([ball_bar] in the cell file)");
-  }
-  if (o.cameras && !trace.plate_left.empty()) {
-    if (!o.run.session.plate) throw std::runtime_error("the cell's description gives no calibration plate to verify on");
-    const trace::PlateRecord& plate = *o.run.session.plate;
-    std::vector<cv::Mat> left, right;
-    for (std::size_t i = 0; i < trace.plate_left.size() && i < trace.plate_right.size(); ++i) {
-      left.push_back(trace.plate_left[i].image);
-      right.push_back(trace.plate_right[i].image);
-    }
-    result.stereo = registration::verifyStereoOnPlate(left, right, o.cameras->stereo,
-                                                      {plate.columns, plate.rows, plate.pitch_mm}, o.stereo);
-    const registration::StereoPlateCheck& s = *result.stereo;
-    record.parameters.push_back({"plate length checked (longest)", s.longest_length_mm, "mm"});
-    record.residuals.push_back({"plate length error RMS (stereo pair)", s.rms_length_error_mm, "mm"});
-    record.residuals.push_back({"plate views (stereo pair)", static_cast<double>(s.views), ""});
-    record.checks.push_back({"flat form error F[Form.Pla] (stereo pair, plate)", s.form_error_mm, o.stereo.form_mpe_mm,
-                             "mm", s.form_passed});
-    record.checks.push_back({"length measurement error E (stereo pair, plate dots)", s.length_error_mm,
-                             o.stereo.length_mpe_mm, "mm", s.length_passed});
-  } else {
-    record.notes.push_back("no stereo check: no camera calibration in use, or no plate views in the plan");
-  }
+  if (o.ball_bar) checkBallBar(o, trace, track, calibration, sp, result);
+  else record.notes.push_back("no length check: the cell gives no ball bar ([ball_bar] in the cell file)");
+  if (o.cameras && !trace.plate_left.empty()) checkStereoOnPlate(o, trace, result);
+  else record.notes.push_back("no stereo check: no camera calibration in use, or no plate views in the plan");
+
   const bool all_passed =
       std::all_of(record.checks.begin(), record.checks.end(), [](const RecordCheck& c) { return c.passed; });
   record.verdict = all_passed ? registration::RecordVerdict::Passed : registration::RecordVerdict::Failed;
-
   if (result.run.lost_profiles > 0)
     record.notes.push_back(std::to_string(result.run.lost_profiles) + " digitizer profiles were lost during the sweeps");
   result.record_file = registration::saveCalibrationRecord(o.history, record);

@@ -82,13 +82,8 @@ void referencePath(cairo_t* cr, const FldAxes& axes, double beta, const std::str
     text(cr, at.x() + 3 * unit, at.y() + 10 * unit, label, 11 * unit);
 }
 
-}  // namespace
-
-void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Material& material, double legend_x,
-         double legend_y, double unit) {
-  const double size = 13 * unit;
-  cairo_save(cr);
-  // The grid every 10% and the axes through the origin.
+// The grid every 10 % with its labels, the axes through the origin and the axes' titles.
+void fldGrid(cairo_t* cr, const FldAxes& axes, double size, double unit) {
   cairo_set_line_width(cr, 0.7 * unit);
   for (double v = axes.minor_min; v <= axes.minor_max + 1e-9; v += 10) {
     const Eigen::Vector2d p = axes.toDrawing(v, axes.major_min);
@@ -120,12 +115,16 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
   cairo_rotate(cr, -M_PI / 2);
   text(cr, 0, 0, "major strain e1 (engineering, %)", size * 1.05, Align::Centre, true);
   cairo_restore(cr);
+}
 
+// Inside the axes: the reference strain paths, the elements (safest first, so that the critical
+// ones stay on top), the FLC and its margin curve.
+void fldPlot(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Material& material, double unit) {
+  cairo_save(cr);
   cairo_rectangle(cr, axes.x, axes.y, axes.width, axes.height);
   cairo_clip(cr);
-
-  // Reference strain paths: uniaxial tension, equibiaxial stretch, pure shear (no thickness change)
-  // and uniaxial compression (the wrinkling boundary).
+  // Uniaxial tension, equibiaxial stretch, pure shear (no thickness change) and uniaxial compression
+  // (the wrinkling boundary).
   cairo_set_line_width(cr, 0.8 * unit);
   setGrey(cr, 0.6);
   const double dash[] = {3 * unit, 3 * unit};
@@ -136,7 +135,6 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
   referencePath(cr, axes, -2.0, "uniaxial compression", unit);
   cairo_set_dash(cr, nullptr, 0, 0);
 
-  // The elements, safest first so that the critical ones stay on top.
   const double dot = 2.2 * unit;
   for (const Zone z : {Zone::InsufficientStretch, Zone::Safe, Zone::WrinklingTendency, Zone::Wrinkling, Zone::Marginal,
                        Zone::Failure}) {
@@ -149,7 +147,7 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
     cairo_fill(cr);
   }
 
-  // The FLC and the margin curve, over the whole minor range shown (the margin curve's points lie
+  // The FLC and the margin curve over the whole minor range shown (the margin curve's points lie
   // inwards of the FLC points they come from, so its samples reach further out).
   const int samples = 400;
   const double reach = 0.5 * (axes.minor_max - axes.minor_min);
@@ -164,13 +162,16 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
            material.flc.marginCurve(material.safety_margin_percent, std::max(axes.minor_min - reach, -95.0),
                                     axes.minor_max + reach, samples));
   cairo_set_dash(cr, nullptr, 0, 0);
-  cairo_reset_clip(cr);
+  cairo_restore(cr);
   setGrey(cr, 0.2);
   cairo_set_line_width(cr, 1.0 * unit);
   cairo_rectangle(cr, axes.x, axes.y, axes.width, axes.height);
   cairo_stroke(cr);
+}
 
-  // Legend.
+// The legend: the material, the two curves and the count of each zone.
+void fldLegend(cairo_t* cr, const StrainAnalysis& a, const Material& material, double legend_x, double legend_y,
+               double size, double unit) {
   double y = legend_y + size;
   setGrey(cr, 0.1);
   text(cr, legend_x, y, material.name + " (" + toString(material.family) + ")", size * 1.05, Align::Left, true);
@@ -190,6 +191,7 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
   y += size * 1.6;
   setColour(cr, {200, 110, 0});
   cairo_set_line_width(cr, 1.6 * unit);
+  const double margin_dash[] = {8 * unit, 4 * unit};
   cairo_set_dash(cr, margin_dash, 2, 0);
   cairo_move_to(cr, legend_x, y - size * 0.35);
   cairo_line_to(cr, legend_x + size * 2, y - size * 0.35);
@@ -209,6 +211,17 @@ void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Materi
     text(cr, legend_x + size * 1.5, y, line, size);
     y += size * 1.55;
   }
+}
+
+}  // namespace
+
+void fld(cairo_t* cr, const FldAxes& axes, const StrainAnalysis& a, const Material& material, double legend_x,
+         double legend_y, double unit) {
+  const double size = 13 * unit;
+  cairo_save(cr);
+  fldGrid(cr, axes, size, unit);
+  fldPlot(cr, axes, a, material, unit);
+  fldLegend(cr, a, material, legend_x, legend_y, size, unit);
   cairo_restore(cr);
 }
 

@@ -1,69 +1,41 @@
 // What a report reads from a run folder besides the clouds: the facts of run.json.
 #include "stampscan/report/run_report.hpp"
 
-#include <nlohmann/json.hpp>
+#include "stampscan/run_folder/folder_name.hpp"
+#include "stampscan/run_folder/run_record.hpp"
 
 #include <cstdio>
-#include <fstream>
-#include <regex>
-#include <sstream>
 
 namespace stampscan::report {
 
 namespace {
 
-std::string textOf(const nlohmann::json& j, const char* key) {
-  const auto it = j.find(key);
-  if (it == j.end() || it->is_null()) return {};
-  return it->is_string() ? it->get<std::string>() : it->dump();
-}
-
-// Run folders are named <yyyymmdd>-<hhmmss>-<part id> (acquisition's run folder naming).
-bool parseFolderName(const std::string& name, std::string& date, std::string& part_id) {
-  static const std::regex pattern(R"((\d{4})(\d{2})(\d{2})-(\d{2})(\d{2})(\d{2})-(.+))");
-  std::smatch m;
-  if (!std::regex_match(name, m, pattern)) return false;
-  date = m[1].str() + "-" + m[2].str() + "-" + m[3].str() + " " + m[4].str() + ":" + m[5].str() + ":" + m[6].str();
-  part_id = m[7].str();
-  return true;
-}
-
-std::string calibrationText(const nlohmann::json& run) {
-  if (const auto it = run.find("calibration"); it != run.end() && !it->is_null()) {
-    if (it->is_string()) return it->get<std::string>();
-    // {"digitizer": "...", "cameras": "..."}: which calibration each sensor was measured with.
+std::string calibrationText(const run_folder::RunRecord& run) {
+  if (const auto& c = run.calibration) {
+    // Which calibration each sensor was measured with.
     std::string out;
-    if (it->is_object())
-      for (const auto& [sensor, text] : it->items())
-        if (text.is_string()) out += (out.empty() ? "" : "; ") + sensor + ": " + text.get<std::string>();
+    if (!c->digitizer.empty()) out += "digitizer: " + c->digitizer;
+    if (!c->cameras.empty()) out += (out.empty() ? "" : "; ") + std::string("cameras: ") + c->cameras;
     if (!out.empty()) return out;
-    return it->dump();
   }
   // Runs of the built-in plans calibrate in the run itself: the digitizer on the reference sphere,
   // the cameras on the plate.
-  const auto measurement = run.find("measurement");
-  if (measurement == run.end() || !measurement->contains("sphere_residual_mm")) return {};
+  if (!run.measurement || !run.measurement->sphere_residual_mm) return {};
   char text[200];
-  std::snprintf(text, sizeof text, "in the run: digitizer on the reference sphere, %.4f mm RMS",
-                (*measurement)["sphere_residual_mm"].get<double>());
+  std::snprintf(text, sizeof text, "in the run: digitizer on the reference sphere, %.4f mm RMS, latency %.2f ms",
+                *run.measurement->sphere_residual_mm, run.measurement->digitizer_latency_ms);
   std::string out = text;
-  if (measurement->contains("digitizer_latency_ms")) {
-    std::snprintf(text, sizeof text, ", latency %.2f ms", (*measurement)["digitizer_latency_ms"].get<double>());
-    out += text;
-  }
-  const auto scan = run.find("scan");
-  if (scan != run.end() && scan->value("stereo_views", 0) > 0) out += "; cameras on the calibration plate";
+  if (run.scan && run.scan->stereo_views > 0) out += "; cameras on the calibration plate";
   return out;
 }
 
-std::string accuracyText(const nlohmann::json& run) {
-  const auto it = run.find("accuracy");
-  if (it == run.end() || !it->is_object()) return {};
+std::string accuracyText(const run_folder::RunRecord& run) {
+  if (!run.accuracy) return {};
+  const run_folder::AccuracyFigures& a = *run.accuracy;
   char text[200];
   std::snprintf(text, sizeof text,
-                "against the simulated part: position %.4f mm RMS, thickness strain %.5f RMS (%s elements matched)",
-                it->value("position_rms_mm", 0.0), it->value("strain_rms", 0.0),
-                it->contains("matched") ? (*it)["matched"].dump().c_str() : "?");
+                "against the simulated part: position %.4f mm RMS, thickness strain %.5f RMS (%lld elements matched)",
+                a.position_rms_mm, a.strain_rms, static_cast<long long>(a.matched));
   return text;
 }
 
@@ -73,34 +45,27 @@ RunInfo readRunInfo(const std::filesystem::path& run_dir) {
   RunInfo info;
   const std::string folder =
       run_dir.filename().empty() ? run_dir.parent_path().filename().string() : run_dir.filename().string();
-  parseFolderName(folder, info.date, info.part_id);
-  const std::filesystem::path file = run_dir / "run.json";
-  std::error_code error;
-  if (!std::filesystem::exists(file, error)) return info;
-  std::ifstream in(file, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  nlohmann::json run;
-  try {
-    run = nlohmann::json::parse(text.str());
-  } catch (const nlohmann::json::exception& e) {
-    throw ReportError(file.string() + ": damaged (not valid JSON: " + e.what() + ")");
+  if (const auto name = run_folder::parseRunFolderName(folder)) {
+    // "2026-11-24T09:16:02Z" shown as "2026-11-24 09:16:02".
+    info.date = name->started_utc.substr(0, 10) + " " + name->started_utc.substr(11, 8);
+    info.part_id = name->part_id;
   }
-  if (!run.is_object()) throw ReportError(file.string() + ": damaged (not a JSON object)");
+  std::optional<run_folder::RunRecord> run;
   try {
-    if (const std::string id = textOf(run, "part_id"); !id.empty()) info.part_id = id;
-    if (const std::string date = textOf(run, "date"); !date.empty()) info.date = date;
-    info.program = textOf(run, "program");
-    if (run.contains("part_program") && run["part_program"].is_object()) info.part_program = textOf(run["part_program"], "name");
-    info.plan = textOf(run, "plan");
-    info.cell = textOf(run, "cell");
-    info.material = textOf(run, "material");
-    info.calibration = calibrationText(run);
-    info.accuracy = accuracyText(run);
-    info.data_loss = textOf(run, "data_loss");
-  } catch (const nlohmann::json::exception& e) {
-    throw ReportError(file.string() + ": damaged (" + e.what() + ")");
+    run = run_folder::readRunRecord(run_dir);
+  } catch (const run_folder::RunRecordError& e) {
+    throw ReportError(e.what());
   }
+  if (!run) return info;
+  if (!run->part_id.empty()) info.part_id = run->part_id;
+  info.program = run->program;
+  if (run->part_program) info.part_program = run->part_program->name;
+  info.plan = run->plan;
+  info.cell = run->cell;
+  info.material = run->material;
+  info.calibration = calibrationText(*run);
+  info.accuracy = accuracyText(*run);
+  info.data_loss = run->data_loss;
   return info;
 }
 

@@ -200,6 +200,133 @@ const char* toString(MaterialSource source) {
   return "?";
 }
 
+namespace {
+
+// The material: the option's, else run.json's, else the default; the summary says which.
+const Material& chooseMaterial(const ReportOptions& options, ReportSummary& summary) {
+  const MaterialLibrary& library = options.materials ? *options.materials : builtInMaterials();
+  std::string material_name = options.material;
+  summary.material_source = MaterialSource::Option;
+  if (material_name.empty()) {
+    material_name = summary.run.material.empty() ? kDefaultMaterial : summary.run.material;
+    summary.material_source = summary.run.material.empty() ? MaterialSource::Default : MaterialSource::RunJson;
+  }
+  try {
+    const Material& material = library.find(material_name);
+    summary.material = material.name;
+    return material;
+  } catch (const MaterialError& e) {
+    throw ReportError(e.what());
+  }
+}
+
+// Each map quantity's values at the mesh's vertices. The thinning is the fitted surface's own strain
+// field where the mesh carries it (the field the fit made from the elements, as fitted.ply and the
+// panel show it), not a second interpolation of the elements.
+std::vector<std::vector<double>> vertexValues(const StrainAnalysis& analysis, const fitting::Mesh& mesh,
+                                              const std::vector<std::vector<double>>& element_values) {
+  std::vector<std::vector<double>> vertex_values;
+  const ElementsToVertices carry(analysis, mesh.vertices.positions);
+  const std::vector<double>& strain = mesh.vertices.strain;
+  for (std::size_t q = 0; q < element_values.size(); ++q) {
+    if (kMapQuantities[q] == MapQuantity::Thinning && strain.size() == mesh.vertices.size()) {
+      std::vector<double> thinning(strain.size(), std::numeric_limits<double>::quiet_NaN());
+      for (std::size_t v = 0; v < strain.size(); ++v)
+        if (std::isfinite(strain[v])) thinning[v] = thinningPercent(strain[v]);
+      vertex_values.push_back(std::move(thinning));
+    } else {
+      vertex_values.push_back(carry.apply(element_values[q]));
+    }
+  }
+  return vertex_values;
+}
+
+// The maps (every quantity from every view) and the FLD, rendered and encoded in parallel.
+struct DrawnMaps {
+  std::vector<ColourScale> scales;
+  std::vector<draw::MapRaster> maps;
+  std::vector<std::string> map_pngs;
+  std::string fld_png;
+};
+
+DrawnMaps drawMaps(const StrainAnalysis& analysis, const Material& material, const std::optional<fitting::Mesh>& mesh,
+                   const std::string& title_tail) {
+  DrawnMaps d;
+  const std::vector<View> views = standardViews();
+  std::vector<std::vector<double>> element_values;
+  for (const MapQuantity q : kMapQuantities) {
+    d.scales.push_back(scaleFor(q, analysis, material));
+    element_values.push_back(quantityValues(analysis, q));
+  }
+  std::vector<fitting::Vec3> element_positions(analysis.elements.size());
+  for (std::size_t i = 0; i < element_positions.size(); ++i) element_positions[i] = analysis.elements[i].position;
+  const std::vector<std::vector<double>> vertex_values = mesh ? vertexValues(analysis, *mesh, element_values)
+                                                              : std::vector<std::vector<double>>{};
+  const std::vector<fitting::Vec3>& surface_points = mesh ? mesh->vertices.positions : element_positions;
+
+  using L = StrainMapLayout;
+  const std::size_t map_count = std::size(kMapQuantities) * views.size();
+  d.maps.resize(map_count);
+  d.map_pngs.resize(map_count);
+  tbb::parallel_invoke(
+      [&] {
+        tbb::parallel_for(std::size_t{0}, map_count, [&](std::size_t k) {
+          const std::size_t q = k / views.size();
+          const View& view = views[k % views.size()];
+          const ViewProjection projection(view, surface_points, L::map_width, L::map_height);
+          const RenderedView rendered =
+              mesh ? renderMesh(*mesh, vertex_values[q], projection)
+                   : renderPoints(element_positions, element_values[q], 0.6 * analysis.grid_pitch_mm, projection);
+          draw::MapRaster& map = d.maps[k];
+          map.quantity = kMapQuantities[q];
+          map.view = view;
+          map.raster = draw::colourRaster(rendered, d.scales[q]);
+          map.pixels_per_mm = projection.pixelsPerMm();
+          for (std::size_t s = 0; s < analysis.worst_spots.size(); ++s) {
+            const fitting::Vec3& p = analysis.elements[analysis.worst_spots[s].element].position;
+            if (!visible(rendered, projection, p, 2.0 * analysis.grid_pitch_mm)) continue;
+            const Eigen::Vector3d px = projection.toPixel(p);
+            map.spots.push_back({px.x(), px.y(), static_cast<int>(s + 1)});
+          }
+          d.map_pngs[k] = draw::strainMapPng(
+              map, d.scales[q], std::string(caption(map.quantity)) + ", " + view.name + " view" + title_tail);
+        });
+      },
+      [&] { d.fld_png = draw::fldPng(analysis, material, "Forming-limit diagram" + title_tail); });
+  return d;
+}
+
+// The maps, the FLD, the PDF and the HTML page into the pending files.
+void writeDrawings(const ReportSummary& summary, const StrainAnalysis& analysis, const Material& material,
+                   const DrawnMaps& drawn, PendingFiles& files) {
+  draw::ReportContent content;
+  content.run = &summary.run;
+  content.program = summary.run.program;
+  content.material = &material;
+  content.material_note = summary.material_source == MaterialSource::Default
+                              ? std::string("the default: run.json names no material (choose one with --material)")
+                          : summary.material_source == MaterialSource::RunJson ? "as run.json names it"
+                                                                               : "";
+  content.analysis = &analysis;
+  content.generated = now();
+  content.maps = &drawn.maps;
+  content.scales = &drawn.scales;
+  std::vector<std::pair<std::string, const std::string*>> images;
+  for (std::size_t k = 0; k < drawn.maps.size(); ++k) {
+    const std::string name = strainMapFileName(drawn.maps[k].quantity, drawn.maps[k].view);
+    files.write(name, drawn.map_pngs[k]);
+    images.emplace_back(name, &drawn.map_pngs[k]);
+  }
+  files.write("fld.png", drawn.fld_png);
+  images.emplace_back("fld.png", &drawn.fld_png);
+  const fs::path pdf = files.add("report.pdf");
+  std::string page;
+  tbb::parallel_invoke([&] { draw::writePdf(pdf, content); }, [&] { page = draw::html(content, images); });
+  files.write("report.html", page);
+}
+
+}  // namespace
+
 ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& options) {
   const auto t0 = Clock::now();
   ReportSummary summary;
@@ -210,20 +337,7 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
   // Inputs, all checked before anything is written.
   summary.run = readRunInfo(run_dir);
   if (!options.program.empty()) summary.run.program = options.program;
-  const MaterialLibrary& library = options.materials ? *options.materials : builtInMaterials();
-  std::string material_name = options.material;
-  summary.material_source = MaterialSource::Option;
-  if (material_name.empty()) {
-    material_name = summary.run.material.empty() ? kDefaultMaterial : summary.run.material;
-    summary.material_source = summary.run.material.empty() ? MaterialSource::Default : MaterialSource::RunJson;
-  }
-  const Material* material = nullptr;
-  try {
-    material = &library.find(material_name);
-  } catch (const MaterialError& e) {
-    throw ReportError(e.what());
-  }
-  summary.material = material->name;
+  const Material& material = chooseMaterial(options, summary);
   const fs::path cloud_file = run_dir / "cloud4d.ply";
   const fitting::Cloud cloud = readElements(cloud_file);
   const std::optional<fitting::Mesh> mesh = readMesh(run_dir / "mesh.ply");
@@ -231,7 +345,7 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
 
   StrainAnalysis analysis;
   try {
-    analysis = analyseStrains(cloud, *material, options.analysis);
+    analysis = analyseStrains(cloud, material, options.analysis);
   } catch (const std::invalid_argument& e) {
     throw ReportError(cloud_file.string() + ": " + e.what());
   }
@@ -242,95 +356,10 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
                               "): scan the part again";
   }
 
-  // The maps: every quantity from every view, rendered and encoded in parallel.
   const auto t_draw = Clock::now();
-  const std::vector<View> views = standardViews();
-  std::vector<ColourScale> scales;
-  std::vector<std::vector<double>> element_values;
-  for (const MapQuantity q : kMapQuantities) {
-    scales.push_back(scaleFor(q, analysis, *material));
-    element_values.push_back(quantityValues(analysis, q));
-  }
-  std::vector<fitting::Vec3> element_positions(analysis.elements.size());
-  for (std::size_t i = 0; i < element_positions.size(); ++i) element_positions[i] = analysis.elements[i].position;
-  std::vector<std::vector<double>> vertex_values;
-  if (mesh) {
-    const ElementsToVertices carry(analysis, mesh->vertices.positions);
-    for (std::size_t q = 0; q < element_values.size(); ++q) {
-      // The thinning is the fitted surface's own strain field where the mesh carries it (the field
-      // the fit made from the elements, as fitted.ply and the panel show it), not a second
-      // interpolation of the elements.
-      const std::vector<double>& strain = mesh->vertices.strain;
-      if (kMapQuantities[q] == MapQuantity::Thinning && strain.size() == mesh->vertices.size()) {
-        std::vector<double> thinning(strain.size(), std::numeric_limits<double>::quiet_NaN());
-        for (std::size_t v = 0; v < strain.size(); ++v)
-          if (std::isfinite(strain[v])) thinning[v] = thinningPercent(strain[v]);
-        vertex_values.push_back(std::move(thinning));
-      } else {
-        vertex_values.push_back(carry.apply(element_values[q]));
-      }
-    }
-  }
-  const std::vector<fitting::Vec3>& surface_points = mesh ? mesh->vertices.positions : element_positions;
-
-  using L = StrainMapLayout;
-  const std::size_t map_count = std::size(kMapQuantities) * views.size();
-  std::vector<draw::MapRaster> maps(map_count);
-  std::vector<std::string> map_pngs(map_count);
-  std::string fld_png;
-  const std::string title_tail = ": part " + summary.run.part_id + ", " + material->name;
-  tbb::parallel_invoke(
-      [&] {
-        tbb::parallel_for(std::size_t{0}, map_count, [&](std::size_t k) {
-          const std::size_t q = k / views.size();
-          const View& view = views[k % views.size()];
-          const ViewProjection projection(view, surface_points, L::map_width, L::map_height);
-          const RenderedView rendered =
-              mesh ? renderMesh(*mesh, vertex_values[q], projection)
-                   : renderPoints(element_positions, element_values[q], 0.6 * analysis.grid_pitch_mm, projection);
-          draw::MapRaster& map = maps[k];
-          map.quantity = kMapQuantities[q];
-          map.view = view;
-          map.raster = draw::colourRaster(rendered, scales[q]);
-          map.pixels_per_mm = projection.pixelsPerMm();
-          for (std::size_t s = 0; s < analysis.worst_spots.size(); ++s) {
-            const fitting::Vec3& p = analysis.elements[analysis.worst_spots[s].element].position;
-            if (!visible(rendered, projection, p, 2.0 * analysis.grid_pitch_mm)) continue;
-            const Eigen::Vector3d px = projection.toPixel(p);
-            map.spots.push_back({px.x(), px.y(), static_cast<int>(s + 1)});
-          }
-          map_pngs[k] = draw::strainMapPng(
-              map, scales[q], std::string(caption(map.quantity)) + ", " + view.name + " view" + title_tail);
-        });
-      },
-      [&] { fld_png = draw::fldPng(analysis, *material, "Forming-limit diagram" + title_tail); });
-
-  draw::ReportContent content;
-  content.run = &summary.run;
-  content.program = summary.run.program;
-  content.material = material;
-  content.material_note = summary.material_source == MaterialSource::Default
-                              ? std::string("the default: run.json names no material (choose one with --material)")
-                          : summary.material_source == MaterialSource::RunJson ? "as run.json names it"
-                                                                               : "";
-  content.analysis = &analysis;
-  content.generated = now();
-  content.maps = &maps;
-  content.scales = &scales;
-
+  const DrawnMaps drawn = drawMaps(analysis, material, mesh, ": part " + summary.run.part_id + ", " + material.name);
   PendingFiles files(run_dir);
-  std::vector<std::pair<std::string, const std::string*>> images;
-  for (std::size_t k = 0; k < map_count; ++k) {
-    const std::string name = strainMapFileName(maps[k].quantity, maps[k].view);
-    files.write(name, map_pngs[k]);
-    images.emplace_back(name, &map_pngs[k]);
-  }
-  files.write("fld.png", fld_png);
-  images.emplace_back("fld.png", &fld_png);
-  const fs::path pdf = files.add("report.pdf");
-  std::string page;
-  tbb::parallel_invoke([&] { draw::writePdf(pdf, content); }, [&] { page = draw::html(content, images); });
-  files.write("report.html", page);
+  writeDrawings(summary, analysis, material, drawn, files);
   summary.drawing_seconds = secondsSince(t_draw);
 
   files.write("elements.csv", elementsCsv(analysis));
@@ -341,7 +370,7 @@ ReportSummary writeRunReport(const fs::path& run_dir, const ReportOptions& optio
   summary.zone_counts = analysis.zone_counts;
   summary.max_thinning_percent = analysis.max_thinning_percent;
   summary.min_margin_percent = analysis.min_margin_percent;
-  files.write("report.json", reportJson(summary, analysis, *material));
+  files.write("report.json", reportJson(summary, analysis, material));
   summary.files = files.commit();
   summary.seconds = secondsSince(t0);
   return summary;

@@ -127,105 +127,87 @@ ElementStrain analyseElement(const fitting::Vec3& position, double major_true, d
   return e;
 }
 
-StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& material, const AnalysisParams& params) {
-  cloud.validate();
-  const auto major_it = cloud.scalars.find("major_strain");
-  const auto minor_it = cloud.scalars.find("minor_strain");
-  if (!cloud.hasStrain()) throw std::invalid_argument("the cloud has no thickness strain (vertex property 'strain')");
-  if (major_it == cloud.scalars.end() || minor_it == cloud.scalars.end())
-    throw std::invalid_argument(
-        "the cloud has no major and minor strains (vertex properties 'major_strain', 'minor_strain')");
-  const std::vector<double>& major = major_it->second;
-  const std::vector<double>& minor = minor_it->second;
+namespace {
 
-  // A verdict is never better than the data allow: an element whose strains are not finite or
-  // beyond any sheet's refuses the analysis, or is left out (and the verdict cannot be good).
+// The elements whose strains can be judged: finite and within any sheet's. The others are counted,
+// the first named.
+struct ValidElements {
   std::vector<std::uint32_t> kept;
-  kept.reserve(cloud.size());
   std::size_t invalid = 0;
   std::string first_invalid;
+};
+
+ValidElements validElements(const fitting::Cloud& cloud, const std::vector<double>& major, const std::vector<double>& minor) {
+  ValidElements v;
+  v.kept.reserve(cloud.size());
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const std::pair<const char*, double> values[] = {
-        {"major_strain", major[i]}, {"minor_strain", minor[i]}, {"strain", cloud.strain[i]}};
-    const auto bad = std::find_if(std::begin(values), std::end(values), [](const auto& v) {
-      return !std::isfinite(v.second) || std::abs(v.second) > kMostTrueStrain;
+        {fitting::kMajorStrain, major[i]}, {fitting::kMinorStrain, minor[i]}, {"strain", cloud.strain[i]}};
+    const auto bad = std::find_if(std::begin(values), std::end(values), [](const auto& value) {
+      return !std::isfinite(value.second) || std::abs(value.second) > kMostTrueStrain;
     });
     if (bad == std::end(values)) {
-      kept.push_back(static_cast<std::uint32_t>(i));
+      v.kept.push_back(static_cast<std::uint32_t>(i));
       continue;
     }
-    if (invalid++ == 0) {
+    if (v.invalid++ == 0) {
       char text[160];
       std::snprintf(text, sizeof text, "element %zu: %s = %g, %s", i, bad->first, bad->second,
                     std::isfinite(bad->second) ? "beyond any sheet's strain" : "not a number");
-      first_invalid = text;
+      v.first_invalid = text;
     }
   }
-  if (invalid > 0 && !params.leave_out_invalid)
-    throw std::invalid_argument(std::to_string(invalid) + " of " + std::to_string(cloud.size()) +
-                                " elements have invalid strains (" + first_invalid +
-                                "); a verdict rests on every element (leave them out explicitly to judge the rest, "
-                                "never as good)");
-  if (kept.empty()) throw std::invalid_argument("the cloud has no element with valid strains (" + first_invalid + ")");
+  return v;
+}
 
-  const auto uncertainty = cloud.scalars.find(fitting::kStrainUncertainty);
-  StrainAnalysis a;
-  a.elements_in_cloud = cloud.size();
-  a.left_out = invalid;
-  a.left_out_reason = first_invalid;
-  a.elements.resize(kept.size());
-  tbb::parallel_for(std::size_t{0}, kept.size(), [&](std::size_t k) {
-    const std::uint32_t i = kept[k];
-    a.elements[k] = analyseElement(cloud.positions[i], major[i], minor[i], cloud.strain[i], material, params);
-    a.elements[k].index = i;
-    if (uncertainty != cloud.scalars.end()) a.elements[k].thickness_uncertainty = uncertainty->second[i];
-  });
-
-  std::vector<fitting::Vec3> positions(a.elements.size());
-  for (std::size_t i = 0; i < a.elements.size(); ++i) positions[i] = a.elements[i].position;
-  const fitting::KdTree tree(positions);
-  a.grid_pitch_mm = medianNeighbourDistance(tree, positions);
-
-  // Patches: failure elements joined with failure neighbours; failure-or-marginal elements with
-  // failure-or-marginal neighbours.
+// Patches: failure elements joined with failure neighbours; failure-or-marginal elements with
+// failure-or-marginal neighbours (within patch_radius_factor pitches).
+void joinPatches(const StrainAnalysis& a, const fitting::KdTree& tree, const std::vector<fitting::Vec3>& positions,
+                 const AnalysisParams& params, Patches& failure_patches, Patches& risk_patches) {
   const std::size_t n = a.elements.size();
-  Patches failure_patches(n), risk_patches(n);
-  {
-    std::vector<fitting::Neighbor> found;
-    for (std::uint32_t i = 0; i < n; ++i) {
-      if (!atRisk(a.elements[i].zone)) continue;
-      tree.radius(positions[i], kSameElementMm, found);
-      for (const fitting::Neighbor& nb : found) {
-        if (nb.index >= i || !atRisk(a.elements[nb.index].zone)) continue;
-        risk_patches.markRepeat(i);
-        if (a.elements[i].zone == Zone::Failure && a.elements[nb.index].zone == Zone::Failure)
-          failure_patches.markRepeat(i);
-      }
-    }
-    const double radius = params.patch_radius_factor * a.grid_pitch_mm;
-    for (std::uint32_t i = 0; i < n; ++i) {
-      if (!atRisk(a.elements[i].zone)) continue;
-      tree.radius(positions[i], radius, found);
-      for (const fitting::Neighbor& nb : found) {
-        if (!atRisk(a.elements[nb.index].zone)) continue;
-        risk_patches.join(i, nb.index);
-        if (a.elements[i].zone == Zone::Failure && a.elements[nb.index].zone == Zone::Failure)
-          failure_patches.join(i, nb.index);
-      }
+  std::vector<fitting::Neighbor> found;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (!atRisk(a.elements[i].zone)) continue;
+    tree.radius(positions[i], kSameElementMm, found);
+    for (const fitting::Neighbor& nb : found) {
+      if (nb.index >= i || !atRisk(a.elements[nb.index].zone)) continue;
+      risk_patches.markRepeat(i);
+      if (a.elements[i].zone == Zone::Failure && a.elements[nb.index].zone == Zone::Failure) failure_patches.markRepeat(i);
     }
   }
-  std::uint32_t largest_failure = 0, largest_risk = 0;
-  std::uint32_t largest_failure_at = 0, largest_risk_at = 0;
+  const double radius = params.patch_radius_factor * a.grid_pitch_mm;
   for (std::uint32_t i = 0; i < n; ++i) {
+    if (!atRisk(a.elements[i].zone)) continue;
+    tree.radius(positions[i], radius, found);
+    for (const fitting::Neighbor& nb : found) {
+      if (!atRisk(a.elements[nb.index].zone)) continue;
+      risk_patches.join(i, nb.index);
+      if (a.elements[i].zone == Zone::Failure && a.elements[nb.index].zone == Zone::Failure)
+        failure_patches.join(i, nb.index);
+    }
+  }
+}
+
+// The largest patch of failure elements, and of failure-or-marginal ones, and an element of each.
+struct LargestPatches {
+  std::uint32_t failure = 0, risk = 0;
+  std::uint32_t failure_at = 0, risk_at = 0;
+};
+
+// Counts the zones, the extremes and each element's patch; returns the largest patches.
+LargestPatches tally(StrainAnalysis& a, Patches& failure_patches, Patches& risk_patches,
+                     const AnalysisParams& params) {
+  LargestPatches largest;
+  for (std::uint32_t i = 0; i < a.elements.size(); ++i) {
     ElementStrain& e = a.elements[i];
     ++a.zone_counts[static_cast<std::size_t>(e.zone)];
     a.max_thinning_percent = i == 0 ? e.thinning_percent : std::max(a.max_thinning_percent, e.thinning_percent);
     a.min_margin_percent = i == 0 ? e.margin_percent : std::min(a.min_margin_percent, e.margin_percent);
     if (e.zone == Zone::Failure) {
       e.patch_size = failure_patches.sizeOf(i);
-      if (e.patch_size > largest_failure) {
-        largest_failure = e.patch_size;
-        largest_failure_at = i;
+      if (e.patch_size > largest.failure) {
+        largest.failure = e.patch_size;
+        largest.failure_at = i;
       }
       if (e.patch_size < params.min_patch_elements) ++a.isolated_failures;
     } else if (e.zone == Zone::Marginal) {
@@ -233,28 +215,33 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
     }
     if (atRisk(e.zone)) {
       const std::uint32_t risk = risk_patches.sizeOf(i);
-      if (risk > largest_risk) {
-        largest_risk = risk;
-        largest_risk_at = i;
+      if (risk > largest.risk) {
+        largest.risk = risk;
+        largest.risk_at = i;
       }
     }
   }
+  return largest;
+}
 
+// The verdict and its reason: failed on a patch above the FLC, marginal on one within the safety
+// margin or when elements were left out, good otherwise; isolated failures are named as noise.
+void judge(StrainAnalysis& a, const LargestPatches& largest, const Material& material, const AnalysisParams& params) {
   const std::size_t need = std::max<std::size_t>(params.min_patch_elements, 1);
   const auto noise = [&]() -> std::string {
     if (a.isolated_failures == 0) return "";
     return "; " + std::to_string(a.isolated_failures) + " failure element" + (a.isolated_failures == 1 ? "" : "s") +
            " in patches under " + std::to_string(need) + " elements ignored as noise";
   };
-  if (largest_failure >= need) {
+  if (largest.failure >= need) {
     a.verdict = Verdict::Failed;
-    a.verdict_reason = "above the FLC: a patch of " + std::to_string(largest_failure) + " elements at " +
-                       formatPosition(a.elements[largest_failure_at].position);
-  } else if (largest_risk >= need) {
+    a.verdict_reason = "above the FLC: a patch of " + std::to_string(largest.failure) + " elements at " +
+                       formatPosition(a.elements[largest.failure_at].position);
+  } else if (largest.risk >= need) {
     a.verdict = Verdict::Marginal;
     a.verdict_reason = "within the " + std::to_string(static_cast<int>(std::lround(material.safety_margin_percent))) +
-                       "% safety margin of the FLC: a patch of " + std::to_string(largest_risk) + " elements at " +
-                       formatPosition(a.elements[largest_risk_at].position) + noise();
+                       "% safety margin of the FLC: a patch of " + std::to_string(largest.risk) + " elements at " +
+                       formatPosition(a.elements[largest.risk_at].position) + noise();
   } else if (a.left_out > 0) {
     a.verdict = Verdict::Marginal;
     a.verdict_reason = "no patch of " + std::to_string(need) +
@@ -267,10 +254,14 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
         "no patch of " + std::to_string(need) + " or more elements above the FLC or within its safety margin" + noise();
   }
   if (a.left_out > 0)
-    a.verdict_reason += " (judged on " + std::to_string(n) + " of " + std::to_string(a.elements_in_cloud) + " elements)";
+    a.verdict_reason += " (judged on " + std::to_string(a.elements.size()) + " of " + std::to_string(a.elements_in_cloud) +
+                        " elements)";
+}
 
-  // The worst spots: the lowest margins, one element per spot.
-  std::vector<std::uint32_t> order(n);
+// The worst spots: the lowest margins, one element per spot.
+void findWorstSpots(StrainAnalysis& a, const AnalysisParams& params) {
+  const std::size_t need = std::max<std::size_t>(params.min_patch_elements, 1);
+  std::vector<std::uint32_t> order(a.elements.size());
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
     if (a.elements[x].margin_percent != a.elements[y].margin_percent)
@@ -292,6 +283,53 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
     spot.counted = atRisk(e.zone) && e.patch_size >= need;
     a.worst_spots.push_back(spot);
   }
+}
+
+}  // namespace
+
+StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& material, const AnalysisParams& params) {
+  cloud.validate();
+  const auto major_it = cloud.scalars.find(fitting::kMajorStrain);
+  const auto minor_it = cloud.scalars.find(fitting::kMinorStrain);
+  if (!cloud.hasStrain()) throw std::invalid_argument("the cloud has no thickness strain (vertex property 'strain')");
+  if (major_it == cloud.scalars.end() || minor_it == cloud.scalars.end())
+    throw std::invalid_argument(
+        "the cloud has no major and minor strains (vertex properties 'major_strain', 'minor_strain')");
+  const std::vector<double>& major = major_it->second;
+  const std::vector<double>& minor = minor_it->second;
+
+  // A verdict is never better than the data allow: an element whose strains are not finite or
+  // beyond any sheet's refuses the analysis, or is left out (and the verdict cannot be good).
+  const ValidElements valid = validElements(cloud, major, minor);
+  if (valid.invalid > 0 && !params.leave_out_invalid)
+    throw std::invalid_argument(std::to_string(valid.invalid) + " of " + std::to_string(cloud.size()) +
+                                " elements have invalid strains (" + valid.first_invalid +
+                                "); a verdict rests on every element (leave them out explicitly to judge the rest, "
+                                "never as good)");
+  if (valid.kept.empty()) throw std::invalid_argument("the cloud has no element with valid strains (" + valid.first_invalid + ")");
+
+  const auto uncertainty = cloud.scalars.find(fitting::kStrainUncertainty);
+  StrainAnalysis a;
+  a.elements_in_cloud = cloud.size();
+  a.left_out = valid.invalid;
+  a.left_out_reason = valid.first_invalid;
+  a.elements.resize(valid.kept.size());
+  tbb::parallel_for(std::size_t{0}, valid.kept.size(), [&](std::size_t k) {
+    const std::uint32_t i = valid.kept[k];
+    a.elements[k] = analyseElement(cloud.positions[i], major[i], minor[i], cloud.strain[i], material, params);
+    a.elements[k].index = i;
+    if (uncertainty != cloud.scalars.end()) a.elements[k].thickness_uncertainty = uncertainty->second[i];
+  });
+
+  std::vector<fitting::Vec3> positions(a.elements.size());
+  for (std::size_t i = 0; i < a.elements.size(); ++i) positions[i] = a.elements[i].position;
+  const fitting::KdTree tree(positions);
+  a.grid_pitch_mm = medianNeighbourDistance(tree, positions);
+  Patches failure_patches(a.elements.size()), risk_patches(a.elements.size());
+  joinPatches(a, tree, positions, params, failure_patches, risk_patches);
+  const LargestPatches largest = tally(a, failure_patches, risk_patches, params);
+  judge(a, largest, material, params);
+  findWorstSpots(a, params);
   return a;
 }
 

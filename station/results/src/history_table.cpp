@@ -13,12 +13,12 @@ std::string formatNumber(const std::optional<double>& v, int decimals, const std
   return text;
 }
 
-std::string historyTable(const std::vector<RunRecord>& runs) {
+std::string historyTable(const std::vector<RunRow>& runs) {
   const std::vector<std::string> header = {"started (UTC)", "part", "program", "verdict", "max thin %", "min margin %",
                                            "elements", "status", "run"};
   std::vector<std::vector<std::string>> rows;
   rows.reserve(runs.size());
-  for (const RunRecord& r : runs) {
+  for (const RunRow& r : runs) {
     std::string status = toString(r.status);
     if (!r.reason.empty()) status.append(": ").append(r.reason);
     if (!r.data_loss.empty()) status.append(" (data loss: ").append(r.data_loss).append(")");
@@ -57,12 +57,12 @@ std::string csvField(const std::string& v) {
 }
 }  // namespace
 
-std::string historyCsv(const std::vector<RunRecord>& runs) {
+std::string historyCsv(const std::vector<RunRow>& runs) {
   std::string out =
       "run_id,part_id,program,plan,cell,started_utc,material,verdict,max_thinning_percent,min_margin_percent,"
       "marginal_band_percent,elements,position_rms_mm,strain_rms,data_loss,run_dir,status,reason\n";
   const auto full = [](const std::optional<double>& v) { return formatNumber(v, 6, ""); };
-  for (const RunRecord& r : runs) {
+  for (const RunRow& r : runs) {
     const std::vector<std::string> cells = {r.run_id,
                                             r.part_id,
                                             r.program,

@@ -97,12 +97,12 @@ class PostgresStore final : public ResultsStore {
   }
 
  protected:
-  void upsertRuns(const std::vector<RunRecord>& runs) override {
-    const RunRecord* current = &runs.front();
+  void upsertRuns(const std::vector<RunRow>& runs) override {
+    const RunRow* current = &runs.front();
     try {
       pqxx::work transaction(*connection_);
       const std::string recorded = schema::nowUtc();
-      for (const RunRecord& run : runs) {
+      for (const RunRow& run : runs) {
         current = &run;
         transaction.exec(upsertStatement(transaction, run, recorded));
       }
@@ -114,22 +114,23 @@ class PostgresStore final : public ResultsStore {
     }
   }
 
-  static std::string upsertStatement(pqxx::transaction_base& transaction, const RunRecord& run,
+  static std::string upsertStatement(pqxx::transaction_base& transaction, const RunRow& run,
                                      const std::string& recorded) {
-    std::vector<std::string> v;
-    const auto text = [&](const std::string& s) { v.push_back(quoted(transaction, s)); };
-    const auto number = [&](const std::optional<double>& n) { v.push_back(literal(n)); };
-    text(run.run_id), text(run.part_id), text(run.program), text(run.plan), text(run.cell), text(run.started_utc);
-    text(run.material), text(run.verdict), number(run.max_thinning_percent), number(run.min_margin_percent);
-    number(run.marginal_band_percent);
-    v.push_back(run.elements ? std::to_string(*run.elements) : "NULL");
-    number(run.position_rms_mm), number(run.strain_rms), text(run.data_loss), text(run.run_dir);
-    text(toString(run.status)), text(run.reason), text(recorded);
-    return schema::upsertSql([&v](std::size_t i) { return v.at(i); });
+    struct Literals {
+      pqxx::transaction_base& transaction;
+      std::vector<std::string> v;
+      void text(const std::string& s) { v.push_back(quoted(transaction, s)); }
+      void number(const std::optional<double>& n) { v.push_back(literal(n)); }
+      void count(const std::optional<std::int64_t>& n) { v.push_back(n ? std::to_string(*n) : "NULL"); }
+    } literals{transaction, {}};
+    const std::string status = toString(run.status);
+    schema::visitRunColumns(run, status, literals);
+    literals.text(recorded);
+    return schema::upsertSql([&v = literals.v](std::size_t i) { return v.at(i); });
   }
 
-  std::vector<RunRecord> selectRuns(const RunFilter& filter) const override {
-    std::vector<RunRecord> runs;
+  std::vector<RunRow> selectRuns(const RunFilter& filter) const override {
+    std::vector<RunRow> runs;
     try {
       pqxx::read_transaction transaction(*connection_);
       std::vector<std::string> values;
@@ -137,24 +138,25 @@ class PostgresStore final : public ResultsStore {
       const pqxx::result rows = transaction.exec(fillPlaceholders(transaction, numbered, values));
       runs.reserve(rows.size());
       for (const pqxx::row& row : rows) {
-        RunRecord& r = runs.emplace_back();
-        pqxx::row::size_type c = 0;
-        const auto text = [&](std::string& out) {
-          const pqxx::field f = row[c++];
-          out = f.is_null() ? std::string() : std::string(f.c_str());
-        };
-        const auto number = [&](std::optional<double>& out) {
-          const pqxx::field f = row[c++];
-          if (!f.is_null()) out = f.as<double>();
-        };
-        text(r.run_id), text(r.part_id), text(r.program), text(r.plan), text(r.cell), text(r.started_utc);
-        text(r.material), text(r.verdict), number(r.max_thinning_percent), number(r.min_margin_percent);
-        number(r.marginal_band_percent);
-        if (const pqxx::field f = row[c++]; !f.is_null()) r.elements = f.as<long long>();
-        number(r.position_rms_mm), number(r.strain_rms), text(r.data_loss), text(r.run_dir);
+        RunRow& r = runs.emplace_back();
+        struct Reader {
+          const pqxx::row& row;
+          pqxx::row::size_type c = 0;
+          void text(std::string& out) {
+            const pqxx::field f = row[c++];
+            out = f.is_null() ? std::string() : std::string(f.c_str());
+          }
+          void number(std::optional<double>& out) {
+            const pqxx::field f = row[c++];
+            if (!f.is_null()) out = f.as<double>();
+          }
+          void count(std::optional<std::int64_t>& out) {
+            const pqxx::field f = row[c++];
+            if (!f.is_null()) out = f.as<long long>();
+          }
+        } reader{row};
         std::string status;
-        text(status);
-        text(r.reason);
+        schema::visitRunColumns(r, status, reader);
         r.status = runStatusFromString(status);
       }
     } catch (const ResultsError& e) {

@@ -24,17 +24,17 @@ RunStatus runStatusFromString(const std::string& text) {
   throw ResultsError("unknown run status \"" + text + "\" (expected ok, failed or aborted)");
 }
 
-void ResultsStore::recordRun(const RunRecord& run) {
+void ResultsStore::recordRun(const RunRow& run) {
   check(run);
   upsertRuns({run});
 }
 
-void ResultsStore::recordRuns(const std::vector<RunRecord>& runs) {
-  for (const RunRecord& run : runs) check(run);
+void ResultsStore::recordRuns(const std::vector<RunRow>& runs) {
+  for (const RunRow& run : runs) check(run);
   if (!runs.empty()) upsertRuns(runs);
 }
 
-void ResultsStore::check(const RunRecord& run) const {
+void ResultsStore::check(const RunRow& run) const {
   if (run.run_id.empty()) throw ResultsError(location_ + ": a run without a run id cannot be recorded");
   if (run.started_utc.empty())
     throw ResultsError(location_ + ": run " + run.run_id + " has no start time and cannot be recorded");
@@ -42,14 +42,14 @@ void ResultsStore::check(const RunRecord& run) const {
     throw ResultsError(location_ + ": run " + run.run_id + " is " + toString(run.status) + " but gives no reason");
 }
 
-void ResultsStore::recordFailedRun(RunRecord run, const std::string& reason) {
+void ResultsStore::recordFailedRun(RunRow run, const std::string& reason) {
   if (reason.empty()) throw ResultsError(location_ + ": run " + run.run_id + " recorded as failed needs a reason");
   run.status = RunStatus::Failed;
   run.reason = reason;
   recordRun(run);
 }
 
-std::vector<RunRecord> ResultsStore::queryRuns(const RunFilter& filter) const {
+std::vector<RunRow> ResultsStore::queryRuns(const RunFilter& filter) const {
   RunFilter normalized = filter;
   if (!filter.since.empty()) normalized.since = normalizeSince(filter.since);
   return selectRuns(normalized);

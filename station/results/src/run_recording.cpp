@@ -1,12 +1,14 @@
 #include "stampscan/results/run_recording.hpp"
 
+#include "stampscan/run_folder/folder_name.hpp"
+#include "stampscan/run_folder/run_record.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
 #include <ctime>
 #include <fstream>
-#include <regex>
 #include <sstream>
 
 namespace stampscan::results {
@@ -53,16 +55,6 @@ std::optional<double> number(const nlohmann::json& j, const char* key) {
   return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
 }
 
-// Run folders are named <yyyymmdd>-<hhmmss>-<part id>, the time in UTC (the scan's naming).
-bool startFromFolderName(const std::string& name, std::string& started, std::string& part_id) {
-  static const std::regex pattern(R"((\d{4})(\d{2})(\d{2})-(\d{2})(\d{2})(\d{2})-(.+))");
-  std::smatch m;
-  if (!std::regex_match(name, m, pattern)) return false;
-  started = m[1].str() + "-" + m[2].str() + "-" + m[3].str() + "T" + m[4].str() + ":" + m[5].str() + ":" + m[6].str() + "Z";
-  part_id = m[7].str();
-  return true;
-}
-
 // A folder not named by the scan: the time its run.json (or the folder) was last written.
 std::string startFromFileTime(const fs::path& file) {
   std::error_code error;
@@ -79,38 +71,46 @@ std::string startFromFileTime(const fs::path& file) {
 
 }  // namespace
 
-RunRecord readRunRecord(const fs::path& run_dir_in) {
+RunRow readRunRow(const fs::path& run_dir_in) {
   const fs::path run_dir = normalFolder(run_dir_in);
-  RunRecord r;
+  RunRow r;
   r.run_id = run_dir.filename().string();
   r.run_dir = run_dir.string();
-  bool has_run = false, has_report = false;
+  // run.json (the scan's record) and report.json (the report's); a damaged one makes the run failed.
   std::string run_problem, report_problem;
-  const nlohmann::json run = readJson(run_dir / "run.json", has_run, run_problem);
+  std::optional<run_folder::RunRecord> run;
+  try {
+    run = run_folder::readRunRecord(run_dir);
+  } catch (const run_folder::RunRecordError& e) {
+    run_problem = e.what();
+  }
+  const bool has_run = run.has_value() || !run_problem.empty();
+  bool has_report = false;
   const nlohmann::json report = readJson(run_dir / "report.json", has_report, report_problem);
   if (!has_run && !has_report)
     throw ResultsError(run_dir.string() + ": not a run folder (neither run.json nor report.json)");
 
-  std::string folder_part;
-  const bool named = startFromFolderName(r.run_id, r.started_utc, folder_part);
-  r.part_id = text(run, "part_id");
+  const std::optional<run_folder::FolderName> name = run_folder::parseRunFolderName(r.run_id);
+  if (name) r.started_utc = name->started_utc;
+  if (run) r.part_id = run->part_id;
   if (r.part_id.empty()) r.part_id = text(report, "part_id");
-  if (r.part_id.empty()) r.part_id = folder_part;
-  if (!named) r.started_utc = startFromFileTime(run_dir / (has_run ? "run.json" : "report.json"));
-  r.plan = text(run, "plan");
-  r.cell = text(run, "cell");
+  if (r.part_id.empty() && name) r.part_id = name->part_id;
+  if (!name) r.started_utc = startFromFileTime(run_dir / (has_run ? run_folder::kRunRecordFile : "report.json"));
   // The report's program and material are the ones it used (an option may override run.json's).
   r.program = text(report, "program");
-  if (r.program.empty()) r.program = text(run, "program");
   r.material = text(report, "material");
-  if (r.material.empty()) r.material = text(run, "material");
-  if (const auto m = run.find("measurement"); m != run.end() && m->is_object())
-    if (const auto e = number(*m, "elements")) r.elements = static_cast<std::int64_t>(*e);
-  if (const auto a = run.find("accuracy"); a != run.end() && a->is_object()) {
-    r.position_rms_mm = number(*a, "position_rms_mm");
-    r.strain_rms = number(*a, "strain_rms");
+  if (run) {
+    r.plan = run->plan;
+    r.cell = run->cell;
+    if (r.program.empty()) r.program = run->program;
+    if (r.material.empty()) r.material = run->material;
+    if (run->measurement) r.elements = run->measurement->elements;
+    if (run->accuracy) {
+      r.position_rms_mm = run->accuracy->position_rms_mm;
+      r.strain_rms = run->accuracy->strain_rms;
+    }
+    r.data_loss = run->data_loss;
   }
-  r.data_loss = text(run, "data_loss");
 
   r.verdict = text(report, "verdict");
   r.max_thinning_percent = number(report, "max_thinning_percent");
@@ -119,9 +119,9 @@ RunRecord readRunRecord(const fs::path& run_dir_in) {
   if (const auto e = number(report, "elements")) r.elements = static_cast<std::int64_t>(*e);
 
   // The status, most telling reason first.
-  if (has_run && run.value("completed", true) == false) {
+  if (run && !run->completed) {
     r.status = RunStatus::Aborted;
-    r.reason = text(run, "abort_reason");
+    r.reason = run->abort_reason;
     if (r.reason.empty()) r.reason = "the scan was aborted (run.json gives no reason)";
   } else if (!run_problem.empty() || !report_problem.empty()) {
     r.status = RunStatus::Failed;
@@ -136,9 +136,9 @@ RunRecord readRunRecord(const fs::path& run_dir_in) {
   return r;
 }
 
-RunRecord recordRunInResults(const fs::path& run_dir, const std::string& runs_dir_or_url,
+RunRow recordRunInResults(const fs::path& run_dir, const std::string& runs_dir_or_url,
                              const std::string& failure_reason) {
-  RunRecord r = readRunRecord(run_dir);
+  RunRow r = readRunRow(run_dir);
   // The processing's own error is the better reason (a missing report.json is only its consequence);
   // an aborted scan keeps the abort's reason.
   if (!failure_reason.empty() && r.status != RunStatus::Aborted) {
@@ -149,7 +149,7 @@ RunRecord recordRunInResults(const fs::path& run_dir, const std::string& runs_di
   return r;
 }
 
-RunRecord recordRunInResults(const fs::path& run_dir) {
+RunRow recordRunInResults(const fs::path& run_dir) {
   fs::path runs = normalFolder(run_dir).parent_path();
   if (runs.empty()) runs = ".";
   return recordRunInResults(run_dir, runs.string());

@@ -34,6 +34,19 @@ inline constexpr const char* kRunColumns[] = {
     "run_dir",          "status",           "reason"};
 inline constexpr std::size_t kRunColumnCount = sizeof kRunColumns / sizeof kRunColumns[0];
 
+// A run row's fields in kRunColumns order, the one mapping both databases read and write by:
+// `columns` has text(s), number(optional double) and count(optional integer), called once per
+// column with the field (const when writing). `status` stands for the status column, as its text.
+template <class Row, class Status, class Columns>
+void visitRunColumns(Row& run, Status& status, Columns& columns) {
+  columns.text(run.run_id), columns.text(run.part_id), columns.text(run.program), columns.text(run.plan);
+  columns.text(run.cell), columns.text(run.started_utc), columns.text(run.material), columns.text(run.verdict);
+  columns.number(run.max_thinning_percent), columns.number(run.min_margin_percent);
+  columns.number(run.marginal_band_percent), columns.count(run.elements);
+  columns.number(run.position_rms_mm), columns.number(run.strain_rms), columns.text(run.data_loss);
+  columns.text(run.run_dir), columns.text(status), columns.text(run.reason);
+}
+
 // "INSERT INTO runs (...) VALUES (...) ON CONFLICT (run_id) DO UPDATE SET ...", with the
 // placeholders the database wants (? or $1, ...): placeholder(i) for column i (from 0).
 std::string upsertSql(const std::function<std::string(std::size_t)>& placeholder);

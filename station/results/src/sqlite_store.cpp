@@ -72,13 +72,13 @@ class SqliteStore final : public ResultsStore {
   }
 
  protected:
-  void upsertRuns(const std::vector<RunRecord>& runs) override {
-    const RunRecord* current = &runs.front();
+  void upsertRuns(const std::vector<RunRow>& runs) override {
+    const RunRow* current = &runs.front();
     try {
       WriteTransaction transaction(*db_);
       SQLite::Statement insert(*db_, schema::upsertSql([](std::size_t) { return std::string("?"); }));
       const std::string recorded = schema::nowUtc();
-      for (const RunRecord& run : runs) {
+      for (const RunRow& run : runs) {
         current = &run;
         bind(insert, run, recorded);
         insert.exec();
@@ -92,44 +92,48 @@ class SqliteStore final : public ResultsStore {
     }
   }
 
-  static void bind(SQLite::Statement& insert, const RunRecord& run, const std::string& recorded) {
-    int k = 1;
-    const auto text = [&](const std::string& v) { insert.bind(k++, v); };
-    const auto number = [&](const std::optional<double>& v) {
-      if (v) insert.bind(k++, *v);
-      else insert.bind(k++);
-    };
-    text(run.run_id), text(run.part_id), text(run.program), text(run.plan), text(run.cell), text(run.started_utc);
-    text(run.material), text(run.verdict), number(run.max_thinning_percent), number(run.min_margin_percent);
-    number(run.marginal_band_percent);
-    if (run.elements) insert.bind(k++, static_cast<std::int64_t>(*run.elements));
-    else insert.bind(k++);
-    number(run.position_rms_mm), number(run.strain_rms), text(run.data_loss), text(run.run_dir);
-    text(toString(run.status)), text(run.reason), text(recorded);
+  static void bind(SQLite::Statement& insert, const RunRow& run, const std::string& recorded) {
+    struct Binder {
+      SQLite::Statement& insert;
+      int k = 1;
+      void text(const std::string& v) { insert.bind(k++, v); }
+      void number(const std::optional<double>& v) {
+        if (v) insert.bind(k++, *v);
+        else insert.bind(k++);
+      }
+      void count(const std::optional<std::int64_t>& v) {
+        if (v) insert.bind(k++, *v);
+        else insert.bind(k++);
+      }
+    } binder{insert};
+    const std::string status = toString(run.status);
+    schema::visitRunColumns(run, status, binder);
+    binder.text(recorded);
   }
 
-  std::vector<RunRecord> selectRuns(const RunFilter& filter) const override {
-    std::vector<RunRecord> runs;
+  std::vector<RunRow> selectRuns(const RunFilter& filter) const override {
+    std::vector<RunRow> runs;
     try {
       std::vector<std::string> values;
       SQLite::Statement query(*db_, schema::selectSql(filter, [](std::size_t) { return std::string("?"); }, values));
       for (std::size_t i = 0; i < values.size(); ++i) query.bind(static_cast<int>(i + 1), values[i]);
       while (query.executeStep()) {
-        RunRecord& r = runs.emplace_back();
-        int c = 0;
-        const auto text = [&](std::string& out) { out = query.getColumn(c++).getString(); };
-        const auto number = [&](std::optional<double>& out) {
-          const SQLite::Column column = query.getColumn(c++);
-          if (!column.isNull()) out = column.getDouble();
-        };
-        text(r.run_id), text(r.part_id), text(r.program), text(r.plan), text(r.cell), text(r.started_utc);
-        text(r.material), text(r.verdict), number(r.max_thinning_percent), number(r.min_margin_percent);
-        number(r.marginal_band_percent);
-        if (const SQLite::Column elements = query.getColumn(c++); !elements.isNull()) r.elements = elements.getInt64();
-        number(r.position_rms_mm), number(r.strain_rms), text(r.data_loss), text(r.run_dir);
+        RunRow& r = runs.emplace_back();
+        struct Reader {
+          SQLite::Statement& query;
+          int c = 0;
+          void text(std::string& out) { out = query.getColumn(c++).getString(); }
+          void number(std::optional<double>& out) {
+            const SQLite::Column column = query.getColumn(c++);
+            if (!column.isNull()) out = column.getDouble();
+          }
+          void count(std::optional<std::int64_t>& out) {
+            const SQLite::Column column = query.getColumn(c++);
+            if (!column.isNull()) out = column.getInt64();
+          }
+        } reader{query};
         std::string status;
-        text(status);
-        text(r.reason);
+        schema::visitRunColumns(r, status, reader);
         try {
           r.status = runStatusFromString(status);
         } catch (const ResultsError& e) {

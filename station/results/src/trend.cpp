@@ -7,10 +7,10 @@
 
 namespace stampscan::results {
 
-TrendAnalysis analyzeTrend(const std::vector<RunRecord>& runs, const TrendParams& params) {
+TrendAnalysis analyzeTrend(const std::vector<RunRow>& runs, const TrendParams& params) {
   TrendAnalysis t;
   t.band_percent = params.default_band_percent;
-  for (const RunRecord& r : runs) {
+  for (const RunRow& r : runs) {
     if (r.status != RunStatus::Ok) {
       ++t.runs_not_analysed;
       continue;

@@ -145,7 +145,7 @@ TEST_F(CmmDriver, GoToReportsPositionsAlongTheTrapezoid) {
       EXPECT_GE(dt, 0.1 - 1e-9) << "more than 10 reports a second (6.3.2.7)";
       EXPECT_LE((along - previous_along) / dt, speed * (1 + 1e-9)) << "report " << i << " faster than the speed";
     }
-    EXPECT_GT(r.station_time_ns, 0);
+    EXPECT_GT(r.arrival_steady_ns, 0);
     previous_along = along;
   }
 

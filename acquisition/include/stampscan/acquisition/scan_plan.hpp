@@ -16,7 +16,7 @@
 //   pitch = 2.54                  # mm; also circle_diameter and line_width
 //   [[step]]
 //   kind = "sweep"                # the digitizer scans from start to end at speed
-//   scene = "part"                # part, reference_sphere, calibration_plate
+//   scene = "part"                # part, reference_sphere, calibration_plate, second_sphere
 //   start = [-30, -40, 160]       # mm: the head's reference point
 //   end = [-30, 40, 160]
 //   head = [0, -2]                # degrees: tilt a, turn b (see trace::headPose)
@@ -36,10 +36,13 @@
 // Errors name the file, the line and the field.
 #pragma once
 
+#include "stampscan/acquisition/trace/trace_messages.hpp"
+
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -55,17 +58,11 @@ struct HeadPose {
   bool operator==(const HeadPose&) const = default;
 };
 
-// The scenes a plan looks at; they bracket the recorded data (SceneMarker) and tell the measuring
-// path which sweeps calibrate the digitizer and which measure the part.
-inline constexpr const char* kScenePart = "part";
-inline constexpr const char* kSceneSphere = "reference_sphere";
-inline constexpr const char* kScenePlate = "calibration_plate";
-// The ball bar's second sphere, at a certified distance from the reference sphere: the length check
-// of `station verify` (ISO 10360-8's length measurement error).
-inline constexpr const char* kSceneSecondSphere = "second_sphere";
+// The scenes a plan looks at (trace/trace_messages.hpp says what each is).
+using trace::Scene;
 
 struct SweepStep {
-  std::string scene = kScenePart;
+  Scene scene = Scene::Part;
   std::uint32_t index = 0;  // within the scene
   HeadPose start, end;      // the head moves from start to end in a straight line, angles fixed
   double speed = 25;        // mm/s
@@ -76,7 +73,7 @@ struct SweepStep {
 };
 
 struct StereoStep {
-  std::string scene = kScenePart;
+  Scene scene = Scene::Part;
   std::uint32_t index = 0;
   HeadPose pose;
   double settle_s = 0.4;  // wait after arriving before the trigger
@@ -99,8 +96,9 @@ struct ScanPlan {
   HeadPose park{{0, 0, 450}, 0, 0};
   std::vector<PlanStep> steps;
 
-  std::size_t sweepCount(const std::string& scene = "") const;
-  std::size_t stereoCount(const std::string& scene = "") const;
+  // Of one scene, or of all.
+  std::size_t sweepCount(std::optional<Scene> scene = std::nullopt) const;
+  std::size_t stereoCount(std::optional<Scene> scene = std::nullopt) const;
   bool operator==(const ScanPlan&) const = default;
 };
 

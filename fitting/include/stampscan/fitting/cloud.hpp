@@ -40,6 +40,17 @@ struct Cloud {
   void appendPoint(const Cloud& other, std::size_t i);
 };
 
+// The Cloud4D's scalars, named here once. A grid element carries, beside its thickness strain
+// (Cloud::strain), its in-plane true strains, the major strain's direction in the surface (unit,
+// machine frame), the sensor path that measured it (registration::Source as a number), the sweep or
+// view, its fit's RMS (mm) and how many measurements were merged into it.
+inline constexpr char kMajorStrain[] = "major_strain";
+inline constexpr char kMinorStrain[] = "minor_strain";
+inline constexpr const char* kMajorDirection[3] = {"major_dir_x", "major_dir_y", "major_dir_z"};
+inline constexpr char kSource[] = "source";
+inline constexpr char kView[] = "view";
+inline constexpr char kFitQuality[] = "quality";
+inline constexpr char kMeasurementCount[] = "measurements";
 // Cloud4D scalars with a meaning downstream stages rely on: the standard (k = 1) uncertainty of a
 // point's strain, and of its position along each axis (mm) (a strain field weights its samples by
 // the first when a cloud has it); the fitted surface's strain there.

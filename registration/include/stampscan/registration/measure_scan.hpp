@@ -51,7 +51,7 @@ struct MeasureParams {
 std::vector<std::vector<Profile>> sphereSweepProfiles(const ScanTrace& trace, const HeadTrack& track,
                                                       std::int64_t clock_offset_ns, std::int64_t latency_ns,
                                                       double max_track_error_mm,
-                                                      const std::string& scene = "reference_sphere");
+                                                      trace::Scene scene = trace::Scene::ReferenceSphere);
 
 // The cameras calibrated on a trace's plate views: each camera and the pair (calibrateStereo) and,
 // when the head track covers at least three views, the left camera's mount on the head (hand-eye,

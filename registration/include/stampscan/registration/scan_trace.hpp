@@ -28,7 +28,7 @@ namespace stampscan::registration {
 struct SweepWindow {
   std::string label;  // the CMM event's detail, e.g. "part sweep 3", "reference_sphere sweep 0"
   std::int64_t begin_ns = 0, end_ns = 0;  // station clock
-  bool is(const std::string& scene) const { return label.rfind(scene + " sweep", 0) == 0; }
+  bool is(trace::Scene scene) const { return trace::isSweepOf(label, scene); }
 };
 
 struct CameraImage {
@@ -71,7 +71,7 @@ class ScanTraceBuilder {
  private:
   bool keep_part_frames_;
   ScanTrace out_;
-  std::string scene_;  // the scene the frames belong to, from the scene markers
+  std::optional<trace::Scene> scene_;  // the scene the frames belong to, from the scene markers
   std::map<std::uint64_t, std::pair<trace::CameraFrame, trace::CameraFrame>> pending_pairs_;  // by trigger
   std::int64_t sweep_begin_ = -1;
   std::string sweep_label_;

@@ -55,11 +55,20 @@ struct StereoStats {
   std::size_t left_rings = 0, right_rings = 0, without_prior = 0, unmatched = 0, matched = 0, rejected_fit = 0;
 };
 
-// One stereo pair taken with the head at `machine_from_head`. `prior` holds points of the part's
-// surface (machine frame) to resolve the matching; without it nothing can be matched.
-std::vector<GridElement> measureStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoRig& rig,
-                                           const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior,
-                                           const RingDetectionParams& params, std::uint32_t view,
+// One stereo view to measure: both images, taken with the head at `machine_from_head`, and points
+// of the part's surface (machine frame) that resolve the matching; without them nothing can be
+// matched. Everything is borrowed for the call.
+struct StereoView {
+  const cv::Mat& left;
+  const cv::Mat& right;
+  const StereoRig& rig;
+  Eigen::Isometry3d machine_from_head = Eigen::Isometry3d::Identity();
+  const std::vector<Vec3>& prior;
+  std::uint32_t index = 0;  // the view's number, which its elements carry (GridElement::view)
+};
+
+// The rings of one stereo view.
+std::vector<GridElement> measureStereoPair(const StereoView& view, const RingDetectionParams& params,
                                            StereoStats* stats = nullptr);
 
 }  // namespace stampscan::registration

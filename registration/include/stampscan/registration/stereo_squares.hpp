@@ -31,11 +31,9 @@ struct ImageCell {
 // `expected_pitch_px` is the unstrained pitch in pixels at the working distance.
 std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pitch_px, const SquareDetectionParams& params);
 
-// One stereo pair taken with the head at `machine_from_head`; `prior` as for measureStereoPair.
-// Each element is a cell's centre; fit_rms holds the corners' misfit to a parallelogram (mm).
-std::vector<GridElement> measureStereoSquares(const cv::Mat& left, const cv::Mat& right, const StereoRig& rig,
-                                              const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior,
-                                              const SquareDetectionParams& params, std::uint32_t view,
+// The square cells of one stereo view (stereo_rings.hpp). Each element is a cell's centre; fit_rms
+// holds the corners' misfit to a parallelogram (mm).
+std::vector<GridElement> measureStereoSquares(const StereoView& view, const SquareDetectionParams& params,
                                               StereoStats* stats = nullptr);
 
 }  // namespace stampscan::registration

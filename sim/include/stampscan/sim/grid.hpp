@@ -37,8 +37,13 @@ BlankRect printedArea(const GridSpec& grid, const BlankRect& blank);
 // centres. Row-major, rows along v.
 std::vector<Vec2> gridElements(const GridSpec& grid, const BlankRect& blank);
 
+// The truth's scalars beyond the Cloud4D's (fitting/cloud.hpp): where the element was printed on
+// the blank (mm).
+inline constexpr char kMaterialU[] = "material_u";
+inline constexpr char kMaterialV[] = "material_v";
+
 // Ground truth at every grid element of a formed part: positions, normals, thickness strain and the
-// scalars major_strain, minor_strain, major_dir_x/y/z (unit, tangent) and material_u/v. Positions,
+// Cloud4D's scalars kMajorStrain, kMinorStrain, kMajorDirection (unit, tangent), and kMaterialU/V. Positions,
 // normals and directions are in the part's datum frame, or carried by `machine_from_datum` (where the
 // fixture holds the part: machineFromDatum in scan_scenario.hpp) into the machine frame.
 fitting::Cloud groundTruth(const FormedPart& part, const GridSpec& grid,

@@ -51,7 +51,6 @@ class EventHub {
   void unsubscribe(const std::shared_ptr<Subscription>& subscription);
   // Wakes every subscriber for good (the server is stopping).
   void close();
-  std::size_t subscribers() const;
 
  private:
   std::size_t queue_limit_;

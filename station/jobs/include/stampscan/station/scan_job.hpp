@@ -1,15 +1,17 @@
-// A scan job: what `station scan` does, and what the operator's panel will start. A plan on a cell
+// A scan job: what `station scan`, the operator's panel and the line's PLC start. A plan on a cell
 // into a run folder: the trace recorded live by the ScanRunner and, at the same time, measured as
 // its steps complete (live_measurement.hpp: the calibrations after their scenes, each sweep while
-// the next is scanned), then fitted and written with a run.json summary, the forming-limit report
-// and a row of the results history. A sensor the plan does not calibrate itself is measured with
+// the next is scanned, the surface's shape fitted from the last part sweep on), then written with
+// its run.json (station/run_folder/run_record.hpp), the forming-limit report and a row of the
+// results history. A sensor the plan does not calibrate itself is measured with
 // the calibration in use (`station calibrate`), checked against the cell and its sensors before
 // anything moves. The command and the panel differ only in how they show progress (the observer)
 // and how they abort (abort()).
 //
 //   RUNS/<UTC time>-<part id>/trace.mcap   every device message as it arrived
-//                            cloud4d.ply   the grid elements with their strains
-//                            fitted.ply    the fitted surface, one point per element, coloured by thinning
+//                            cloud4d.ply   the grid elements with their strains, one per printed element
+//                            measurements.ply every sweep's and view's measurement of them
+//                            fitted.ply    the fitted surface, points 0.5 mm apart, with strain
 //                            mesh.ply      the fitted surface as a mesh
 //                            run.json      part id, plan, cell, devices, calibration used, counts, times,
 //                                          outcome (and the accuracy against the truth when the cell is
@@ -184,6 +186,11 @@ class ScanJob {
   acquisition::ScanRunner* runner_ = nullptr;  // while a run is under way
   class LiveMeasurement* live_ = nullptr;        // while its measurement is
   std::optional<std::string> pending_abort_;
+
+  // The plan on the cell, recorded into the trace file and fed to `live` as it comes.
+  acquisition::ScanRunResult runOnCell(const acquisition::ScanPlan& plan, const acquisition::ScanRunParams& params,
+                                       trace::TraceSink& live, acquisition::ScanObserver& observer,
+                                       const std::filesystem::path& trace_file);
 };
 
 // Every measured element against the nearest true one; with `visible` (per true element, as

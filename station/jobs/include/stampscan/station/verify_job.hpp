@@ -52,7 +52,7 @@ struct VerifyJobOptions {
   // The certified diameter is taken from the session description (the cell's sphere).
   registration::SphereVerificationParams sphere;
   // The ball bar's second sphere and its certified distance from the reference sphere; the plan
-  // must sweep it (acquisition::kSceneSecondSphere). Absent: no length check.
+  // must sweep it (acquisition::Scene::SecondSphere). Absent: no length check.
   struct BallBar {
     double second_diameter_mm = 25.4, distance_mm = 0, mpe_mm = 0.05;
   };

@@ -10,9 +10,9 @@
 namespace stampscan::results {
 
 // One line per run: start, part, program, verdict, figures, status and reason.
-std::string historyTable(const std::vector<RunRecord>& runs);
+std::string historyTable(const std::vector<RunRow>& runs);
 // A header line, then one line per run; numbers with full precision, empty cells when absent.
-std::string historyCsv(const std::vector<RunRecord>& runs);
+std::string historyCsv(const std::vector<RunRow>& runs);
 // A number with `decimals` decimals, or `absent` when there is none.
 std::string formatNumber(const std::optional<double>& v, int decimals, const std::string& absent = "-");
 

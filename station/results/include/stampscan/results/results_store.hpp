@@ -38,9 +38,9 @@ const char* toString(RunStatus status);  // "ok", "failed", "aborted"
 // Throws ResultsError for any other text.
 RunStatus runStatusFromString(const std::string& text);
 
-// One run. Text fields are "" when unknown; numbers are empty when the run has none (a failed run
+// One run as a row of the history (its folder's run.json and report.json, run_recording.hpp). Text fields are "" when unknown; numbers are empty when the run has none (a failed run
 // has no verdict and no figures).
-struct RunRecord {
+struct RunRow {
   std::string run_id;       // the run folder's name, unique
   std::string part_id, program, plan, cell;
   std::string started_utc;  // ISO 8601, UTC: 2026-11-24T09:16:02Z
@@ -93,12 +93,12 @@ class ResultsStore {
 
   // Inserts the run, or replaces the row with the same run_id. Throws ResultsError when the record
   // lacks an id or start time, or the database cannot be written.
-  void recordRun(const RunRecord& run);
+  void recordRun(const RunRow& run);
   // Many runs in one transaction (all or none): re-indexing a runs folder, importing a history.
-  void recordRuns(const std::vector<RunRecord>& runs);
+  void recordRuns(const std::vector<RunRow>& runs);
   // The run as failed, with its reason (which must not be empty); verdict and figures as given.
-  void recordFailedRun(RunRecord run, const std::string& reason);
-  std::vector<RunRecord> queryRuns(const RunFilter& filter = {}) const;
+  void recordFailedRun(RunRow run, const std::string& reason);
+  std::vector<RunRow> queryRuns(const RunFilter& filter = {}) const;
   // Inserts the calibration, or replaces the row with the same record id. Throws ResultsError when
   // the row lacks an id, kind or creation time, has another verdict than passed, failed or
   // accepted, or the database cannot be written.
@@ -113,14 +113,14 @@ class ResultsStore {
   explicit ResultsStore(std::string location) : location_(std::move(location)) {}
   // The implementations only talk to their database; checks and normalising happen above.
   // Inserts or replaces the rows in one transaction.
-  virtual void upsertRuns(const std::vector<RunRecord>& runs) = 0;
-  virtual std::vector<RunRecord> selectRuns(const RunFilter& normalized) const = 0;
+  virtual void upsertRuns(const std::vector<RunRow>& runs) = 0;
+  virtual std::vector<RunRow> selectRuns(const RunFilter& normalized) const = 0;
   virtual int storedSchemaVersion() const = 0;
   virtual void upsertCalibration(const CalibrationRow& calibration) = 0;
   virtual std::vector<CalibrationRow> selectCalibrations(const std::string& kind, std::size_t limit) const = 0;
 
  private:
-  void check(const RunRecord& run) const;
+  void check(const RunRow& run) const;
 
   std::string location_;
 };

@@ -42,7 +42,7 @@ struct TrendAnalysis {
   std::string message;  // the warning, or what the trend says when there is none
 };
 
-TrendAnalysis analyzeTrend(const std::vector<RunRecord>& runs, const TrendParams& params = {});
+TrendAnalysis analyzeTrend(const std::vector<RunRow>& runs, const TrendParams& params = {});
 // The rule above, in one line, for the command's output.
 std::string describeTrendRule(const TrendParams& params);
 // One line per part: time, part, max thinning, min margin, verdict.

@@ -69,7 +69,6 @@ class McapWriter {
 
   bool isOpen() const;
   const std::filesystem::path& path() const;
-  std::uint64_t bytesWritten() const;  // file size so far (the open chunk not included)
   const Statistics& statistics() const;
 
  private:

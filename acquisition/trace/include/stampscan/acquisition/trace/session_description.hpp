@@ -19,6 +19,9 @@
 
 namespace stampscan::trace {
 
+// What a trace's station times are (the clocks: trace_messages.hpp).
+inline constexpr char kStationClockText[] = "the station computer's system clock, ns since the Unix epoch";
+
 // A rigid transform: x' = R x + t. Row-major rotation; mm.
 struct RigidPose {
   std::array<double, 9> rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -68,7 +71,7 @@ struct SessionDescription {
   std::optional<PlateRecord> plate;
   std::optional<double> reference_sphere_radius_mm;
 
-  std::string station_clock = "CMM controller clock, ns since the Unix epoch";
+  std::string station_clock = kStationClockText;  // what the trace's station times are (trace_messages.hpp)
 
   bool operator==(const SessionDescription&) const = default;
 };

@@ -1,9 +1,16 @@
 // The messages of a scan trace: one type per device stream, encoded as ROS 2 CDR (little endian)
 // with `ros2msg` schemas, so that MCAP tools (the mcap CLI, Foxglove) decode them without our code.
 //
-// Clocks: `station_time_ns` is the station clock, which is the CMM controller's clock (the station
-// takes its time base from the CMM's position reports). `device_time_ns` is the clock of the device
-// that produced the message; ClockSync messages pair the two.
+// Clocks, one name each:
+//   - the station clock (`station_time_ns`, and every trace's log time): the station computer's
+//     system clock in ns since the Unix epoch (acquisition/station_clock.hpp), the one time base of
+//     a scan. The CMM's position reports stamped by the CMM controller's clock are put on it by the
+//     smallest arrival delay seen (acquisition/scan_runner.cpp); the drivers' arrival stamps, taken
+//     on std::chrono::steady_clock, by StationClock::fromSteady.
+//   - a device clock (`device_time_ns`): the clock of the device that produced the message (the
+//     digitizer's, a camera's); ClockSync messages pair it with the station clock.
+//   - std::chrono::steady_clock: deadlines and intervals only (timeouts, arrival stamps in the
+//     drivers), never written as a time of its own.
 #pragma once
 
 #include <cstddef>
@@ -12,6 +19,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <iosfwd>
+#include <optional>
 #include <vector>
 
 namespace stampscan::trace {
@@ -29,11 +38,49 @@ struct CmmPosition {
   double head_a = 0, head_b = 0;     // rad: tilt about the ram's x axis, then turn about z
 };
 
-// A CMM event: move started or ended, sweep started or ended, error, abort.
+// The scenes a scan looks at. They bracket the recorded data (SceneMarker) and tell the measuring
+// path which sweeps calibrate the digitizer and which measure the part; a plan's steps name theirs.
+// In a trace and in a plan file each is its text, toString().
+enum class Scene : std::uint8_t {
+  Part,              // "part"
+  ReferenceSphere,   // "reference_sphere"
+  CalibrationPlate,  // "calibration_plate"
+  // "second_sphere": the ball bar's second sphere, at a certified distance from the reference
+  // sphere (the length check of `station verify`, ISO 10360-8's length measurement error).
+  SecondSphere,
+};
+std::string_view toString(Scene scene);
+std::optional<Scene> sceneFromString(std::string_view text);
+std::ostream& operator<<(std::ostream& out, Scene scene);  // its text
+// Every scene's text, for messages: "part, reference_sphere, calibration_plate, second_sphere".
+std::string sceneNames();
+
+// What a CMM event says. On the wire (the trace) each kind is its text, toString(); a trace that
+// holds a kind this station does not know reads as Unknown.
+enum class CmmEventKind : std::uint8_t {
+  MoveBegin,       // "move_begin": a move between steps starts; detail: "home", "travel", "park"
+  MoveEnd,         // "move_end"
+  SweepBegin,      // "sweep_begin": a laser sweep starts; detail: the sweep's label
+  SweepEnd,        // "sweep_end"
+  SweepDiscarded,  // "sweep_discarded": the sweep of that label lost too many profiles and is run again
+  ViewMissing,     // "view_missing": a stereo view got no frames from a camera; detail: which
+  Abort,           // "abort": the scan stopped early; detail: why
+  Unknown,         // any other text
+};
+std::string_view toString(CmmEventKind kind);
+CmmEventKind cmmEventKindFromString(std::string_view text);
+std::ostream& operator<<(std::ostream& out, CmmEventKind kind);  // its text
+
+// A sweep's label, the detail of its events: "<scene> sweep <index>" ("part sweep 3").
+std::string sweepLabel(Scene scene, std::uint32_t index);
+// Whether a label is a sweep of that scene.
+bool isSweepOf(const std::string& label, Scene scene);
+
+// A CMM event: a move or a sweep started or ended, a view missing, an abort.
 struct CmmEvent {
   std::int64_t station_time_ns = 0;
-  std::string kind;    // e.g. "move_begin", "move_end", "sweep_begin", "sweep_end", "error"
-  std::string detail;  // free text, e.g. the sweep id or the error
+  CmmEventKind kind = CmmEventKind::Unknown;
+  std::string detail;  // free text, e.g. the sweep's label or the abort's reason
 };
 
 // One profile of the laser digitizer: the fan swept once by the internal mirror. Point i was
@@ -82,10 +129,11 @@ struct PlcState {
   std::uint32_t heartbeat = 0;
 };
 
-// Brackets the phases of a trace: which scene the sensors are looking at.
+// Brackets the phases of a trace: which scene the sensors are looking at. A marker naming another
+// scene does not decode (MessageError).
 struct SceneMarker {
   std::int64_t station_time_ns = 0;
-  std::string scene;   // "calibration_plate", "reference_sphere", "part"
+  Scene scene = Scene::Part;
   std::string phase;   // "begin" or "end"
   std::uint32_t index = 0;  // pose or sweep number within the scene
   std::string detail;

@@ -27,9 +27,7 @@ struct ReplayClock {
   std::function<void(std::int64_t)> sleep_until_ns;  // returns once now_ns() has reached the argument
 };
 
-// std::chrono::steady_clock and std::this_thread::sleep_until. A TraceReplayer given no clock uses
-// steady_clock with a sleep that stop() interrupts.
-ReplayClock steadyReplayClock();
+// A TraceReplayer given no clock uses std::chrono::steady_clock with a sleep that stop() interrupts.
 
 struct ReplayOptions {
   double speed = 1.0;          // 1: original timing, N: N times faster, 0: as fast as possible

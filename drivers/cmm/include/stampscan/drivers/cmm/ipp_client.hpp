@@ -85,7 +85,9 @@ struct CmmPose {
 };
 
 struct MoveReport {
-  std::int64_t station_time_ns = 0;      // station steady clock when the line arrived
+  // When the line arrived: std::chrono::steady_clock in ns (a reading for deadlines and intervals,
+  // not a date; acquisition::StationClock::fromSteady puts it on the station clock).
+  std::int64_t arrival_steady_ns = 0;
   std::optional<double> device_time_s;   // the CMM's clock (s since StartSession), if asked for
   CmmPosition position;
   std::optional<ToolOrientation> orientation;  // with MoveReportContent::PositionAndOrientation

@@ -66,8 +66,6 @@ class UsbDigitizer : public Device {
   ConfigReply configure(const DigitizerConfig& config);
   ConfigReply readConfig();
   DeviceStatus readStatus();
-  // The identity read at connect (also in identity()).
-  const Identity& deviceIdentity() const;
 
   // Starts streaming (state Busy): profiles go to `on_profile` on the event thread, in order.
   void start(ProfileCallback on_profile);

@@ -19,11 +19,11 @@ double millisecondsOf(const std::function<void()>& f) {
 TEST(HistoryFigure, QueriesOver100000Runs) {
   test::TempDir runs_dir;
   constexpr std::size_t kRuns = 100000, kPrograms = 50;
-  std::vector<RunRecord> runs;
+  std::vector<RunRow> runs;
   runs.reserve(kRuns);
   for (std::size_t k = 0; k < kRuns; ++k) {
     // One part a minute, round the clock, programs in turn.
-    RunRecord r = test::makeRun(test::numbered("P", k), test::numbered("program-", k % kPrograms), 1, 0);
+    RunRow r = test::makeRun(test::numbered("P", k), test::numbered("program-", k % kPrograms), 1, 0);
     char started[32];
     std::snprintf(started, sizeof started, "2026-%02zu-%02zuT%02zu:%02zu:00Z", 1 + k / (60 * 24 * 28), 1 + (k / (60 * 24)) % 28,
                   (k / 60) % 24, k % 60);
@@ -37,7 +37,7 @@ TEST(HistoryFigure, QueriesOver100000Runs) {
 
   StoreOptions read_only;
   read_only.read_only = true;
-  std::vector<RunRecord> found;
+  std::vector<RunRow> found;
   const double open_ms = millisecondsOf([&] { (void)openResultsStore(runs_dir.path().string(), read_only); });
   const auto reader = openResultsStore(runs_dir.path().string(), read_only);
   RunFilter program;
@@ -50,7 +50,7 @@ TEST(HistoryFigure, QueriesOver100000Runs) {
   recent.verdict = "good";
   const double recent_ms = millisecondsOf([&] { found = reader->queryRuns(recent); });
   EXPECT_FALSE(found.empty());
-  for (const RunRecord& r : found) EXPECT_GE(r.started_utc, "2026-03-01");
+  for (const RunRow& r : found) EXPECT_GE(r.started_utc, "2026-03-01");
   RunFilter last;
   last.limit = 50;
   const double last_ms = millisecondsOf([&] { found = reader->queryRuns(last); });

@@ -35,12 +35,12 @@ class TempDir {
 };
 
 // A good run of `program` started on 2026-11-<day> at <hour>:00 UTC.
-inline RunRecord makeRun(const std::string& part_id, const std::string& program, int day, int hour,
+inline RunRow makeRun(const std::string& part_id, const std::string& program, int day, int hour,
                          const std::string& verdict = "good", double min_margin = 20.0) {
   char started[32], id[64];
   std::snprintf(started, sizeof started, "2026-11-%02dT%02d:00:00Z", day, hour);
   std::snprintf(id, sizeof id, "202611%02d-%02d0000-%s", day, hour, part_id.c_str());
-  RunRecord r;
+  RunRow r;
   r.run_id = id;
   r.part_id = part_id;
   r.program = program;

@@ -32,7 +32,7 @@ Output run(const std::string& arguments) {
 class HistoryCommands : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::vector<RunRecord> runs;
+    std::vector<RunRow> runs;
     const double margins[] = {30, 30, 20, 18, 16, 14, 12};
     for (int k = 0; k < 7; ++k)
       runs.push_back(makeRun(test::numbered("H", static_cast<std::size_t>(k + 1)), "hood", k + 1, 8, "good", margins[k]));

@@ -1,6 +1,6 @@
 // `station report` as the operator runs it: what it prints, the exit code and the untouched folder on
 // bad input, and end to end on a simulated scan measured by `station process`.
-#include "../station/station_test_support.hpp"
+#include "../station_test_support.hpp"
 #include "report_test_support.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/report/forming_limit.hpp"

@@ -41,7 +41,7 @@ class RunRecording : public ::testing::Test {
     fs::create_directories(dir);
     return dir;
   }
-  std::vector<RunRecord> history() {
+  std::vector<RunRow> history() {
     return openResultsStore(runs_.path().string())->queryRuns();
   }
   test::TempDir runs_;
@@ -54,7 +54,7 @@ TEST_F(RunRecording, AReportedRunIsRecordedWithItsFigures) {
   recordRunInResults(dir);
   const auto runs = history();
   ASSERT_EQ(runs.size(), 1u);
-  const RunRecord& r = runs[0];
+  const RunRow& r = runs[0];
   EXPECT_EQ(r.run_id, "20261124-091602-D-0042");
   EXPECT_EQ(r.part_id, "D-0042");
   EXPECT_EQ(r.program, "dome-50");
@@ -85,11 +85,11 @@ TEST_F(RunRecording, AReportedRunIsRecordedWithItsFigures) {
 TEST_F(RunRecording, ARunWithoutAReportIsRecordedAsFailed) {
   const fs::path dir = runFolder();
   test::writeJson(dir / "run.json", runJson());
-  const RunRecord r = recordRunInResults(dir, runs_.path().string());
+  const RunRow r = recordRunInResults(dir, runs_.path().string());
   EXPECT_EQ(r.status, RunStatus::Failed);
   EXPECT_NE(r.reason.find("no report.json"), std::string::npos) << r.reason;
   // The scan's report error, when it gives one, is the reason.
-  const RunRecord with_reason =
+  const RunRow with_reason =
       recordRunInResults(dir, runs_.path().string(), "cloud4d.ply: damaged (truncated at byte 4096)");
   EXPECT_EQ(with_reason.reason, "cloud4d.ply: damaged (truncated at byte 4096)");
   ASSERT_EQ(history().size(), 1u);
@@ -113,7 +113,7 @@ TEST_F(RunRecording, ADamagedReportIsRecordedAsFailedNotLost) {
   const fs::path dir = runFolder();
   test::writeJson(dir / "run.json", runJson());
   std::ofstream(dir / "report.json") << "{\"verdict\": \"go";
-  const RunRecord r = recordRunInResults(dir);
+  const RunRow r = recordRunInResults(dir);
   EXPECT_EQ(r.status, RunStatus::Failed);
   EXPECT_NE(r.reason.find("report.json is damaged"), std::string::npos) << r.reason;
   EXPECT_EQ(history().size(), 1u);

@@ -175,7 +175,7 @@ TEST_P(StoreContract, RecordsCalibrationsReplacesThemByIdAndListsThemByKind) {
 
 TEST_P(StoreContract, RecordsARunAndUpdatesItWhenRecordedAgain) {
   const auto store = open();
-  RunRecord run = makeRun("P7", "hood", 3, 9);
+  RunRow run = makeRun("P7", "hood", 3, 9);
   run.position_rms_mm = 0.021;
   run.strain_rms = 0.004;
   run.reason = "";
@@ -186,7 +186,7 @@ TEST_P(StoreContract, RecordsARunAndUpdatesItWhenRecordedAgain) {
   store->recordRun(run);  // the report run again: the row is replaced
   const auto runs = store->queryRuns();
   ASSERT_EQ(runs.size(), 1u);
-  const RunRecord& r = runs[0];
+  const RunRow& r = runs[0];
   EXPECT_EQ(r.run_id, run.run_id);
   EXPECT_EQ(r.part_id, "P7");
   EXPECT_EQ(r.program, "hood");
@@ -208,14 +208,14 @@ TEST_P(StoreContract, RecordsARunAndUpdatesItWhenRecordedAgain) {
 
 TEST_P(StoreContract, RecordsAFailedRunWithItsReason) {
   const auto store = open();
-  RunRecord run = makeRun("P2", "hood", 4, 10);
+  RunRow run = makeRun("P2", "hood", 4, 10);
   run.verdict.clear();
   run.max_thinning_percent.reset();
   run.min_margin_percent.reset();
   run.elements.reset();
   store->recordFailedRun(run, "cloud4d.ply: damaged (truncated after 812 of 1200 vertices)");
   EXPECT_THROW(store->recordFailedRun(makeRun("P3", "hood", 4, 11), ""), ResultsError);
-  RunRecord aborted = makeRun("P4", "hood", 4, 12);
+  RunRow aborted = makeRun("P4", "hood", 4, 12);
   aborted.status = RunStatus::Aborted;
   EXPECT_THROW(store->recordRun(aborted), ResultsError);  // aborted needs a reason
   aborted.reason = "light curtain interrupted";
@@ -241,7 +241,7 @@ TEST_P(StoreContract, FiltersTheHistory) {
                      makeRun("B2", "door", 5, 8, "marginal", 7)});
   const auto ids = [&](const RunFilter& f) {
     std::string out;
-    for (const RunRecord& r : store->queryRuns(f)) {
+    for (const RunRow& r : store->queryRuns(f)) {
       if (!out.empty()) out += " ";
       out.append(r.part_id).append("/").append(r.program);
     }

@@ -23,7 +23,7 @@ std::vector<std::string> lines(const std::string& text) {
 }
 
 TEST(HistoryOutput, CsvHasEveryColumnAndQuotesWhatNeedsIt) {
-  RunRecord failed = makeRun("P2", "hood", 2, 8);
+  RunRow failed = makeRun("P2", "hood", 2, 8);
   failed.status = RunStatus::Failed;
   failed.reason = "cloud4d.ply: damaged, \"vertex 12\"";
   failed.min_margin_percent.reset();
@@ -41,7 +41,7 @@ TEST(HistoryOutput, CsvHasEveryColumnAndQuotesWhatNeedsIt) {
 }
 
 TEST(HistoryOutput, TableShowsOneAlignedLinePerRun) {
-  RunRecord failed = makeRun("P2", "hood", 2, 8);
+  RunRow failed = makeRun("P2", "hood", 2, 8);
   failed.status = RunStatus::Failed;
   failed.reason = "no report.json";
   const auto table = lines(historyTable({makeRun("P1", "hood", 1, 8), failed}));
@@ -55,8 +55,8 @@ TEST(HistoryOutput, TableShowsOneAlignedLinePerRun) {
 }
 
 // Parts with the given min margins, one a day (good above 10 %, marginal below).
-std::vector<RunRecord> partsWithMargins(const std::vector<double>& margins) {
-  std::vector<RunRecord> runs;
+std::vector<RunRow> partsWithMargins(const std::vector<double>& margins) {
+  std::vector<RunRow> runs;
   for (std::size_t k = 0; k < margins.size(); ++k)
     runs.push_back(makeRun(test::numbered("P", k + 1), "hood", static_cast<int>(k + 1), 8,
                            margins[k] < 10 ? "marginal" : "good", margins[k]));
@@ -89,8 +89,8 @@ TEST(Trend, ASlowFallFarFromTheBandDoesNotWarn) {
 }
 
 TEST(Trend, TooFewPartsGiveNoTrendAndFailedRunsAreLeftOut) {
-  std::vector<RunRecord> runs = partsWithMargins({20, 12});
-  RunRecord failed = makeRun("P9", "hood", 9, 8);
+  std::vector<RunRow> runs = partsWithMargins({20, 12});
+  RunRow failed = makeRun("P9", "hood", 9, 8);
   failed.status = RunStatus::Failed;
   failed.reason = "no report.json";
   runs.push_back(failed);

@@ -83,7 +83,7 @@ TEST(SqliteFiles, ReadingARunsFolderWithoutADatabaseSaysSoAndCreatesNothing) {
 TEST(SqliteFiles, ABatchWithABadRecordWritesNoneOfIt) {
   test::TempDir runs;
   const auto store = openResultsStore(runs.path().string());
-  RunRecord bad = makeRun("P3", "hood", 1, 10);
+  RunRow bad = makeRun("P3", "hood", 1, 10);
   bad.started_utc.clear();
   EXPECT_THROW(store->recordRuns({makeRun("P1", "hood", 1, 8), makeRun("P2", "hood", 1, 9), bad}), ResultsError);
   EXPECT_TRUE(store->queryRuns().empty());
