@@ -23,6 +23,7 @@ namespace {
 
 // Thrown inside run() when the run must end after motion began.
 struct Aborted {
+  FaultKind kind;
   std::string reason;
 };
 
@@ -198,7 +199,8 @@ struct ScanRunner::Impl {
     try {
       if (device.state() != drivers::DeviceState::Ready) device.connect();
     } catch (const std::exception& e) {
-      throw ScanError(std::string(what) + " does not answer: " + e.what() + " (run `station devices` to see the cell)");
+      throw ScanError(std::string(what) + " does not answer: " + e.what() + " (run `station devices` to see the cell)",
+                      FaultKind::DeviceSilent);
     }
     if (observer) observer->checkPassed(std::string(what) + " answers: " + device.identity().model);
   }
@@ -208,12 +210,14 @@ struct ScanRunner::Impl {
     try {
       in = dev.plc.readInputs();
     } catch (const std::exception& e) {
-      throw ScanError(std::string("the PLC does not answer: ") + e.what());
+      throw ScanError(std::string("the PLC does not answer: ") + e.what(), FaultKind::DeviceSilent);
     }
-    if (!in.door_closed) throw ScanError("the cell door is open: close it and start again");
-    if (!in.e_stop_chain_ok) throw ScanError("the e-stop chain is broken: release the e-stop, reset the cell and start again");
-    if (!in.light_curtain_clear) throw ScanError("the light curtain is interrupted: clear it and start again");
-    if (!in.air_pressure_ok) throw ScanError("no air pressure: open the air supply and start again");
+    if (!in.door_closed) throw ScanError("the cell door is open: close it and start again", FaultKind::DoorOpen);
+    if (!in.e_stop_chain_ok)
+      throw ScanError("the e-stop chain is broken: release the e-stop, reset the cell and start again", FaultKind::EStop);
+    if (!in.light_curtain_clear)
+      throw ScanError("the light curtain is interrupted: clear it and start again", FaultKind::LightCurtain);
+    if (!in.air_pressure_ok) throw ScanError("no air pressure: open the air supply and start again", FaultKind::NoAir);
     if (observer) observer->checkPassed("interlocks healthy: door closed, e-stop chain, light curtain, air");
     // Clear a tripped interlock (no automatic restart: the station writes the coils again), ask for
     // the clamp and motion.
@@ -226,7 +230,8 @@ struct ScanRunner::Impl {
     while (!dev.plc.readInputs().part_clamped) {
       if (std::chrono::steady_clock::now() > deadline)
         throw ScanError("the part is not clamped " + std::to_string(params.clamp_timeout.count()) +
-                        " ms after the clamp was asked for: check the part and the clamp");
+                        " ms after the clamp was asked for: check the part and the clamp",
+                      FaultKind::NotClamped);
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     if (observer) observer->checkPassed("part clamped");
@@ -235,11 +240,12 @@ struct ScanRunner::Impl {
   // ---- Motion ----------------------------------------------------------------------------------
 
   void checkAbort(SafetyInterlock& safety) {
-    if (auto reason = abortReason()) throw Aborted{*reason};
+    if (auto reason = abortReason()) throw Aborted{FaultKind::StopRequested, *reason};
     if (safety.tripped()) {
       const auto events = safety.events();
       // The first event is the cause; the interlock's own trip follows it.
-      throw Aborted{events.empty() ? "safety interlock" : events.front().what};
+      if (events.empty()) throw Aborted{FaultKind::Interlock, "safety interlock"};
+      throw Aborted{events.front().kind, events.front().what};
     }
   }
 
@@ -271,12 +277,12 @@ struct ScanRunner::Impl {
         dev.cmm.clearAllErrors();
         outcome = dev.cmm.goTo(positionOf(target), orientationOf(target), speed);
       } catch (const std::exception& again) {
-        throw Aborted{std::string("the CMM refused a move twice: ") + again.what()};
+        throw Aborted{faultKindOf(again), std::string("the CMM refused a move twice: ") + again.what()};
       }
     }
     if (outcome == MoveOutcome::Aborted) {
       checkAbort(safety);
-      throw Aborted{"the CMM stopped the move"};
+      throw Aborted{FaultKind::Other, "the CMM stopped the move"};
     }
   }
 
@@ -343,8 +349,10 @@ struct ScanRunner::Impl {
       dev.plc.setOutput(Coil::ClampRequest, false);
     } catch (const Aborted& a) {
       result.abort_reason = a.reason;
+      result.abort_kind = a.kind;
     } catch (const std::exception& e) {
       result.abort_reason = e.what();
+      result.abort_kind = faultKindOf(e);
     }
     if (!result.completed) endEarly(result.abort_reason);
     if (r.pair) r.pair->stop();
@@ -355,7 +363,7 @@ struct ScanRunner::Impl {
     poller.reset();
     for (const SafetyEvent& e : safety.events()) {
       result.safety_events.push_back(e.what);
-      if (observer) observer->safetyEvent(e.what);
+      if (observer) observer->safetyEvent(e.kind, e.what);
     }
     result.wall_seconds = r.elapsed();
     result.spent = spent;
@@ -542,7 +550,7 @@ struct ScanRunner::Impl {
         std::unique_lock lock(pair_mutex);
         arrived = pair_arrived.wait_for(lock, r.params.frame_timeout, [&] { return last_pair_trigger >= id; });
       } catch (const drivers::DeviceError& e) {
-        if (observer) observer->safetyEvent(std::string("camera: ") + e.what());
+        if (observer) observer->safetyEvent(faultKindOf(e), std::string("camera: ") + e.what());
       }
     });
     if (arrived) {
@@ -565,11 +573,11 @@ struct ScanRunner::Impl {
       if (attempt > 0) {
         // Repeated once and still over the limit: kept, and the loss is reported with the result.
         ++r.result.sweeps_over_loss_limit;
-        if (observer) observer->safetyEvent(label + ": " + std::to_string(lost) + " profiles lost again; kept");
+        if (observer) observer->safetyEvent(FaultKind::DataLost, label + ": " + std::to_string(lost) + " profiles lost again; kept");
         break;
       }
       event(msg::CmmEventKind::SweepDiscarded, label);
-      if (observer) observer->safetyEvent(label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
+      if (observer) observer->safetyEvent(FaultKind::DataLost, label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
       ++r.result.sweeps_repeated;
     }
     if (last) marker(sweep.scene, "end", sweep.index);

@@ -5,8 +5,9 @@
 namespace stampscan::station {
 
 std::span<const CommandEntry> commandTable() {
-  static constexpr std::array<CommandEntry, 16> kCommands{{
+  static constexpr std::array<CommandEntry, 17> kCommands{{
       {"scan", addScanCommand},
+      {"plan", addPlanCommand},
       {"process", addProcessCommand},
       {"report", addReportCommand},
       {"hmi", addHmiCommand},

@@ -147,10 +147,11 @@ void printResult(const ScanJobResult& r, const ScanJobOptions& job, bool hosted,
     std::printf("  uncertainty %.1f %% of %zu elements' true strain within their stated expanded uncertainty (k = 2)\n",
                 100.0 * r.accuracy->within_expanded_uncertainty, r.accuracy->with_uncertainty);
   if (const auto& f = r.surface_accuracy; f && hosted && f->elements > 0)
-    std::printf("  surface     strain RMS %.4f at %zu elements (theirs %.4f), %.4f at %zu points halfway between "
-                "them; %zu of %zu points within the grid without strain\n",
-                f->at_elements_rms, f->elements, f->elements_own_rms, f->between_rms, f->between, f->without_strain,
-                f->within_grid);
+    std::printf("  surface     strain RMS %.4f at %lld elements (theirs %.4f), %.4f at %lld points halfway between "
+                "them; %lld of %lld points within the grid without strain\n",
+                f->at_elements_rms, static_cast<long long>(f->elements), f->elements_own_rms, f->between_rms,
+                static_cast<long long>(f->between_points), static_cast<long long>(f->within_grid_without_strain),
+                static_cast<long long>(f->within_grid_points));
   if (replay) printReplay(*replay, r);
   if (r.report) {
     std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",

@@ -28,7 +28,7 @@ class TerminalObserver final : public ScanJobObserver {
                   static_cast<unsigned long long>(p.profiles), p.remaining_s);
     bar_.update(text, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
   }
-  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void safetyEvent(acquisition::FaultKind, const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
   void scanDone(const acquisition::ScanRunResult& r) override {
     bar_.finish();
     std::printf("  scan        %zu sweeps and %zu stereo views in %.1f s (the plan's motion: %.1f s); %llu profiles "

@@ -20,7 +20,7 @@ class TerminalRunObserver final : public acquisition::ScanObserver {
     if (quiet_) return;
     bar_.update(p.doing, p.steps ? static_cast<double>(p.step) / static_cast<double>(p.steps) : 0.0);
   }
-  void safetyEvent(const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
+  void safetyEvent(acquisition::FaultKind, const std::string& what) override { std::printf("  safety      %s\n", what.c_str()); }
   void finish() { bar_.finish(); }
 
  private:

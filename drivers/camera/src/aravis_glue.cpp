@@ -5,8 +5,11 @@
 #include <netinet/in.h>
 #include <sys/socket.h>
 
+#include <chrono>
+#include <condition_variable>
 #include <cstdlib>
 #include <mutex>
+#include <thread>
 
 // GLib's type-checking macros expand to C casts; this file is the only one that uses them.
 #pragma GCC diagnostic ignored "-Wold-style-cast"
@@ -40,6 +43,61 @@ unsigned long connectControlLost(ArvDevice* device, void (*on_lost)(ArvDevice*, 
 
 void disconnectSignal(ArvDevice* device, unsigned long handler) {
   if (device != nullptr && handler != 0) g_signal_handler_disconnect(device, handler);
+}
+
+namespace {
+// Aravis' heartbeat (arvgvdeviceprivate.h, non-fast build): a check every second, retried for up to
+// 5 s, each read up to its GVCP timeout and retries (2.5 s by default). A check begun before
+// retirement has ended, emitting or not, within this.
+constexpr std::chrono::seconds kHeartbeatCheckBound{12};
+
+struct RetiredCamera {
+  RetiredCamera() = default;
+  RetiredCamera(const RetiredCamera&) = delete;
+  RetiredCamera& operator=(const RetiredCamera&) = delete;
+  ~RetiredCamera() {
+    if (camera) disconnectSignal(arv_camera_get_device(camera.get()), handler);
+  }
+  GPtr<ArvCamera> camera;
+  unsigned long handler = 0;
+  std::mutex mutex;
+  std::condition_variable emitted_cv;
+  bool emitted = false;
+};
+
+void onRetiredControlLost(ArvDevice*, void* user) {
+  auto* retired = static_cast<RetiredCamera*>(user);
+  {
+    std::lock_guard lock(retired->mutex);
+    retired->emitted = true;
+  }
+  retired->emitted_cv.notify_all();
+}
+}  // namespace
+
+void retireLostCamera(GPtr<ArvCamera> camera) {
+  if (!camera) return;
+  ArvDevice* device = arv_camera_get_device(camera.get());
+  if (!ARV_IS_GV_DEVICE(device)) return;  // no heartbeat thread: dropping it now is safe
+  auto retired = std::make_unique<RetiredCamera>();
+  retired->camera = std::move(camera);
+  retired->handler = connectControlLost(device, &onRetiredControlLost, retired.get());
+  // Synchronously, as finalizing would: a camera that is still there is free for the reconnect.
+  arv_gv_device_leave_control(ARV_GV_DEVICE(device), nullptr);
+  // Detached: nothing waits for it, and it touches only what it owns. At process exit it may
+  // still be waiting; the camera is then simply not finalized.
+  std::thread([retired = std::move(retired)]() mutable {
+    {
+      std::unique_lock lock(retired->mutex);
+      if (retired->emitted_cv.wait_for(lock, kHeartbeatCheckBound, [&] { return retired->emitted; })) {
+        // The emission that woke us is still unwinding in the heartbeat thread; once it returns the
+        // heartbeat no longer holds control and never emits again.
+        lock.unlock();
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      }
+    }
+    retired.reset();
+  }).detach();
 }
 
 void setPacketResend(ArvStream* stream, bool enabled) {

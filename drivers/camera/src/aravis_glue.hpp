@@ -40,6 +40,14 @@ class Error {
 unsigned long connectControlLost(ArvDevice* device, void (*on_lost)(ArvDevice*, void*), void* user);
 void disconnectSignal(ArvDevice* device, unsigned long handler);
 
+// Lets go of a camera whose device may have lost contact (its stream went silent, its heartbeat
+// failed). Dropping the last reference at once races Aravis' heartbeat thread: after its retries
+// run out it emits "control-lost" on the device, and when that falls while the device is being
+// finalized GLib refs a finalized object and the process crashes. So control is given up now (best
+// effort: a write the camera may not answer) and the last reference is dropped on a short-lived
+// thread once the heartbeat has emitted, or has certainly finished the check it may be in.
+void retireLostCamera(GPtr<ArvCamera> camera);
+
 // Resends make no sense against a device that ignores them (the fake camera) and are the
 // device's business on a real one; the option lets the caller choose.
 void setPacketResend(ArvStream* stream, bool enabled);

@@ -142,9 +142,15 @@ std::string GigECamera::Impl::controlProblemLocked(ArvCamera* cam, const std::st
   return {};
 }
 
-void GigECamera::Impl::closeLocked() noexcept {
+void GigECamera::Impl::closeLocked(bool device_lost) noexcept {
   if (camera) glue::disconnectSignal(arv_camera_get_device(camera.get()), lost_handler);
   lost_handler = 0;
+  if (device_lost) {
+    try {
+      glue::retireLostCamera(std::move(camera));
+    } catch (const std::exception&) {  // no thread to be had: the rare race beats a leak
+    }
+  }
   camera.reset();
 }
 
@@ -204,7 +210,7 @@ void GigECamera::connectDevice() {
 void GigECamera::disconnectDevice() noexcept {
   stopStreaming();
   std::lock_guard lock(impl_->camera_mutex);
-  impl_->closeLocked();
+  impl_->closeLocked(impl_->control_lost);
 }
 
 DeviceIdentity GigECamera::identifyDevice() {
@@ -317,7 +323,7 @@ void GigECamera::reconnect() {
   stopStreaming();
   {
     std::lock_guard lock(impl_->camera_mutex);
-    impl_->closeLocked();
+    impl_->closeLocked(true);  // a reconnect is asked for when contact was in doubt
     impl_->openLocked();
   }
   {

@@ -30,7 +30,9 @@ struct GigECamera::Impl {
   // Opens by serial (or address), hooks control-lost and writes the stored config. Throws
   // DeviceError. Caller holds camera_mutex.
   void openLocked();
-  void closeLocked() noexcept;
+  // Drops the camera. `device_lost`: it may have lost contact (silence, control lost), so it is
+  // retired (glue::retireLostCamera) rather than dropped on the spot.
+  void closeLocked(bool device_lost = false) noexcept;
   // Empty when this process holds the camera's control channel privilege (CCP); otherwise what to
   // tell the operator ("camera S at A is controlled by another application (CCP held)"). With
   // `confirm_by_write`, control is also proven by writing the heartbeat timeout back (as Pylon's

@@ -263,7 +263,7 @@ void GigECamera::Impl::run() {
     {
       std::lock_guard lock(camera_mutex);
       endSessionLocked(false);
-      closeLocked();
+      closeLocked(true);
     }
     if (!owner.options_.auto_reconnect || !reconnectFromThread()) return;
     last_activity = stationNow();

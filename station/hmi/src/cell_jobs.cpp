@@ -49,8 +49,9 @@ class HubObserver final : public station::ScanJobObserver {
     j["devices"] = devicesJson(cell_);
     hub_.publish("progress", j.dump());
   }
-  void safetyEvent(const std::string& what) override {
-    hub_.publish("safety", json{{"kind", kind_}, {"text", what}, {"advice", faultAdvice(what)}}.dump());
+  void safetyEvent(acquisition::FaultKind fault, const std::string& what) override {
+    hub_.publish("safety", json{{"kind", kind_}, {"text", what}, {"fault", acquisition::toString(fault)},
+                                {"advice", faultAdvice(fault)}}.dump());
   }
   void scanDone(const acquisition::ScanRunResult& r) override {
     if (on_scan_done_ && r.completed) on_scan_done_();
@@ -84,6 +85,15 @@ class HubObserver final : public station::ScanJobObserver {
 
 }  // namespace
 
+namespace {
+// The finished event's fault and its advice.
+void setFault(json& done, acquisition::FaultKind kind) {
+  done["fault"] = acquisition::toString(kind);
+  if (std::string advice = faultAdvice(kind); !advice.empty()) done["advice"] = std::move(advice);
+}
+void setFault(json& done, const std::exception& error) { setFault(done, acquisition::faultKindOf(error)); }
+}  // namespace
+
 bool isPartId(const std::string& id) {
   return !id.empty() && id.front() != '.' && std::all_of(id.begin(), id.end(), [](char c) {
     return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
@@ -102,18 +112,24 @@ const char* toString(JobOutcome::End end) {
   return "unknown";
 }
 
-std::string faultAdvice(const std::string& reason) {
-  const auto has = [&](const char* word) { return reason.find(word) != std::string::npos; };
-  if (has("door")) return "Close the cell door, then press Start again.";
-  if (has("e-stop") || has("emergency")) return "Release the emergency stop and reset the cell, then press Start again.";
-  if (has("curtain")) return "Step out of the light curtain and clear it, then press Start again.";
-  if (has("air")) return "Check the compressed air supply (the clamp needs it), then press Start again.";
-  if (has("clamp")) return "Check that the part sits flat on the fixture, then press Start again.";
-  if (has("operator abort")) return "The scan was stopped on request. Press Start to scan again.";
-  if (has("does not answer") || has("timeout") || has("disconnected") || has("not answer"))
-    return "A device does not answer: check its cable and power, then press Start again; call maintenance if it "
-           "persists.";
-  if (has("lost data") || has("missing")) return "Scan the part again; call maintenance if it happens again.";
+std::string faultAdvice(acquisition::FaultKind kind) {
+  using acquisition::FaultKind;
+  switch (kind) {
+    case FaultKind::DoorOpen: return "Close the cell door, then press Start again.";
+    case FaultKind::EStop: return "Release the emergency stop and reset the cell, then press Start again.";
+    case FaultKind::LightCurtain: return "Step out of the light curtain and clear it, then press Start again.";
+    case FaultKind::Interlock:
+      return "The cell's safety interlock tripped: check the door, the emergency stop and the light curtain, reset "
+             "the cell, then press Start again.";
+    case FaultKind::NoAir: return "Check the compressed air supply (the clamp needs it), then press Start again.";
+    case FaultKind::NotClamped: return "Check that the part sits flat on the fixture, then press Start again.";
+    case FaultKind::StopRequested: return "The scan was stopped on request. Press Start to scan again.";
+    case FaultKind::DeviceSilent:
+      return "A device does not answer: check its cable and power, then press Start again; call maintenance if it "
+             "persists.";
+    case FaultKind::DataLost: return "Scan the part again; call maintenance if it happens again.";
+    case FaultKind::Other: return "";
+  }
   return "";
 }
 
@@ -335,7 +351,10 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
       done["min_margin_percent"] = r.report->min_margin_percent;
     }
     if (!r.report_error.empty()) done["error"] = "the scan is measured, but its report failed: " + r.report_error;
-    if (r.data_loss) done["data_loss"] = *r.data_loss;
+    if (r.data_loss) {
+      done["data_loss"] = *r.data_loss;
+      setFault(done, acquisition::FaultKind::DataLost);
+    }
     if (!r.history_error.empty()) done["history_error"] = r.history_error;
     if (!r.report) {
       outcome.end = JobOutcome::End::Failed;
@@ -350,12 +369,12 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
     }
   } catch (const acquisition::ScanError& e) {
     done["error"] = std::string("refused before anything moved: ") + e.what();
-    done["advice"] = faultAdvice(e.what());
+    setFault(done, e);
     outcome.end = JobOutcome::End::Refused;
     outcome.error = e.what();
   } catch (const std::exception& e) {
     done["error"] = e.what();
-    done["advice"] = faultAdvice(e.what());
+    setFault(done, e);
     outcome.end = dynamic_cast<const station::ScanStopped*>(&e) != nullptr ? JobOutcome::End::Stopped : JobOutcome::End::Failed;
     outcome.error = e.what();
     std::lock_guard lock(mutex_);
@@ -390,7 +409,7 @@ void CellJobs::runVerify(std::string user) {
     outcome.end = JobOutcome::End::Done;
   } catch (const std::exception& e) {
     done["error"] = e.what();
-    done["advice"] = faultAdvice(e.what());
+    setFault(done, e);
     outcome.error = e.what();
   }
   finish(done.dump(), std::move(outcome));
@@ -425,7 +444,7 @@ void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string us
     outcome.end = JobOutcome::End::Done;
   } catch (const std::exception& e) {
     done["error"] = e.what();
-    done["advice"] = faultAdvice(e.what());
+    setFault(done, e);
     outcome.error = e.what();
   }
   finish(done.dump(), std::move(outcome));

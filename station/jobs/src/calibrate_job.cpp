@@ -383,7 +383,7 @@ CalibrateJobResult CalibrateJob::run(const CalibrateJobOptions& o) {
   result.trace_file = history / (registration::newRecordId(history, "calibration") + ".mcap");
   result.run = traced_.run(o.plan, o.run, result.trace_file);
   if (!result.run.completed)
-    throw std::runtime_error("the calibration scenes were aborted: " + result.run.abort_reason + " (the trace is " +
+    throw acquisition::FaultError(result.run.abort_kind, "the calibration scenes were aborted: " + result.run.abort_reason + " (the trace is " +
                              result.trace_file.string() + "; nothing was calibrated)");
   const registration::ScanTrace trace = registration::loadScanTrace(result.trace_file);
   if (!trace.session) throw std::runtime_error(result.trace_file.string() + ": no session description");

@@ -116,15 +116,7 @@ run_folder::AccuracyFigures accuracyRecord(const ScanJobResult& result, const Si
     record.visible = run_folder::VisibleFigures{.elements = static_cast<std::int64_t>(a.visible),
                                                 .found = static_cast<std::int64_t>(a.visible_found),
                                                 .found_not_visible = static_cast<std::int64_t>(a.found_not_visible)};
-  if (const auto& f = result.surface_accuracy)
-    record.surface_strain =
-        run_folder::SurfaceStrainFigures{.elements = static_cast<std::int64_t>(f->elements),
-                                         .at_elements_rms = f->at_elements_rms,
-                                         .elements_own_rms = f->elements_own_rms,
-                                         .between_points = static_cast<std::int64_t>(f->between),
-                                         .between_rms = f->between_rms,
-                                         .within_grid_points = static_cast<std::int64_t>(f->within_grid),
-                                         .within_grid_without_strain = static_cast<std::int64_t>(f->without_strain)};
+  record.surface_strain = result.surface_accuracy;
   return record;
 }
 
@@ -178,9 +170,9 @@ class SerialObserver final : public ScanJobObserver {
     std::lock_guard lock(mutex_);
     if (to_) to_->progress(p);
   }
-  void safetyEvent(const std::string& what) override {
+  void safetyEvent(acquisition::FaultKind kind, const std::string& what) override {
     std::lock_guard lock(mutex_);
-    if (to_) to_->safetyEvent(what);
+    if (to_) to_->safetyEvent(kind, what);
   }
   void stageDone(std::string_view stage, const std::string& text) override {
     std::lock_guard lock(mutex_);
@@ -375,9 +367,9 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   return a;
 }
 
-SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
-                                             const SimulationTruth& truth) {
-  SurfaceStrainAccuracy a;
+run_folder::SurfaceStrainFigures surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
+                                                        const SimulationTruth& truth) {
+  run_folder::SurfaceStrainFigures a;
   const fitting::Cloud& t = truth.elements;
   const auto fitted = elements.scalars.find(fitting::kFittedStrain);
   if (t.size() < 2 || elements.empty() || !elements.hasStrain() || !t.hasStrain() || fitted == elements.scalars.end() ||
@@ -418,17 +410,17 @@ SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, con
     if (nn.size() < 2 || !found(nn[0].index)) continue;
     const double d = std::sqrt(nn[0].distance_sq);
     if (d > pitch) continue;
-    ++a.within_grid;
+    ++a.within_grid_points;
     const double s = surface.strain[i];
     if (!std::isfinite(s)) {
-      ++a.without_strain;
+      ++a.within_grid_without_strain;
       continue;
     }
     if (!truth.thickness_strain_at || d < 0.4 * pitch || d > 0.6 * pitch || !found(nn[1].index)) continue;
-    ++a.between;
+    ++a.between_points;
     between += std::pow(s - truth.thickness_strain_at(surface.positions[i]), 2);
   }
-  if (a.between) a.between_rms = std::sqrt(between / static_cast<double>(a.between));
+  if (a.between_points) a.between_rms = std::sqrt(between / static_cast<double>(a.between_points));
   return a;
 }
 
@@ -552,7 +544,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     measuring.reset();
     run_folder::writeRunRecord(result.run_dir, record);
     recordInHistory(result.run_dir, database, "");  // as aborted, with its reason from run.json
-    throw ScanStopped("the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
+    throw ScanStopped(result.run.abort_kind, "the scan was aborted: " + result.run.abort_reason + " (the trace up to there is in " +
                       trace_file.string() + ")");
   }
 
@@ -573,7 +565,7 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
     record.abort_reason = *reason + " " + during;
     run_folder::writeRunRecord(result.run_dir, record);
     recordInHistory(result.run_dir, database, "");
-    throw ScanStopped("the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
+    throw ScanStopped(acquisition::FaultKind::StopRequested, "the scan was stopped " + std::string(during) + ": " + *reason + " (its trace" +
                       (fs::exists(result.run_dir / "cloud4d.ply") ? " and elements are" : " is") + " kept in " +
                       result.run_dir.string() + "; `station process --with-stereo --fit` measures it again)");
   };

@@ -172,7 +172,7 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   result.run = traced_.run(o.plan, o.run, result.trace_file);
   for (const auto& d : result.run.devices) record.sensors.push_back({d.family, d.model, d.serial, d.firmware});
   if (!result.run.completed)
-    throw std::runtime_error("the verification sweeps were aborted: " + result.run.abort_reason + " (the trace is " +
+    throw acquisition::FaultError(result.run.abort_kind, "the verification sweeps were aborted: " + result.run.abort_reason + " (the trace is " +
                              result.trace_file.string() + "; no record was written)");
 
   const registration::ScanTrace trace = registration::loadScanTrace(result.trace_file);

@@ -3,6 +3,7 @@
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/cell_jobs.hpp"
 #include "stampscan/hmi/event_hub.hpp"
+#include "stampscan/station/scan_job.hpp"
 
 #include <gtest/gtest.h>
 
@@ -135,11 +136,30 @@ TEST(HmiEvents, ASlowSubscriberLosesItsOldestEventsNotTheScan) {
 }
 
 TEST(HmiAdvice, FaultsComeWithWhatToDo) {
-  EXPECT_NE(faultAdvice("the scan was aborted: door opened").find("Close the cell door"), std::string::npos);
-  EXPECT_NE(faultAdvice("e-stop chain broken").find("emergency stop"), std::string::npos);
-  EXPECT_NE(faultAdvice("light curtain interrupted").find("light curtain"), std::string::npos);
-  EXPECT_NE(faultAdvice("air pressure lost").find("air"), std::string::npos);
-  EXPECT_EQ(faultAdvice("something unheard of"), "");
+  using acquisition::FaultKind;
+  EXPECT_NE(faultAdvice(FaultKind::DoorOpen).find("Close the cell door"), std::string::npos);
+  EXPECT_NE(faultAdvice(FaultKind::EStop).find("emergency stop"), std::string::npos);
+  EXPECT_NE(faultAdvice(FaultKind::LightCurtain).find("light curtain"), std::string::npos);
+  EXPECT_NE(faultAdvice(FaultKind::NoAir).find("air"), std::string::npos);
+  EXPECT_NE(faultAdvice(FaultKind::DeviceSilent).find("does not answer"), std::string::npos);
+  EXPECT_EQ(faultAdvice(FaultKind::Other), "");
+}
+
+// The kind travels with the error, whatever its words: a door in a part's name is no open door.
+TEST(HmiAdvice, TheKindComesFromTheErrorNotItsWords) {
+  using acquisition::FaultKind;
+  EXPECT_EQ(acquisition::faultKindOf(acquisition::ScanError("the plan 'door-panel' cannot run on this cell")),
+            FaultKind::Other);
+  EXPECT_EQ(acquisition::faultKindOf(acquisition::ScanError("the cell door is open", FaultKind::DoorOpen)),
+            FaultKind::DoorOpen);
+  EXPECT_EQ(acquisition::faultKindOf(station::ScanStopped(FaultKind::LightCurtain, "the scan was aborted: ...")),
+            FaultKind::LightCurtain);
+  EXPECT_EQ(acquisition::faultKindOf(drivers::DeviceError("cmm", "timeout", "no reply in 5 s")), FaultKind::DeviceSilent);
+  EXPECT_EQ(acquisition::faultKindOf(drivers::DeviceError("cmm", "protocol", "a reply out of order")), FaultKind::Other);
+  EXPECT_EQ(acquisition::faultKindOf(std::runtime_error("air")), FaultKind::Other);
+  EXPECT_EQ(acquisition::faultKindOf(drivers::plc::PlcEventKind::DoorOpened), FaultKind::DoorOpen);
+  EXPECT_EQ(acquisition::faultKindOf(drivers::plc::PlcEventKind::DoorClosed), FaultKind::Other);
+  EXPECT_STREQ(acquisition::toString(FaultKind::DeviceSilent), "device_silent");
 }
 
 }  // namespace

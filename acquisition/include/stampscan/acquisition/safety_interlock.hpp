@@ -4,6 +4,7 @@
 // this stops the move the station commanded, so the scan does not wait for a move that cannot end.)
 #pragma once
 
+#include "stampscan/acquisition/scan_fault.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/plc/modbus_plc.hpp"
 
@@ -18,6 +19,7 @@ namespace stampscan::acquisition {
 struct SafetyEvent {
   std::chrono::system_clock::time_point when;
   std::string what;  // e.g. "door opened: motion aborted"
+  FaultKind kind = FaultKind::Other;
 };
 
 class SafetyInterlock {

@@ -31,6 +31,7 @@
 // at a time under the runner's lock; the observer is called from the thread that calls run().
 #pragma once
 
+#include "stampscan/acquisition/scan_fault.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
 #include "stampscan/acquisition/station_clock.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
@@ -60,10 +61,11 @@ struct CellDevices {
   drivers::camera::GigECamera* right_camera = nullptr;
 };
 
-// Thrown when a check before motion fails; nothing has moved. The text is one line for the operator.
-class ScanError : public std::runtime_error {
+// Thrown when a check before motion fails; nothing has moved. The text is one line for the operator;
+// the kind says which check (an open door, a silent device, ...), Other for a plan or setup problem.
+class ScanError : public FaultError {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ScanError(const std::string& text, FaultKind kind = FaultKind::Other) : FaultError(kind, text) {}
 };
 
 struct ScanProgress {
@@ -79,7 +81,8 @@ class ScanObserver {
   virtual ~ScanObserver() = default;
   virtual void checkPassed(const std::string& /*what*/) {}
   virtual void progress(const ScanProgress& /*progress*/) {}
-  virtual void safetyEvent(const std::string& /*what*/) {}
+  // A safety trip, a device fault or lost data during the run; `what` is for the operator.
+  virtual void safetyEvent(FaultKind /*kind*/, const std::string& /*what*/) {}
 };
 
 struct ScanRunParams {
@@ -104,6 +107,7 @@ struct ScanRunParams {
 struct ScanRunResult {
   bool completed = false;
   std::string abort_reason;  // when not completed
+  FaultKind abort_kind = FaultKind::Other;  // when not completed: what stopped it
   std::size_t steps_done = 0, sweeps_done = 0, views_done = 0, views_missing = 0;
   std::size_t sweeps_repeated = 0;  // run again after losing profiles
   std::size_t sweeps_over_loss_limit = 0;  // lost too many profiles even when repeated: kept as they are

@@ -20,6 +20,7 @@ struct CommandEntry {
 std::span<const CommandEntry> commandTable();
 
 CommandRunner addScanCommand(CLI::App& app);
+CommandRunner addPlanCommand(CLI::App& app);
 CommandRunner addFitCommand(CLI::App& app);
 CommandRunner addSampleCommand(CLI::App& app);
 CommandRunner addCellCommand(CLI::App& app);

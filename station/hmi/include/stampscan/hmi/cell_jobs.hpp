@@ -178,8 +178,8 @@ class CellJobs {
   std::thread worker_, connector_;
 };
 
-// What to do about a fault, in words for the operator ("Close the door, then press Start again."),
-// from the one-line reason a job gave; empty when there is no advice.
-std::string faultAdvice(const std::string& reason);
+// What to do about a fault of this kind, in words for the operator ("Close the cell door, then press
+// Start again."); empty when there is no advice (FaultKind::Other).
+std::string faultAdvice(acquisition::FaultKind kind);
 
 }  // namespace stampscan::hmi

@@ -23,6 +23,7 @@
 #pragma once
 
 #include "stampscan/report/run_report.hpp"
+#include "stampscan/run_folder/run_record.hpp"
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/scan_runner.hpp"
@@ -56,10 +57,11 @@ struct PartProgramRef {
 };
 
 // A scan stopped before its end: aborted on request (Ctrl-C, SIGTERM, the panel's Abort, the line) or
-// by a safety trip. Its run folder keeps the trace (and what was measured), recorded as incomplete.
-class ScanStopped : public std::runtime_error {
+// by a safety trip (the kind says which). Its run folder keeps the trace (and what was measured),
+// recorded as incomplete.
+class ScanStopped : public acquisition::FaultError {
  public:
-  using std::runtime_error::runtime_error;
+  ScanStopped(acquisition::FaultKind kind, const std::string& text) : FaultError(kind, text) {}
 };
 
 struct ScanJobOptions {
@@ -106,22 +108,6 @@ struct ScanAccuracy {
   double within_expanded_uncertainty = 0;
 };
 
-// The fitted surface's strain against the truth (ScanJob, when the cell is simulated and the
-// surface was fitted): where the map is read.
-struct SurfaceStrainAccuracy {
-  // At the matched elements: the surface's strain there (fitting::kFittedStrain) and the elements'
-  // own, on the same elements.
-  std::size_t elements = 0;
-  double at_elements_rms = 0, elements_own_rms = 0;
-  // At the surface's points about halfway between two found elements (0.4-0.6 of the pitch from
-  // the nearest), against the part's true strain at each point.
-  std::size_t between = 0;
-  double between_rms = 0;
-  // The surface's points within the grid (their nearest true element found, within a pitch of
-  // it), and those of them without strain.
-  std::size_t within_grid = 0, without_strain = 0;
-};
-
 struct ScanJobResult {
   std::filesystem::path run_dir;
   acquisition::ScanRunResult run;
@@ -134,7 +120,9 @@ struct ScanJobResult {
   std::string digitizer_calibration, camera_calibration;
   std::optional<double> sphere_residual_mm;
   std::optional<ScanAccuracy> accuracy;
-  std::optional<SurfaceStrainAccuracy> surface_accuracy;
+  // The fitted surface's strain against the truth (when the cell is simulated and the surface was
+  // fitted): where the map is read. As run.json's accuracy.surface_strain holds it.
+  std::optional<run_folder::SurfaceStrainFigures> surface_accuracy;
   // With ScanJobOptions::replayed_trace: this run's measurements against the recording's.
   std::optional<ScanAccuracy> against_recording;
   std::size_t recording_measurements = 0;
@@ -200,7 +188,7 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
 
 // The fitted surface's strain against the truth: `elements` is the Cloud4D with the surface's
 // strain at each element (fitting::kFittedStrain), `surface` the fitted points with their strain.
-SurfaceStrainAccuracy surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
+run_folder::SurfaceStrainFigures surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
                                              const SimulationTruth& truth);
 
 }  // namespace stampscan::station

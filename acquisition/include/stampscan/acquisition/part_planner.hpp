@@ -1,0 +1,81 @@
+// Scan plans from a part's nominal model and the cell's sensors, and what a plan is predicted to see.
+//
+// The planner works in the part's datum frame (the nominal model's frame, where a part program's
+// plan is written; placeOnFixture carries it onto a cell's table). It slices the model's grid area
+// into laser passes no wider than the digitizer's stripe at its standoff, each pass a straight sweep
+// at one height: where the model's surface under a pass spans more than the sensor's measuring range
+// (a deep pan), the pass is flown at several heights, each covering a band of the depth. Neighbouring
+// passes overlap by a stated share and cross at +-2 degrees (the paper's Sec. 3.1); they are flown in
+// alternate directions, so that the move from one pass's end to the next's start is short. The stereo
+// pair looks at the grid area from a rows x columns lattice of poses, the outer ones tilted inwards so
+// that the walls are seen. Head angles are the head's nearest stops (an indexing head).
+//
+// The prediction samples the model's grid area (its facets facing the sensors' side) at a stated
+// spacing and asks, for each sample, whether one part sweep crosses it with the fan, within the
+// measuring range and the incidence limit and away from the sweep's run-ups; and whether both
+// cameras of one part view have it inside their images at an angle they can resolve. Lines of sight
+// are not yet tested against the model itself (a wall hiding a pocket's floor from a camera): the
+// prediction is an upper bound where the part hides itself, and says so.
+#pragma once
+
+#include "stampscan/acquisition/cell_geometry.hpp"
+#include "stampscan/acquisition/nominal_model.hpp"
+#include "stampscan/acquisition/scan_plan.hpp"
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace stampscan::acquisition {
+
+struct PlannerOptions {
+  bool laser = true, stereo = true;
+  double strip_overlap = 0.3;   // the share of a pass's stripe its neighbour covers again
+  double sweep_speed = 25;      // mm/s while the digitizer scans
+  double travel_speed = 200;    // mm/s between steps
+  double depth_use = 0.8;       // the share of the measuring range one pass's depth band may take
+  int stereo_rows = 3, stereo_columns = 3;
+  // The grid area: facets whose normal points to the sensors' side (+z of the datum frame) at least
+  // this much (its z component). Sheet parts are printed on their open side.
+  double grid_normal_z = 0.05;
+  double sample_spacing_mm = 1.0;  // how densely the grid area is sampled to plan and predict
+};
+
+// A plan of laser passes and stereo views over `model` (datum frame) for the cell's sensors; the part
+// section says the grid. Throws std::invalid_argument for a model with no grid area or options out of
+// range.
+ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
+                  const PlannerOptions& options = {});
+
+struct CoverageOptions {
+  double sample_spacing_mm = 1.0;
+  double grid_normal_z = 0.05;
+  double image_border_px = 20;          // a sample must be this far inside each image
+  double camera_max_incidence_deg = 60; // beyond it a camera cannot resolve the printed line
+};
+
+struct Coverage {
+  // The samples of the grid area (datum frame), each standing for `sample_area` mm^2 around it.
+  std::vector<std::array<double, 3>> points;
+  std::vector<double> sample_area;
+  // Per sample: the part sweeps that see it (a count), and whether a part view's both cameras do.
+  std::vector<std::uint16_t> laser_passes;
+  std::vector<std::uint8_t> stereo;
+  // Per part sweep of the plan, in its order: the grid area it sees (mm^2).
+  std::vector<double> sweep_area;
+  double grid_area = 0;                          // mm^2
+  double laser_area = 0, stereo_area = 0, either_area = 0;
+  double overlap_area = 0;                       // seen by two or more sweeps
+  double share(double area) const { return grid_area > 0 ? area / grid_area : 0; }
+};
+
+// What the part steps of `plan` (datum frame) are predicted to see of the model's grid area.
+Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,
+                         const CoverageOptions& options = {});
+
+// A lower bound of the part's scanning time: the grid area over the stripe's width (at the standoff)
+// times the sweep speed. The moves between passes come on top.
+double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed);
+
+}  // namespace stampscan::acquisition

@@ -1,0 +1,305 @@
+#include "stampscan/acquisition/part_planner.hpp"
+
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+namespace stampscan::acquisition {
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+constexpr double kDeg = std::numbers::pi / 180;
+
+Vec3 vec(const std::array<double, 3>& v) { return {v[0], v[1], v[2]}; }
+Eigen::Matrix3d headRotation(double a, double b) { return trace::headPose(Vec3::Zero(), a, b).linear(); }
+
+// The grid area as samples: each facet facing the sensors' side split into k x k sub-triangles no
+// wider than the spacing, one sample at each one's centroid standing for its area.
+struct GridSamples {
+  std::vector<Vec3> points, normals;
+  std::vector<double> area;
+};
+
+GridSamples sampleGridArea(const NominalModel& model, double spacing, double min_normal_z) {
+  GridSamples s;
+  for (const auto& t : model.triangles) {
+    const Vec3 p0 = vec(model.vertices[t[0]]), p1 = vec(model.vertices[t[1]]), p2 = vec(model.vertices[t[2]]);
+    const Vec3 cross = (p1 - p0).cross(p2 - p0);
+    const double twice_area = cross.norm();
+    if (!(twice_area > 0)) continue;
+    const Vec3 n = cross / twice_area;
+    if (n.z() < min_normal_z) continue;
+    const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+    const int k = std::max(1, static_cast<int>(std::ceil(longest / spacing)));
+    const double sub_area = 0.5 * twice_area / (k * k);
+    const Vec3 e1 = (p1 - p0) / k, e2 = (p2 - p0) / k;
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; i + j < k; ++j) {
+        const Vec3 corner = p0 + i * e1 + j * e2;
+        s.points.push_back(corner + (e1 + e2) / 3.0);  // the upright sub-triangle
+        s.normals.push_back(n);
+        s.area.push_back(sub_area);
+        if (i + j + 1 < k) {  // and the inverted one beside it
+          s.points.push_back(corner + (2.0 * e1 + 2.0 * e2) / 3.0);
+          s.normals.push_back(n);
+          s.area.push_back(sub_area);
+        }
+      }
+  }
+  return s;
+}
+
+class PartPlanner {
+ public:
+  PartPlanner(const GridSamples& samples, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
+              const PlannerOptions& o)
+      : samples_(samples), cell_(cell), limits_(limits), o_(o),
+        mount_(trace::toIsometry(toRigidPose(cell.digitizer.mount))) {
+    plan_.name = "generated for " + (cell.fixture.name.empty() ? std::string("the cell") : cell.fixture.name);
+    plan_.part = part;
+    plan_.travel_speed = o.travel_speed;
+    plan_.park = parkingPose(limits);
+    lo_ = Vec3::Constant(std::numeric_limits<double>::infinity());
+    hi_ = -lo_;
+    for (const Vec3& p : samples.points) {
+      lo_ = lo_.cwiseMin(p);
+      hi_ = hi_.cwiseMax(p);
+    }
+  }
+
+  ScanPlan plan() {
+    if (o_.laser) laserPasses();
+    if (o_.stereo) stereoViews();
+    return std::move(plan_);
+  }
+
+ private:
+  double stop(double angle) const {
+    if (limits_.index_step <= 0) return angle;
+    return std::round(angle / limits_.index_step) * limits_.index_step;
+  }
+  HeadPose headAt(const Vec3& sensor, double a, double b) const {
+    const Vec3 head = sensor - headRotation(a, b) * mount_.translation();
+    return {{head.x(), head.y(), head.z()}, a, b};
+  }
+
+  // Passes along y, side by side in x. Each pass's samples (those under its stripe) give its depth
+  // bands and its length; a pass over nothing is left out.
+  void laserPasses() {
+    const DigitizerDrawing& d = cell_.digitizer;
+    const double stripe = 2 * d.standoff_mm * std::tan(0.5 * d.fan_angle_deg * kDeg);
+    const double step = stripe * (1 - o_.strip_overlap);
+    const int passes = std::max(1, static_cast<int>(std::ceil((hi_.x() - lo_.x()) / step)));
+    const double x0 = 0.5 * (lo_.x() + hi_.x()) - 0.5 * (passes - 1) * step;
+    const double band = o_.depth_use * d.measuring_range_mm;
+    // Beyond the grid each pass runs on by an element's outline and the sweep's run-up, so that the
+    // elements at its ends are crossed where the head's track can be trusted.
+    const double lead = plan_.part.pitch + sweepRunUp(o_.sweep_speed, limits_.acceleration);
+    std::uint32_t index = 0;
+    bool forward = true;
+    for (int k = 0; k < passes; ++k) {
+      const double x = x0 + k * step;
+      double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
+      for (const Vec3& p : samples_.points)
+        if (std::abs(p.x() - x) <= 0.5 * stripe) z_lo = std::min(z_lo, p.z()), z_hi = std::max(z_hi, p.z());
+      if (!(z_hi >= z_lo)) continue;
+      const int bands = std::max(1, static_cast<int>(std::ceil((z_hi - z_lo) / band - 1e-9)));
+      for (int layer = 0; layer < bands; ++layer) {
+        // The band's middle height; the top band first (the head comes down from the park).
+        const double z_mid = bands == 1 ? 0.5 * (z_lo + z_hi) : z_hi - (layer + 0.5) * (z_hi - z_lo) / bands;
+        const double half_band = 0.5 * std::max(band, (z_hi - z_lo) / bands);
+        double y_lo = std::numeric_limits<double>::infinity(), y_hi = -y_lo;
+        for (const Vec3& p : samples_.points)
+          if (std::abs(p.x() - x) <= 0.5 * stripe && std::abs(p.z() - z_mid) <= half_band)
+            y_lo = std::min(y_lo, p.y()), y_hi = std::max(y_hi, p.y());
+        if (!(y_hi >= y_lo)) continue;
+        const double b = stop((index % 2 ? 2.0 : -2.0) * kDeg);
+        const Eigen::Matrix3d R = headRotation(0, b) * mount_.linear();
+        const Vec3 along = Vec3(R(0, 1), R(1, 1), 0).normalized();
+        const Vec3 centre = Vec3(x, 0.5 * (y_lo + y_hi), z_mid) + d.standoff_mm * R.col(2);
+        const double half = 0.5 * (y_hi - y_lo) + lead;
+        const double direction = forward ? 1.0 : -1.0;
+        SweepStep s;
+        s.scene = Scene::Part;
+        s.index = index++;
+        s.start = headAt(centre - direction * half * along, 0, b);
+        s.end = headAt(centre + direction * half * along, 0, b);
+        s.speed = o_.sweep_speed;
+        plan_.steps.emplace_back(s);
+        forward = !forward;
+      }
+    }
+  }
+
+  // A rows x columns lattice over the grid area at the cameras' working distance; the outer views
+  // stand further out and look inwards.
+  void stereoViews() {
+    const int rows = std::max(0, o_.stereo_rows), cols = std::max(0, o_.stereo_columns);
+    if (rows == 0 || cols == 0) return;
+    const Eigen::Vector2d mid(0.5 * (lo_.x() + hi_.x()), 0.5 * (lo_.y() + hi_.y()));
+    const Eigen::Vector2d half(0.5 * (hi_.x() - lo_.x()), 0.5 * (hi_.y() - lo_.y()));
+    const double z_mid = 0.5 * (lo_.z() + hi_.z());
+    const double max_reach = 0.6 * half.norm() + 1e-9;
+    std::uint32_t index = 0;
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < cols; ++i) {
+        const double fx = cols == 1 ? 0.0 : 2.0 * i / (cols - 1) - 1.0;
+        const double fy = rows == 1 ? 0.0 : 2.0 * j / (rows - 1) - 1.0;
+        const Eigen::Vector2d offset(fx * 0.6 * half.x(), fy * 0.6 * half.y());
+        const double reach = std::min(1.0, offset.norm() / max_reach);
+        const double a = stop(0.35 * reach);
+        const double phi = std::atan2(offset.y(), offset.x());
+        const double b = stop(reach > 1e-6 ? std::atan2(std::cos(phi), -std::sin(phi)) : 0.0);
+        const Vec3 target(mid.x() + offset.x(), mid.y() + offset.y(), z_mid);
+        const Vec3 head =
+            target + headRotation(a, b) * Vec3(0, 0, cell_.cameras.drop_mm + cell_.cameras.convergence_mm);
+        StereoStep v;
+        v.scene = Scene::Part;
+        v.index = index++;
+        v.pose = {{head.x(), head.y(), head.z()}, a, b};
+        v.settle_s = 0.4;
+        plan_.steps.emplace_back(v);
+      }
+  }
+
+  const GridSamples& samples_;
+  const CellGeometry& cell_;
+  const MachineLimits& limits_;
+  const PlannerOptions& o_;
+  Eigen::Isometry3d mount_;
+  Vec3 lo_, hi_;
+  ScanPlan plan_;
+};
+
+// Does one sweep's fan cross point p (normal n) within the sensor's range and incidence limit, away
+// from the run-ups?
+struct SweepGeometry {
+  Vec3 from, direction;  // the mirror's straight track
+  double length = 0, run_up = 0;
+  Eigen::Matrix3d axes;  // the sensor's x (fan), y, z (looks down -z), machine = datum frame
+};
+
+bool laserSees(const SweepGeometry& s, const DigitizerDrawing& d, const Vec3& p, const Vec3& n) {
+  const double along = (p - s.from).dot(s.direction);
+  if (along < s.run_up || along > s.length - s.run_up) return false;
+  const Vec3 mirror = s.from + along * s.direction;
+  const Vec3 q = s.axes.transpose() * (p - mirror);
+  const double depth = -q.z();
+  if (std::abs(depth - d.standoff_mm) > 0.5 * d.measuring_range_mm) return false;
+  // The fan's plane holds the point when the track runs across it (a track oblique to the fan
+  // meets it a little off; the fan's own thickness is not modelled).
+  if (std::abs(q.x()) > depth * std::tan(0.5 * d.fan_angle_deg * kDeg)) return false;
+  const Vec3 to_sensor = (mirror - p).normalized();
+  return n.dot(to_sensor) >= std::cos(d.incidence_limit_deg * kDeg);
+}
+
+struct CameraView {
+  Eigen::Isometry3d camera_from_datum;
+  Vec3 centre;
+};
+
+bool cameraSees(const CameraView& c, const trace::CameraIntrinsicsRecord& k, const Vec3& p, const Vec3& n,
+                const CoverageOptions& o) {
+  const Vec3 q = c.camera_from_datum * p;
+  if (q.z() <= 0) return false;
+  const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
+  if (u < o.image_border_px || v < o.image_border_px || u > k.width - o.image_border_px ||
+      v > k.height - o.image_border_px)
+    return false;
+  return n.dot((c.centre - p).normalized()) >= std::cos(o.camera_max_incidence_deg * kDeg);
+}
+
+}  // namespace
+
+ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
+                  const PlannerOptions& options) {
+  if (!(options.strip_overlap >= 0 && options.strip_overlap < 0.9))
+    throw std::invalid_argument("the strip overlap must be within 0 .. 0.9, not " + std::to_string(options.strip_overlap));
+  if (!(options.sweep_speed > 0) || !(options.travel_speed > 0))
+    throw std::invalid_argument("the sweep and travel speeds must be positive");
+  if (!(options.depth_use > 0 && options.depth_use <= 1))
+    throw std::invalid_argument("depth_use must be within (0, 1]");
+  if (!(options.sample_spacing_mm > 0)) throw std::invalid_argument("the sample spacing must be positive");
+  const GridSamples samples = sampleGridArea(model, options.sample_spacing_mm, options.grid_normal_z);
+  if (samples.points.empty())
+    throw std::invalid_argument((model.source.empty() ? std::string("the model") : model.source) +
+                                ": no facet faces the sensors' side (+z of the datum frame): nothing to plan");
+  return PartPlanner(samples, part, cell, limits, options).plan();
+}
+
+Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,
+                         const CoverageOptions& options) {
+  const GridSamples samples = sampleGridArea(model, options.sample_spacing_mm, options.grid_normal_z);
+  const Eigen::Isometry3d mount = trace::toIsometry(toRigidPose(cell.digitizer.mount));
+  const MachineLimits limits;
+  std::vector<SweepGeometry> sweeps;
+  std::vector<std::array<CameraView, 2>> views;
+  const Eigen::Isometry3d head_from_camera[2] = {trace::toIsometry(nominalCameraMount(cell.cameras, 0)),
+                                                 trace::toIsometry(nominalCameraMount(cell.cameras, 1))};
+  for (const PlanStep& step : plan.steps) {
+    if (const auto* s = std::get_if<SweepStep>(&step); s && s->scene == Scene::Part) {
+      const Eigen::Isometry3d h0 = trace::headPose(vec(s->start.position), s->start.a, s->start.b);
+      const Eigen::Isometry3d h1 = trace::headPose(vec(s->end.position), s->end.a, s->end.b);
+      SweepGeometry g;
+      g.from = h0 * mount.translation();
+      const Vec3 to = h1 * mount.translation();
+      g.length = (to - g.from).norm();
+      g.direction = g.length > 0 ? Vec3((to - g.from) / g.length) : Vec3::UnitY();
+      g.run_up = sweepRunUp(s->speed, limits.acceleration);
+      g.axes = h0.linear() * mount.linear();
+      sweeps.push_back(g);
+    } else if (const auto* v = std::get_if<StereoStep>(&step); v && v->scene == Scene::Part) {
+      const Eigen::Isometry3d head = trace::headPose(vec(v->pose.position), v->pose.a, v->pose.b);
+      std::array<CameraView, 2> pair;
+      for (int c = 0; c < 2; ++c) {
+        const Eigen::Isometry3d datum_from_camera = head * head_from_camera[c];
+        pair[static_cast<std::size_t>(c)] = {datum_from_camera.inverse(), datum_from_camera.translation()};
+      }
+      views.push_back(pair);
+    }
+  }
+  const trace::CameraIntrinsicsRecord k = nominalIntrinsics(cell.cameras);
+  Coverage c;
+  const std::size_t n = samples.points.size();
+  c.points.resize(n);
+  c.sample_area = samples.area;
+  c.laser_passes.assign(n, 0);
+  c.stereo.assign(n, 0);
+  c.sweep_area.assign(sweeps.size(), 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = samples.points[i];
+    const Vec3& normal = samples.normals[i];
+    c.points[i] = {p.x(), p.y(), p.z()};
+    for (std::size_t s = 0; s < sweeps.size(); ++s)
+      if (laserSees(sweeps[s], cell.digitizer, p, normal)) {
+        c.laser_passes[i] = static_cast<std::uint16_t>(std::min<int>(c.laser_passes[i] + 1, 65535));
+        c.sweep_area[s] += samples.area[i];
+      }
+    for (const auto& pair : views)
+      if (cameraSees(pair[0], k, p, normal, options) && cameraSees(pair[1], k, p, normal, options)) {
+        c.stereo[i] = 1;
+        break;
+      }
+    const double a = samples.area[i];
+    c.grid_area += a;
+    if (c.laser_passes[i] > 0) c.laser_area += a;
+    if (c.laser_passes[i] > 1) c.overlap_area += a;
+    if (c.stereo[i]) c.stereo_area += a;
+    if (c.laser_passes[i] > 0 || c.stereo[i]) c.either_area += a;
+  }
+  return c;
+}
+
+double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed) {
+  const double stripe = 2 * cell.digitizer.standoff_mm * std::tan(0.5 * cell.digitizer.fan_angle_deg * kDeg);
+  return stripe > 0 && sweep_speed > 0 ? grid_area / (stripe * sweep_speed) : 0;
+}
+
+}  // namespace stampscan::acquisition

@@ -1,0 +1,157 @@
+// `station plan PROGRAM`: a scan plan from the part program's nominal model for the cell's sensors
+// (acquisition/part_planner.hpp), with what it is predicted to see, its motion time against a lower
+// bound, and the same figures for the program's own plan beside it. Writes the plan file with -o, or
+// into the program with --into-program (the program's plan file replaced, the old one kept as .bak).
+#include "program_library.hpp"
+#include "virtual_world_options.hpp"
+
+#include "stampscan/acquisition/part_planner.hpp"
+#include "stampscan/fitting/atomic_file.hpp"
+#include "stampscan/station/commands.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace stampscan::station {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct PlanOptions {
+  CellChoice cell;
+  std::string program, output, runs = "stampscan-runs";
+  bool into_program = false, laser_only = false;
+  acquisition::PlannerOptions planner;
+};
+
+struct PlanFigures {
+  acquisition::Coverage coverage;
+  double motion_s = 0;
+  double laser_motion_s = 0;  // the laser passes alone (from the park, back to it)
+  std::size_t sweeps = 0, views = 0;
+  std::vector<std::string> problems;  // against the cell's travel and head
+};
+
+PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::PartProgram& program,
+                      const acquisition::CellConfig& cell, double spacing) {
+  PlanFigures f;
+  acquisition::CoverageOptions coverage;
+  coverage.sample_spacing_mm = spacing;
+  f.coverage = acquisition::predictCoverage(program.model, plan, cell.geometry, coverage);
+  const acquisition::ScanPlan placed = acquisition::placeOnFixture(plan, cell.geometry, cell.limits.index_step);
+  f.motion_s = acquisition::motionSeconds(placed, cell.limits);
+  acquisition::ScanPlan laser_only = placed;
+  std::erase_if(laser_only.steps, [](const acquisition::PlanStep& step) {
+    return std::holds_alternative<acquisition::StereoStep>(step);
+  });
+  f.laser_motion_s = acquisition::motionSeconds(laser_only, cell.limits);
+  f.problems = acquisition::checkPlan(placed, cell.limits);
+  f.sweeps = plan.sweepCount(acquisition::Scene::Part);
+  f.views = plan.stereoCount(acquisition::Scene::Part);
+  return f;
+}
+
+void printFigures(const char* label, const PlanFigures& f) {
+  const acquisition::Coverage& c = f.coverage;
+  std::printf("  %-10s %zu laser passes, %zu stereo views; seen: laser %.1f %%, stereo %.1f %%, either %.1f %% of the "
+              "grid area; overlap %.1f %% of the laser's; motion %.1f s\n",
+              label, f.sweeps, f.views, 100 * c.share(c.laser_area), 100 * c.share(c.stereo_area),
+              100 * c.share(c.either_area), c.laser_area > 0 ? 100 * c.overlap_area / c.laser_area : 0.0, f.motion_s);
+  for (const std::string& p : f.problems) std::printf("  %-10s cannot run on this cell: %s\n", "", p.c_str());
+}
+
+// Where the grid area is not seen: the unseen samples' bounding boxes by height band, so that an
+// engineer can find them on the model (a deep pocket, an undercut).
+void printUnseen(const acquisition::Coverage& c) {
+  double unseen = 0;
+  std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (std::size_t i = 0; i < c.points.size(); ++i) {
+    if (c.laser_passes[i] > 0 || c.stereo[i]) continue;
+    unseen += c.sample_area[i];
+    for (int k = 0; k < 3; ++k) {
+      lo[static_cast<std::size_t>(k)] = std::min(lo[static_cast<std::size_t>(k)], c.points[i][static_cast<std::size_t>(k)]);
+      hi[static_cast<std::size_t>(k)] = std::max(hi[static_cast<std::size_t>(k)], c.points[i][static_cast<std::size_t>(k)]);
+    }
+  }
+  if (unseen <= 0) {
+    std::printf("  unseen     none of the grid area\n");
+    return;
+  }
+  std::printf("  unseen     %.0f mm^2 (%.2f %%) of the grid area, within x %.1f .. %.1f, y %.1f .. %.1f, z %.1f .. %.1f mm "
+              "(datum frame)\n",
+              unseen, 100 * c.share(unseen), lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
+}
+
+void writePlan(const acquisition::ScanPlan& plan, const fs::path& file) {
+  if (file.has_parent_path()) fs::create_directories(file.parent_path());
+  fitting::writeFileAtomically(file, acquisition::toToml(plan));
+}
+
+}  // namespace
+
+CommandRunner addPlanCommand(CLI::App& app) {
+  auto opt = std::make_shared<PlanOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "plan", "A scan plan from a part program's nominal model for the cell's sensors: laser passes and stereo views, "
+              "what they are predicted to see, the motion time against a lower bound, and the program's own plan beside it");
+  cmd->add_option("program", opt->program,
+                  "The part program: its name in the cell's program library, or its folder")
+      ->required();
+  opt->cell.addTo(cmd);
+  cmd->add_option("-o,--output", opt->output, "Write the plan file here (TOML, the part's datum frame)");
+  cmd->add_flag("--into-program", opt->into_program,
+                "Make the plan the program's own: its plan file is replaced (the old one kept beside it as .bak)");
+  cmd->add_option("--runs", opt->runs, "Folder of run folders (a virtual cell's program library is RUNS/programs)");
+  cmd->add_flag("--laser-only", opt->laser_only, "Plan laser passes only");
+  cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's stripe its neighbour covers again")
+      ->check(CLI::Range(0.0, 0.85));
+  cmd->add_option("--sweep-speed", opt->planner.sweep_speed, "mm/s while the digitizer scans")->check(CLI::Range(1.0, 500.0));
+  cmd->add_option("--stereo-rows", opt->planner.stereo_rows, "Rows of stereo views")->check(CLI::Range(0, 20));
+  cmd->add_option("--stereo-columns", opt->planner.stereo_columns, "Columns of stereo views")->check(CLI::Range(0, 20));
+  cmd->add_option("--spacing", opt->planner.sample_spacing_mm, "mm between the samples of the grid area")
+      ->check(CLI::Range(0.2, 20.0));
+  return [opt]() {
+    const acquisition::CellConfig cell = opt->cell.load();
+    acquisition::PartProgram program = programToScan(opt->program, cell, opt->cell.hosted(), opt->runs);
+    acquisition::PlannerOptions planner = opt->planner;
+    if (opt->laser_only) planner.stereo = false;
+    acquisition::PartSpec part = program.plan.part;
+    part.grid = program.grid.kind;
+    part.pitch = program.grid.pitch_mm;
+    part.circle_diameter = program.grid.circle_diameter_mm;
+    part.line_width = program.grid.line_width_mm;
+    acquisition::ScanPlan plan = acquisition::planPart(program.model, part, cell.geometry, cell.limits, planner);
+    plan.name = program.name + ", generated from " + program.model_file.string() + " for " + cell.name;
+
+    const PlanFigures generated = figuresOf(plan, program, cell, planner.sample_spacing_mm);
+    const PlanFigures own = figuresOf(program.plan, program, cell, planner.sample_spacing_mm);
+    const double bound = acquisition::scanTimeLowerBound(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
+    std::printf("plan %s on %s: grid area %.0f mm^2 (facets facing the sensors), sampled every %.1f mm\n",
+                program.name.c_str(), cell.name.c_str(), generated.coverage.grid_area, planner.sample_spacing_mm);
+    printFigures("generated", generated);
+    printFigures("program's", own);
+    std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe x %.0f mm/s)); the generated "
+                "passes take %.1f s with their moves (%.2f x; their overlap alone makes %.2f x), the program's %.1f s\n",
+                bound, planner.sweep_speed, generated.laser_motion_s,
+                bound > 0 ? generated.laser_motion_s / bound : 0.0, 1 / (1 - planner.strip_overlap), own.laser_motion_s);
+    printUnseen(generated.coverage);
+    std::printf("  note       lines of sight are not tested against the part itself: where it hides itself (a pocket's "
+                "floor behind a wall) the prediction is an upper bound\n");
+    if (!opt->output.empty()) {
+      writePlan(plan, opt->output);
+      std::printf("  written    %s\n", opt->output.c_str());
+    }
+    if (opt->into_program) {
+      const fs::path target = program.folder / program.plan_file;
+      if (fs::exists(target)) fs::copy_file(target, target.string() + ".bak", fs::copy_options::overwrite_existing);
+      writePlan(plan, target);
+      std::printf("  written    %s (the program's plan; the old one is %s.bak)\n", target.c_str(), target.c_str());
+    }
+    return generated.problems.empty() ? 0 : 1;
+  };
+}
+
+}  // namespace stampscan::station

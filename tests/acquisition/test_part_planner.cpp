@@ -1,0 +1,171 @@
+// Plans from a nominal model (acquisition/part_planner.hpp): what the generated plan is predicted
+// to see, checked against geometry whose answer is known (a flat plate, a pocket deeper than the
+// measuring range, walls too steep for either sensor), on a continuous and an indexing head, and on
+// the simulator's own parts against their hand-made plans.
+#include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/acquisition/part_planner.hpp"
+#include "stampscan/acquisition/part_program.hpp"
+#include "stampscan/sim/part_model.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <unistd.h>
+
+namespace stampscan::acquisition {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A quad (two triangles), counter-clockwise seen from its front.
+void addQuad(NominalModel& m, std::array<double, 3> a, std::array<double, 3> b, std::array<double, 3> c,
+             std::array<double, 3> d) {
+  const auto base = static_cast<std::uint32_t>(m.vertices.size());
+  m.vertices.insert(m.vertices.end(), {a, b, c, d});
+  m.triangles.push_back({base, base + 1, base + 2});
+  m.triangles.push_back({base, base + 2, base + 3});
+}
+
+NominalModel plate(double w, double h) {
+  NominalModel m;
+  addQuad(m, {-w / 2, -h / 2, 0}, {w / 2, -h / 2, 0}, {w / 2, h / 2, 0}, {-w / 2, h / 2, 0});
+  return m;
+}
+
+// A square pocket `depth` deep in a flange, its walls `wall_deg` from the horizontal.
+NominalModel pocket(double flange, double opening, double depth, double wall_deg) {
+  NominalModel m;
+  const double o = opening / 2, f = flange / 2;
+  const double i = o - depth / std::tan(wall_deg * std::numbers::pi / 180);  // the floor's half width
+  // The flange: four quads around the opening.
+  addQuad(m, {-f, -f, 0}, {f, -f, 0}, {f, -o, 0}, {-f, -o, 0});
+  addQuad(m, {-f, o, 0}, {f, o, 0}, {f, f, 0}, {-f, f, 0});
+  addQuad(m, {-f, -o, 0}, {-o, -o, 0}, {-o, o, 0}, {-f, o, 0});
+  addQuad(m, {o, -o, 0}, {f, -o, 0}, {f, o, 0}, {o, o, 0});
+  // The walls, facing inwards and up.
+  addQuad(m, {-o, -o, 0}, {o, -o, 0}, {i, -i, -depth}, {-i, -i, -depth});
+  addQuad(m, {o, o, 0}, {-o, o, 0}, {-i, i, -depth}, {i, i, -depth});
+  addQuad(m, {-o, o, 0}, {-o, -o, 0}, {-i, -i, -depth}, {-i, i, -depth});
+  addQuad(m, {o, -o, 0}, {o, o, 0}, {i, i, -depth}, {i, -i, -depth});
+  addQuad(m, {-i, -i, -depth}, {i, -i, -depth}, {i, i, -depth}, {-i, i, -depth});
+  return m;
+}
+
+PartSpec circles() { return PartSpec{}; }
+
+TEST(PartPlanner, APlateIsSeenWholeByTheLaserAndTheCameras) {
+  const CellConfig cell = virtualCell();
+  const NominalModel model = plate(120, 80);
+  const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
+  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  EXPECT_NEAR(c.grid_area, 120 * 80, 1e-6);
+  EXPECT_GE(c.share(c.laser_area), 0.995);
+  EXPECT_GE(c.share(c.stereo_area), 0.995);
+  // Passes no wider than the stripe, overlapping by about the share asked for.
+  const double stripe = 2 * cell.geometry.digitizer.standoff_mm *
+                        std::tan(0.5 * cell.geometry.digitizer.fan_angle_deg * std::numbers::pi / 180);
+  EXPECT_EQ(plan.sweepCount(Scene::Part), static_cast<std::size_t>(std::ceil(120 / (0.7 * stripe))));
+  EXPECT_LT(c.overlap_area / c.laser_area, 0.45);
+  EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());
+  // Within the planning goal of the lower bound (the moves between passes come on top).
+  const double bound = scanTimeLowerBound(c.grid_area, cell.geometry, 25);
+  EXPECT_GT(bound, 0);
+  EXPECT_LT(motionSeconds(plan, cell.limits), 3.0 * bound + 20);
+}
+
+TEST(PartPlanner, APocketDeeperThanTheRangeIsFlownAtSeveralHeights) {
+  const CellConfig cell = virtualCell();
+  const double range = cell.geometry.digitizer.measuring_range_mm;
+  // Walls at 45 degrees: the laser sees them (within its incidence limit) at some height.
+  const NominalModel model = pocket(160, 100, 1.6 * range, 45);
+  PlannerOptions laser_only;
+  laser_only.stereo = false;
+  const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits, laser_only);
+  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  EXPECT_GE(c.share(c.laser_area), 0.99) << c.laser_area << " of " << c.grid_area;
+  // More passes than a flat part of the same footprint gets: the pocket's passes come in bands.
+  const ScanPlan flat = planPart(plate(160, 160), circles(), cell.geometry, cell.limits, laser_only);
+  EXPECT_GT(plan.sweepCount(), flat.sweepCount());
+}
+
+TEST(PartPlanner, WallsTooSteepForEitherSensorAreNamedAsUnseen) {
+  const CellConfig cell = virtualCell();
+  // Walls at 85 degrees: beyond the laser's incidence limit and the cameras' resolving angle.
+  const NominalModel model = pocket(160, 100, 20, 85);
+  const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
+  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  double walls = 0, unseen = 0, unseen_on_walls = 0;
+  for (std::size_t i = 0; i < c.points.size(); ++i) {
+    // The flange (z = 0) and the floor (z = -20) are level; every other sample is on a wall.
+    const bool on_wall = std::abs(c.points[i][2]) > 1e-9 && std::abs(c.points[i][2] + 20) > 1e-9;
+    if (on_wall) walls += c.sample_area[i];
+    if (c.laser_passes[i] == 0 && c.stereo[i] == 0) {
+      unseen += c.sample_area[i];
+      if (on_wall) unseen_on_walls += c.sample_area[i];
+    }
+  }
+  ASSERT_GT(walls, 0);
+  EXPECT_GT(unseen_on_walls, 0.9 * walls);  // the walls are not claimed as seen
+  EXPECT_LT(unseen - unseen_on_walls, 0.01 * c.grid_area);  // and the rest is
+}
+
+TEST(PartPlanner, AnIndexingHeadGetsOnlyItsStops) {
+  const CellConfig cell = loadCellConfig(fs::path(STAMPSCAN_CELLS_DIR) / "virtual-indexing.toml");
+  ASSERT_GT(cell.limits.index_step, 0);
+  const NominalModel model = pocket(160, 100, 20, 45);
+  const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
+  const auto on_stop = [&](double angle) {
+    const double k = angle / cell.limits.index_step;
+    return std::abs(k - std::round(k)) < 1e-9;
+  };
+  for (const PlanStep& step : plan.steps) {
+    if (const auto* s = std::get_if<SweepStep>(&step)) {
+      EXPECT_TRUE(on_stop(s->start.a) && on_stop(s->start.b) && on_stop(s->end.a) && on_stop(s->end.b));
+    } else {
+      const auto& v = std::get<StereoStep>(step);
+      EXPECT_TRUE(on_stop(v.pose.a) && on_stop(v.pose.b));
+    }
+  }
+  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  EXPECT_GE(c.share(c.either_area), 0.99);
+}
+
+TEST(PartPlanner, AModelWithNothingFacingTheSensorsIsRefusedNamingIt) {
+  const CellConfig cell = virtualCell();
+  NominalModel upside_down = plate(50, 50);
+  for (auto& t : upside_down.triangles) std::swap(t[1], t[2]);
+  upside_down.source = "parts/bracket/model.stl";
+  try {
+    (void)planPart(upside_down, circles(), cell.geometry, cell.limits);
+    FAIL() << "planned a model with no grid area";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("parts/bracket/model.stl"), std::string::npos) << e.what();
+  }
+  PlannerOptions bad;
+  bad.strip_overlap = 0.95;
+  EXPECT_THROW((void)planPart(plate(50, 50), circles(), cell.geometry, cell.limits, bad), std::invalid_argument);
+}
+
+// The simulator's whole parts, as their programs describe them: the generated plan sees as much of
+// the grid area as the hand-made one.
+TEST(PartPlanner, TheSimulatedPartsAreCoveredAsWellAsByTheirHandMadePlans) {
+  const CellConfig cell = virtualCell();
+  const fs::path dir = fs::temp_directory_path() / ("stampscan_planner_" + std::to_string(::getpid()));
+  for (const sim::PartKind kind : {sim::PartKind::Dome, sim::PartKind::Pan}) {
+    const fs::path folder = dir / (kind == sim::PartKind::Dome ? "dome" : "pan");
+    sim::writeSimulatedProgram(kind, sim::GridKind::Circle, folder, {});
+    const PartProgram program = loadPartProgram(folder);
+    const ScanPlan plan = planPart(program.model, program.plan.part, cell.geometry, cell.limits);
+    const Coverage generated = predictCoverage(program.model, plan, cell.geometry);
+    const Coverage hand = predictCoverage(program.model, program.plan, cell.geometry);
+    SCOPED_TRACE(program.name);
+    EXPECT_GE(generated.share(generated.either_area), std::min(0.995, hand.share(hand.either_area) - 0.002));
+    EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace stampscan::acquisition
