@@ -15,7 +15,8 @@ packages=(build-essential cmake ninja-build pkg-config
           fonts-dejavu-core libsqlitecpp-dev libsqlite3-dev libpqxx-dev postgresql
           libcpp-httplib-dev libssl-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng nginx openssl
           systemd lintian
-          libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev)
+          libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev
+          libembree-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

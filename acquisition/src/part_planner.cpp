@@ -3,11 +3,13 @@
 #include "stampscan/acquisition/trace/rigid_pose.hpp"
 
 #include <Eigen/Geometry>
+#include <embree3/rtcore.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 namespace stampscan::acquisition {
@@ -178,6 +180,64 @@ class PartPlanner {
   ScanPlan plan_;
 };
 
+// The model as Embree's scene, for lines of sight: is anything of the part between a sample and a
+// sensor? Single precision, as Embree works; the tolerance covers it at a cell's scale.
+class Occluder {
+ public:
+  Occluder(const NominalModel& model, double tolerance) : tolerance_(static_cast<float>(tolerance)) {
+    device_ = rtcNewDevice("threads=1");
+    if (device_ == nullptr) throw std::runtime_error("Embree: cannot create a device for the model's lines of sight");
+    scene_ = rtcNewScene(device_);
+    RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), model.vertices.size()));
+    auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                             3 * sizeof(unsigned), model.triangles.size()));
+    for (std::size_t i = 0; i < model.vertices.size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) v[3 * i + k] = static_cast<float>(model.vertices[i][k]);
+    for (std::size_t i = 0; i < model.triangles.size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) t[3 * i + k] = model.triangles[i][k];
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene_, geometry);
+    rtcReleaseGeometry(geometry);
+    rtcCommitScene(scene_);
+  }
+  ~Occluder() {
+    if (scene_ != nullptr) rtcReleaseScene(scene_);
+    if (device_ != nullptr) rtcReleaseDevice(device_);
+  }
+  Occluder(const Occluder&) = delete;
+  Occluder& operator=(const Occluder&) = delete;
+
+  // True when the segment from `from` (a sample on the surface) to `to` (a sensor) meets the model
+  // beyond the tolerance at either end.
+  bool blocked(const Vec3& from, const Vec3& to) const {
+    const Vec3 d = to - from;
+    const double length = d.norm();
+    if (length <= 2 * tolerance_) return false;
+    const Vec3 u = d / length;
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay ray{};
+    ray.org_x = static_cast<float>(from.x());
+    ray.org_y = static_cast<float>(from.y());
+    ray.org_z = static_cast<float>(from.z());
+    ray.dir_x = static_cast<float>(u.x());
+    ray.dir_y = static_cast<float>(u.y());
+    ray.dir_z = static_cast<float>(u.z());
+    ray.tnear = tolerance_;
+    ray.tfar = static_cast<float>(length) - tolerance_;
+    ray.mask = 0xFFFFFFFFu;
+    rtcOccluded1(scene_, &context, &ray);
+    return ray.tfar < 0;  // Embree sets it to -inf when the ray is blocked
+  }
+
+ private:
+  float tolerance_;
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+};
+
 // Does one sweep's fan cross point p (normal n) within the sensor's range and incidence limit, away
 // from the run-ups?
 struct SweepGeometry {
@@ -186,7 +246,7 @@ struct SweepGeometry {
   Eigen::Matrix3d axes;  // the sensor's x (fan), y, z (looks down -z), machine = datum frame
 };
 
-bool laserSees(const SweepGeometry& s, const DigitizerDrawing& d, const Vec3& p, const Vec3& n) {
+bool laserSees(const SweepGeometry& s, const DigitizerDrawing& d, const Vec3& p, const Vec3& n, const Occluder* occluder) {
   const double along = (p - s.from).dot(s.direction);
   if (along < s.run_up || along > s.length - s.run_up) return false;
   const Vec3 mirror = s.from + along * s.direction;
@@ -197,7 +257,8 @@ bool laserSees(const SweepGeometry& s, const DigitizerDrawing& d, const Vec3& p,
   // meets it a little off; the fan's own thickness is not modelled).
   if (std::abs(q.x()) > depth * std::tan(0.5 * d.fan_angle_deg * kDeg)) return false;
   const Vec3 to_sensor = (mirror - p).normalized();
-  return n.dot(to_sensor) >= std::cos(d.incidence_limit_deg * kDeg);
+  if (n.dot(to_sensor) < std::cos(d.incidence_limit_deg * kDeg)) return false;
+  return occluder == nullptr || !occluder->blocked(p, mirror);
 }
 
 struct CameraView {
@@ -206,14 +267,15 @@ struct CameraView {
 };
 
 bool cameraSees(const CameraView& c, const trace::CameraIntrinsicsRecord& k, const Vec3& p, const Vec3& n,
-                const CoverageOptions& o) {
+                const CoverageOptions& o, const Occluder* occluder) {
   const Vec3 q = c.camera_from_datum * p;
   if (q.z() <= 0) return false;
   const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
   if (u < o.image_border_px || v < o.image_border_px || u > k.width - o.image_border_px ||
       v > k.height - o.image_border_px)
     return false;
-  return n.dot((c.centre - p).normalized()) >= std::cos(o.camera_max_incidence_deg * kDeg);
+  if (n.dot((c.centre - p).normalized()) < std::cos(o.camera_max_incidence_deg * kDeg)) return false;
+  return occluder == nullptr || !occluder->blocked(p, c.centre);
 }
 
 }  // namespace
@@ -266,6 +328,9 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
     }
   }
   const trace::CameraIntrinsicsRecord k = nominalIntrinsics(cell.cameras);
+  std::optional<Occluder> occluder;
+  if (options.occlusion) occluder.emplace(model, options.occlusion_tolerance_mm);
+  const Occluder* blocker = occluder ? &*occluder : nullptr;
   Coverage c;
   const std::size_t n = samples.points.size();
   c.points.resize(n);
@@ -278,12 +343,12 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
     const Vec3& normal = samples.normals[i];
     c.points[i] = {p.x(), p.y(), p.z()};
     for (std::size_t s = 0; s < sweeps.size(); ++s)
-      if (laserSees(sweeps[s], cell.digitizer, p, normal)) {
+      if (laserSees(sweeps[s], cell.digitizer, p, normal, blocker)) {
         c.laser_passes[i] = static_cast<std::uint16_t>(std::min<int>(c.laser_passes[i] + 1, 65535));
         c.sweep_area[s] += samples.area[i];
       }
     for (const auto& pair : views)
-      if (cameraSees(pair[0], k, p, normal, options) && cameraSees(pair[1], k, p, normal, options)) {
+      if (cameraSees(pair[0], k, p, normal, options, blocker) && cameraSees(pair[1], k, p, normal, options, blocker)) {
         c.stereo[i] = 1;
         break;
       }

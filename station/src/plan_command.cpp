@@ -138,8 +138,6 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 bound, planner.sweep_speed, generated.laser_motion_s,
                 bound > 0 ? generated.laser_motion_s / bound : 0.0, 1 / (1 - planner.strip_overlap), own.laser_motion_s);
     printUnseen(generated.coverage);
-    std::printf("  note       lines of sight are not tested against the part itself: where it hides itself (a pocket's "
-                "floor behind a wall) the prediction is an upper bound\n");
     if (!opt->output.empty()) {
       writePlan(plan, opt->output);
       std::printf("  written    %s\n", opt->output.c_str());

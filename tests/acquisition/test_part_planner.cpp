@@ -78,15 +78,15 @@ TEST(PartPlanner, APlateIsSeenWholeByTheLaserAndTheCameras) {
 TEST(PartPlanner, APocketDeeperThanTheRangeIsFlownAtSeveralHeights) {
   const CellConfig cell = virtualCell();
   const double range = cell.geometry.digitizer.measuring_range_mm;
-  // Walls at 45 degrees: the laser sees them (within its incidence limit) at some height.
-  const NominalModel model = pocket(160, 100, 1.6 * range, 45);
+  // Walls at 60 degrees: the laser sees them (within its incidence limit) at some height.
+  const NominalModel model = pocket(240, 160, 1.6 * range, 60);
   PlannerOptions laser_only;
   laser_only.stereo = false;
   const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits, laser_only);
   const Coverage c = predictCoverage(model, plan, cell.geometry);
   EXPECT_GE(c.share(c.laser_area), 0.99) << c.laser_area << " of " << c.grid_area;
   // More passes than a flat part of the same footprint gets: the pocket's passes come in bands.
-  const ScanPlan flat = planPart(plate(160, 160), circles(), cell.geometry, cell.limits, laser_only);
+  const ScanPlan flat = planPart(plate(240, 240), circles(), cell.geometry, cell.limits, laser_only);
   EXPECT_GT(plan.sweepCount(), flat.sweepCount());
 }
 
@@ -109,6 +109,38 @@ TEST(PartPlanner, WallsTooSteepForEitherSensorAreNamedAsUnseen) {
   ASSERT_GT(walls, 0);
   EXPECT_GT(unseen_on_walls, 0.9 * walls);  // the walls are not claimed as seen
   EXPECT_LT(unseen - unseen_on_walls, 0.01 * c.grid_area);  // and the rest is
+}
+
+// A low roof over part of a plate: deep under it, the plate is seen by no sensor above (a line of
+// sight out from under it would be more than 60 degrees from the plate's normal, where the cameras
+// cannot resolve the grid and the laser's fan never reaches), and the prediction says so because it
+// casts each line of sight against the model.
+TEST(PartPlanner, WhatThePartHidesFromItselfIsNotPredictedSeen) {
+  const CellConfig cell = virtualCell();
+  NominalModel model = plate(120, 80);
+  addQuad(model, {-30, -40, 10}, {30, -40, 10}, {30, 40, 10}, {-30, 40, 10});
+  const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
+  const auto under_roof = [](const std::array<double, 3>& p) {
+    return p[2] < 1 && std::abs(p[0]) < 10 && std::abs(p[1]) < 25;
+  };
+  const auto unseen_under_roof = [&](const Coverage& c) {
+    double area = 0, roof = 0, roof_seen = 0;
+    for (std::size_t i = 0; i < c.points.size(); ++i) {
+      const bool seen = c.laser_passes[i] > 0 || c.stereo[i] != 0;
+      if (under_roof(c.points[i]) && !seen) area += c.sample_area[i];
+      if (c.points[i][2] > 9) {
+        roof += c.sample_area[i];
+        if (seen) roof_seen += c.sample_area[i];
+      }
+    }
+    EXPECT_GE(roof_seen, 0.99 * roof);
+    return area;
+  };
+  const Coverage with = predictCoverage(model, plan, cell.geometry);
+  EXPECT_GE(unseen_under_roof(with), 0.98 * 20 * 50);
+  CoverageOptions no_occlusion;
+  no_occlusion.occlusion = false;
+  EXPECT_LT(unseen_under_roof(predictCoverage(model, plan, cell.geometry, no_occlusion)), 0.02 * 20 * 50);
 }
 
 TEST(PartPlanner, AnIndexingHeadGetsOnlyItsStops) {

@@ -13,9 +13,9 @@
 // The prediction samples the model's grid area (its facets facing the sensors' side) at a stated
 // spacing and asks, for each sample, whether one part sweep crosses it with the fan, within the
 // measuring range and the incidence limit and away from the sweep's run-ups; and whether both
-// cameras of one part view have it inside their images at an angle they can resolve. Lines of sight
-// are not yet tested against the model itself (a wall hiding a pocket's floor from a camera): the
-// prediction is an upper bound where the part hides itself, and says so.
+// cameras of one part view have it inside their images at an angle they can resolve. Each line of
+// sight (to the digitizer's mirror, to each camera) is cast against the model itself with Embree,
+// so a wall that hides a pocket's floor hides it here too.
 #pragma once
 
 #include "stampscan/acquisition/cell_geometry.hpp"
@@ -53,6 +53,8 @@ struct CoverageOptions {
   double grid_normal_z = 0.05;
   double image_border_px = 20;          // a sample must be this far inside each image
   double camera_max_incidence_deg = 60; // beyond it a camera cannot resolve the printed line
+  bool occlusion = true;                // cast each line of sight against the model
+  double occlusion_tolerance_mm = 0.1;  // a line of sight may end this far before the sample
 };
 
 struct Coverage {
