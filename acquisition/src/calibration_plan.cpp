@@ -87,10 +87,7 @@ class ScenePlanner {
   }
 
  private:
-  double stop(double angle) const {
-    if (limits_.index_step <= 0) return angle;
-    return std::round(angle / limits_.index_step) * limits_.index_step;
-  }
+  double stop(double angle) const { return nearestHeadStop(angle, limits_); }
   // The head pose that puts the digitizer's mirror at `sensor` (its drawn mount).
   HeadPose headAt(const Vec3& sensor, double a, double b) const {
     const Vec3 head = sensor - headRotation(a, b) * mount_.translation();

@@ -83,10 +83,7 @@ class PartPlanner {
   }
 
  private:
-  double stop(double angle) const {
-    if (limits_.index_step <= 0) return angle;
-    return std::round(angle / limits_.index_step) * limits_.index_step;
-  }
+  double stop(double angle) const { return nearestHeadStop(angle, limits_); }
   HeadPose headAt(const Vec3& sensor, double a, double b) const {
     const Vec3 head = sensor - headRotation(a, b) * mount_.translation();
     return {{head.x(), head.y(), head.z()}, a, b};

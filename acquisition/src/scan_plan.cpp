@@ -146,6 +146,11 @@ HeadPose parkingPose(const MachineLimits& limits) {
   return {{0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), z}, 0, 0};
 }
 
+double nearestHeadStop(double angle, const MachineLimits& limits) {
+  if (limits.index_step <= 0) return angle;
+  return std::round(angle / limits.index_step) * limits.index_step;
+}
+
 std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& limits) {
   std::vector<std::string> problems;
   const char* axes = "xyz";

@@ -137,10 +137,7 @@ class Planner {
   static acquisition::HeadPose pose(const Vec3& head, double a, double b) { return {{head.x(), head.y(), head.z()}, a, b}; }
 
   // The head angle the head can take nearest to `angle`: an indexing head's nearest stop.
-  double stop(double angle) const {
-    if (p_.limits.index_step <= 0) return angle;
-    return std::round(angle / p_.limits.index_step) * p_.limits.index_step;
-  }
+  double stop(double angle) const { return acquisition::nearestHeadStop(angle, p_.limits); }
 
   // Head position that puts the digitizer's mirror at `sensor` with head angles (a, b), using the
   // nominal mount (the planner does not know the true one).

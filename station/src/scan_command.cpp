@@ -205,7 +205,11 @@ int runScan(ScanOptions& opt) {
   const std::shared_ptr<sim::CellReplay> replay = choosePlan(opt, config, program, quick, world, job);
   if (opt.dry_run) {
     const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
-    printDryRun(job.plan, config, job.run.limits, problems);
+    std::optional<acquisition::Coverage> coverage;
+    if (program)
+      coverage = acquisition::predictCoverage(acquisition::placeOnFixture(program->model, config.geometry), job.plan,
+                                              config.geometry);
+    printDryRun(job.plan, config, job.run.limits, problems, coverage ? &*coverage : nullptr);
     return problems.empty() ? 0 : 1;
   }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/acquisition/part_planner.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
@@ -51,14 +52,24 @@ class TerminalObserver final : public ScanJobObserver {
   ProgressBar bar_;
 };
 
+// `coverage`: what the plan's part steps are predicted to see of the program's model; null without a
+// program (a plan file alone has no model).
 inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfig& cell,
-                 const acquisition::MachineLimits& limits, const std::vector<std::string>& problems) {
+                        const acquisition::MachineLimits& limits, const std::vector<std::string>& problems,
+                        const acquisition::Coverage* coverage) {
   std::printf("station scan --dry-run: plan '%s' on %s\n", plan.name.c_str(), cell.name.c_str());
   std::printf("  part        %s, %s grid\n", plan.part.kind.c_str(), plan.part.grid.c_str());
   std::printf("  steps       %zu sweeps (%zu on the part, %zu on the reference sphere), %zu stereo views\n",
               plan.sweepCount(), plan.sweepCount(acquisition::Scene::Part), plan.sweepCount(acquisition::Scene::ReferenceSphere),
               plan.stereoCount());
   std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
+  if (coverage)
+    std::printf("  coverage    predicted of the model's grid area (%.0f mm^2): laser %.1f %%, stereo %.1f %%, either %.1f %% "
+                "(`station plan` says where the rest is)\n",
+                coverage->grid_area, 100 * coverage->share(coverage->laser_area),
+                100 * coverage->share(coverage->stereo_area), 100 * coverage->share(coverage->either_area));
+  else
+    std::printf("  coverage    not predicted: no part program, so no nominal model\n");
   for (const std::string& p : problems) std::printf("  problem     %s\n", p.c_str());
   std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
 }

@@ -417,6 +417,35 @@ TEST_F(StationTest, APartProgramIsScannedAndNamedInTheRun) {
   EXPECT_NE(r.err.find("sim-pan-square"), std::string::npos) << r.err;  // what the library has
 }
 
+// `station plan`: a plan from the program's nominal model, with its predicted coverage beside the
+// program's own plan; written to a file, or made the program's own (the old plan kept), which
+// `station scan --dry-run` then checks and predicts too.
+TEST_F(StationTest, APlanFromTheModelCoversThePartAndBecomesTheProgramsOwn) {
+  const fs::path runs = work() / "runs", file = work() / "generated.toml";
+  RunResult r = run("plan sim-pan-circle --runs " + quote(runs) + " -o " + quote(file));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const auto either = r.out.find("either ");
+  ASSERT_NE(either, std::string::npos) << r.out;
+  EXPECT_GE(std::stod(r.out.substr(either + 7)), 99.5) << r.out;
+  EXPECT_NE(r.out.find("program's "), std::string::npos) << r.out;  // the hand-made plan beside it
+  const acquisition::ScanPlan plan = acquisition::loadScanPlan(file);
+  EXPECT_GT(plan.sweepCount(acquisition::Scene::Part), 0u);
+  EXPECT_GT(plan.stereoCount(acquisition::Scene::Part), 0u);
+
+  const fs::path program = runs / "programs" / "sim-pan-circle";
+  r = run("plan " + quote(program) + " --laser-only --into-program --runs " + quote(runs));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(fs::exists(program / "plan.toml.bak"));
+  EXPECT_EQ(acquisition::loadScanPlan(program / "plan.toml").stereoCount(), 0u);
+  r = run("scan --dry-run --program " + quote(program) + " -o " + quote(runs));
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("coverage    predicted of the model's grid area"), std::string::npos) << r.out;
+
+  r = run("plan no-such-part --runs " + quote(runs));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no-such-part"), std::string::npos) << r.err;
+}
+
 // A new part of one of the simulator's families: its program says how big, how deep and how strained
 // it is, and the virtual cell simulates that part (the scan is scored against it).
 TEST_F(StationTest, ANewPartOfAFamilyIsScannedAsTheProgramDescribesIt) {

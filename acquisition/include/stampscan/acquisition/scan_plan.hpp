@@ -122,6 +122,10 @@ struct MachineLimits {
 // head level.
 HeadPose parkingPose(const MachineLimits& limits);
 
+// The head angle (rad) the head can take nearest to `angle`: the angle itself on a continuous head,
+// the nearest multiple of its step on an indexing head (limits.index_step). Planners use it.
+double nearestHeadStop(double angle, const MachineLimits& limits);
+
 // The plan's problems against the limits, one line each ("step 3 (sweep part 2): end x = 450 mm is
 // outside the travel -400..400"); empty when it can run.
 std::vector<std::string> checkPlan(const ScanPlan& plan, const MachineLimits& limits);
