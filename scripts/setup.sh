@@ -16,7 +16,7 @@ packages=(build-essential cmake ninja-build pkg-config
           libcpp-httplib-dev libssl-dev libsodium-dev libjs-three libjs-chart.js chromium stress-ng nginx openssl
           systemd lintian
           libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev libocct-data-exchange-dev
-          libembree-dev)
+          libembree-dev libfcl-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -28,14 +28,6 @@ std::string shown(double v) {
   return buf;
 }
 
-std::string stepName(std::size_t k, const PlanStep& step) {
-  return std::visit(
-      [&](const auto& s) {
-        const char* kind = std::is_same_v<std::decay_t<decltype(s)>, SweepStep> ? "sweep" : "stereo";
-        return "step " + std::to_string(k + 1) + " (" + kind + " " + std::string(toString(s.scene)) + " " + std::to_string(s.index) + ")";
-      },
-      step);
-}
 
 // Reading one plan file: every error names the file, the line and the field.
 class PlanReader {
@@ -144,6 +136,15 @@ HeadPose parkingPose(const MachineLimits& limits) {
   const auto& hi = limits.travel_max;
   const double z = hi[2] - lo[2] >= 300 ? hi[2] - 150 : 0.5 * (lo[2] + hi[2]);
   return {{0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), z}, 0, 0};
+}
+
+std::string stepName(std::size_t k, const PlanStep& step) {
+  return std::visit(
+      [&](const auto& s) {
+        const char* kind = std::is_same_v<std::decay_t<decltype(s)>, SweepStep> ? "sweep" : "stereo";
+        return "step " + std::to_string(k + 1) + " (" + kind + " " + std::string(toString(s.scene)) + " " + std::to_string(s.index) + ")";
+      },
+      step);
 }
 
 double nearestHeadStop(double angle, const MachineLimits& limits) {

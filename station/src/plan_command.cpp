@@ -6,6 +6,7 @@
 #include "virtual_world_options.hpp"
 
 #include "stampscan/acquisition/part_planner.hpp"
+#include "stampscan/acquisition/plan_collisions.hpp"
 #include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/station/commands.hpp"
 
@@ -31,8 +32,9 @@ struct PlanFigures {
   acquisition::Coverage coverage;
   double motion_s = 0;
   double laser_motion_s = 0;  // the laser passes alone (from the park, back to it)
+  std::size_t collisions = 0;
   std::size_t sweeps = 0, views = 0;
-  std::vector<std::string> problems;  // against the cell's travel and head
+  std::vector<std::string> problems;  // against the cell's travel and head, and the head's body against the part
 };
 
 PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::PartProgram& program,
@@ -49,6 +51,13 @@ PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::Part
   });
   f.laser_motion_s = acquisition::motionSeconds(laser_only, cell.limits);
   f.problems = acquisition::checkPlan(placed, cell.limits);
+  const acquisition::CollisionOptions clearance;
+  const acquisition::NominalModel placed_model = acquisition::placeOnFixture(program.model, cell.geometry);
+  for (const acquisition::PlanCollision& c :
+       acquisition::checkCollisions(placed_model, placed, cell.geometry.head, clearance)) {
+    f.problems.push_back(acquisition::describe(c, placed, clearance.clearance_mm));
+    ++f.collisions;
+  }
   f.sweeps = plan.sweepCount(acquisition::Scene::Part);
   f.views = plan.stereoCount(acquisition::Scene::Part);
   return f;
@@ -138,6 +147,10 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 bound, planner.sweep_speed, generated.laser_motion_s,
                 bound > 0 ? generated.laser_motion_s / bound : 0.0, 1 / (1 - planner.strip_overlap), own.laser_motion_s);
     printUnseen(generated.coverage);
+    if (generated.collisions == 0)
+      std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part along every "
+                  "pass and move of the generated plan (the fixture is not in the cell file: not checked)\n",
+                  cell.geometry.head.body.size(), acquisition::CollisionOptions{}.clearance_mm);
     if (!opt->output.empty()) {
       writePlan(plan, opt->output);
       std::printf("  written    %s\n", opt->output.c_str());

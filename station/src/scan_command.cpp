@@ -4,6 +4,7 @@
 // (the part, sphere and plate in one simulated world) and talks to it only through the drivers on
 // loopback, as to a real cell.
 #include "stampscan/acquisition/cell.hpp"
+#include "stampscan/acquisition/plan_collisions.hpp"
 #include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
@@ -204,11 +205,15 @@ int runScan(ScanOptions& opt) {
   job.run.limits = config.limits;
   const std::shared_ptr<sim::CellReplay> replay = choosePlan(opt, config, program, quick, world, job);
   if (opt.dry_run) {
-    const auto problems = acquisition::checkPlan(job.plan, job.run.limits);
+    auto problems = acquisition::checkPlan(job.plan, job.run.limits);
     std::optional<acquisition::Coverage> coverage;
-    if (program)
-      coverage = acquisition::predictCoverage(acquisition::placeOnFixture(program->model, config.geometry), job.plan,
-                                              config.geometry);
+    if (program) {
+      const acquisition::NominalModel placed = acquisition::placeOnFixture(program->model, config.geometry);
+      coverage = acquisition::predictCoverage(placed, job.plan, config.geometry);
+      const acquisition::CollisionOptions clearance;
+      for (const acquisition::PlanCollision& c : acquisition::checkCollisions(placed, job.plan, config.geometry.head, clearance))
+        problems.push_back(acquisition::describe(c, job.plan, clearance.clearance_mm));
+    }
     printDryRun(job.plan, config, job.run.limits, problems, coverage ? &*coverage : nullptr);
     return problems.empty() ? 0 : 1;
   }

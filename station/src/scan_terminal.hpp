@@ -53,7 +53,7 @@ class TerminalObserver final : public ScanJobObserver {
 };
 
 // `coverage`: what the plan's part steps are predicted to see of the program's model; null without a
-// program (a plan file alone has no model).
+// program (a plan file alone has no model, so neither coverage nor collisions are checked).
 inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::CellConfig& cell,
                         const acquisition::MachineLimits& limits, const std::vector<std::string>& problems,
                         const acquisition::Coverage* coverage) {
@@ -63,6 +63,8 @@ inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::Ce
               plan.sweepCount(), plan.sweepCount(acquisition::Scene::Part), plan.sweepCount(acquisition::Scene::ReferenceSphere),
               plan.stereoCount());
   std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
+  if (coverage)
+    std::printf("  clearance   the head's body checked against the part's model along every step and move\n");
   if (coverage)
     std::printf("  coverage    predicted of the model's grid area (%.0f mm^2): laser %.1f %%, stereo %.1f %%, either %.1f %% "
                 "(`station plan` says where the rest is)\n",

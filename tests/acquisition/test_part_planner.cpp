@@ -5,6 +5,7 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_planner.hpp"
 #include "stampscan/acquisition/part_program.hpp"
+#include "stampscan/acquisition/plan_collisions.hpp"
 #include "stampscan/sim/part_model.hpp"
 
 #include <gtest/gtest.h>
@@ -180,6 +181,58 @@ TEST(PartPlanner, AModelWithNothingFacingTheSensorsIsRefusedNamingIt) {
   EXPECT_THROW((void)planPart(plate(50, 50), circles(), cell.geometry, cell.limits, bad), std::invalid_argument);
 }
 
+// The head's body along the plan (FCL): clear of a plate, named where it would dive into a pocket
+// narrower than itself or where a hand-made sweep runs through the part.
+TEST(PlanCollisions, TheHeadsBodyIsCheckedAlongEverySweepAndMove) {
+  const CellConfig cell = virtualCell();
+  ASSERT_FALSE(cell.geometry.head.body.empty());
+  const NominalModel flat = plate(120, 80);
+  const ScanPlan over_plate = planPart(flat, circles(), cell.geometry, cell.limits);
+  EXPECT_TRUE(checkCollisions(flat, over_plate, cell.geometry.head).empty());
+
+  // A pocket 160 mm deep: its lowest passes bring the sensor carrier (170 mm wide) below the
+  // flange, into a 160 mm opening: reported, and only those.
+  const NominalModel deep = pocket(300, 160, 160, 75);
+  PlannerOptions laser_only;
+  laser_only.stereo = false;
+  const ScanPlan into_pocket = planPart(deep, circles(), cell.geometry, cell.limits, laser_only);
+  const std::vector<PlanCollision> hits = checkCollisions(deep, into_pocket, cell.geometry.head);
+  ASSERT_FALSE(hits.empty());
+  double top = -1e9;  // the highest passes' head height: the flange's band, clear of everything
+  for (const PlanStep& step : into_pocket.steps) top = std::max(top, std::get<SweepStep>(step).start.position[2]);
+  bool low_sweep_hit = false;
+  for (const PlanCollision& c : hits) {
+    EXPECT_LT(c.clearance_mm, 5.0);
+    EXPECT_FALSE(c.solid.empty());
+    if (!c.during_move) {
+      EXPECT_LT(c.head_mm[2], top - 10) << describe(c, into_pocket, 5);
+      low_sweep_hit = true;
+    }
+  }
+  EXPECT_TRUE(low_sweep_hit);
+
+  // A sweep through the plate itself: the step, the solid and a clearance of 0.
+  ScanPlan through;
+  through.park = {{0, 0, 400}, 0, 0};
+  SweepStep s;
+  s.start = {{-50, 0, 200}, 0, 0};  // the carrier's bottom 130 mm below the head: 70 mm above the plate
+  s.end = {{-50, 0, 120}, 0, 0};    // ... and then 10 mm into it
+  through.steps.emplace_back(s);
+  CollisionOptions options;
+  options.from_park = false;
+  const std::vector<PlanCollision> through_hits = checkCollisions(flat, through, cell.geometry.head, options);
+  ASSERT_EQ(through_hits.size(), 1u);
+  EXPECT_EQ(through_hits[0].step, 0u);
+  EXPECT_FALSE(through_hits[0].during_move);
+  EXPECT_EQ(through_hits[0].clearance_mm, 0.0);
+  const std::string text = describe(through_hits[0], through, 5);
+  EXPECT_NE(text.find("step 1 (sweep part 0)"), std::string::npos) << text;
+
+  HeadDescription bodiless = cell.geometry.head;
+  bodiless.body.clear();
+  EXPECT_TRUE(checkCollisions(flat, through, bodiless, options).empty());
+}
+
 // The simulator's whole parts, as their programs describe them: the generated plan sees as much of
 // the grid area as the hand-made one.
 TEST(PartPlanner, TheSimulatedPartsAreCoveredAsWellAsByTheirHandMadePlans) {
@@ -195,6 +248,8 @@ TEST(PartPlanner, TheSimulatedPartsAreCoveredAsWellAsByTheirHandMadePlans) {
     SCOPED_TRACE(program.name);
     EXPECT_GE(generated.share(generated.either_area), std::min(0.995, hand.share(hand.either_area) - 0.002));
     EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());
+    for (const PlanCollision& c : checkCollisions(program.model, plan, cell.geometry.head))
+      ADD_FAILURE() << describe(c, plan, 5);
   }
   fs::remove_all(dir);
 }

@@ -441,6 +441,14 @@ TEST_F(StationTest, APlanFromTheModelCoversThePartAndBecomesTheProgramsOwn) {
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("coverage    predicted of the model's grid area"), std::string::npos) << r.out;
 
+  // A plan that drives the head down through the part is refused before anything moves, naming the
+  // step and the solid of the head's body.
+  writeFile(program / "plan.toml", "name = \"through\"\n[part]\nkind = \"pan\"\n\n[[step]]\nkind = \"sweep\"\n"
+                                   "scene = \"part\"\nstart = [0, 0, 300]\nend = [0, 0, 0]\nspeed = 25\n");
+  r = run("scan --dry-run --program " + quote(program) + " -o " + quote(runs));
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("(sweep part 0): the sensor carrier comes within 0.0 mm of the part"), std::string::npos) << r.out;
+
   r = run("plan no-such-part --runs " + quote(runs));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("no-such-part"), std::string::npos) << r.err;

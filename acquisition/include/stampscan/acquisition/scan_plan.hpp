@@ -122,6 +122,9 @@ struct MachineLimits {
 // head level.
 HeadPose parkingPose(const MachineLimits& limits);
 
+// How messages name the plan's step k (0-based): "step 3 (sweep part 2)".
+std::string stepName(std::size_t k, const PlanStep& step);
+
 // The head angle (rad) the head can take nearest to `angle`: the angle itself on a continuous head,
 // the nearest multiple of its step on an indexing head (limits.index_step). Planners use it.
 double nearestHeadStop(double angle, const MachineLimits& limits);
