@@ -61,7 +61,7 @@ class ScenePlanner {
                             {0, 0, 40, -1, 4, 12},      {quarter, 0.3, 10, 1, -4, -12}};
     // The fan positions and depths above are for the drawn fan and range; a narrower sensor gets
     // them scaled to its own.
-    const double half_fan = cell_.digitizer.standoff_mm * std::tan(0.5 * cell_.digitizer.fan_angle_deg * std::numbers::pi / 180);
+    const double half_fan = 0.5 * stripeWidth(cell_.digitizer);
     const double lateral_scale = std::min(1.0, 0.8 * half_fan / 12.0);
     const double depth_scale = std::min(1.0, 0.4 * cell_.digitizer.measuring_range_mm / 15.0);
     for (int k = 0; k < count; ++k) {

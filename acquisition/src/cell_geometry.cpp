@@ -92,6 +92,10 @@ const char* toString(HeadDescription::Kind kind) {
   return kind == HeadDescription::Kind::Indexing ? "indexing" : "continuous";
 }
 
+double stripeWidth(const DigitizerDrawing& d) {
+  return 2 * d.standoff_mm * std::tan(0.5 * d.fan_angle_deg * std::numbers::pi / 180);
+}
+
 trace::CameraIntrinsicsRecord nominalIntrinsics(const CameraDrawing& c) {
   trace::CameraIntrinsicsRecord r;
   r.width = c.width;

@@ -93,7 +93,7 @@ class PartPlanner {
   // bands and its length; a pass over nothing is left out.
   void laserPasses() {
     const DigitizerDrawing& d = cell_.digitizer;
-    const double stripe = 2 * d.standoff_mm * std::tan(0.5 * d.fan_angle_deg * kDeg);
+    const double stripe = stripeWidth(d);
     const double step = stripe * (1 - o_.strip_overlap);
     const int passes = std::max(1, static_cast<int>(std::ceil((hi_.x() - lo_.x()) / step)));
     const double x0 = 0.5 * (lo_.x() + hi_.x()) - 0.5 * (passes - 1) * step;
@@ -294,10 +294,9 @@ ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeo
 }
 
 Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,
-                         const CoverageOptions& options) {
+                         const MachineLimits& limits, const CoverageOptions& options) {
   const GridSamples samples = sampleGridArea(model, options.sample_spacing_mm, options.grid_normal_z);
   const Eigen::Isometry3d mount = trace::toIsometry(toRigidPose(cell.digitizer.mount));
-  const MachineLimits limits;
   std::vector<SweepGeometry> sweeps;
   std::vector<std::array<CameraView, 2>> views;
   const Eigen::Isometry3d head_from_camera[2] = {trace::toIsometry(nominalCameraMount(cell.cameras, 0)),
@@ -360,7 +359,7 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
 }
 
 double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed) {
-  const double stripe = 2 * cell.digitizer.standoff_mm * std::tan(0.5 * cell.digitizer.fan_angle_deg * kDeg);
+  const double stripe = stripeWidth(cell.digitizer);
   return stripe > 0 && sweep_speed > 0 ? grid_area / (stripe * sweep_speed) : 0;
 }
 

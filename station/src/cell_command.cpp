@@ -22,7 +22,7 @@ struct CellCheckOptions {
 void printSummary(const acquisition::CellConfig& c) {
   const acquisition::CellGeometry& g = c.geometry;
   const trace::CameraIntrinsicsRecord k = acquisition::nominalIntrinsics(g.cameras);
-  const double stripe = 2 * g.digitizer.standoff_mm * std::tan(0.5 * g.digitizer.fan_angle_deg * 3.14159265358979323846 / 180);
+  const double stripe = acquisition::stripeWidth(g.digitizer);
   const double view_w = g.cameras.convergence_mm * g.cameras.width / k.fx, view_h = g.cameras.convergence_mm * g.cameras.height / k.fy;
   std::printf("# %s: %s head%s; the laser's stripe %.1f mm wide at its standoff, %.3f mm between points; the "
               "cameras see %.0f x %.0f mm at %.0f mm (%.3f mm per pixel); %zu solids of the head's body; %zu keys "

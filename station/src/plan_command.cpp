@@ -37,12 +37,14 @@ struct PlanFigures {
   std::vector<std::string> problems;  // against the cell's travel and head, and the head's body against the part
 };
 
+// `placed_model`: the program's model on the cell's fixture, where the placed plan runs.
 PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::PartProgram& program,
-                      const acquisition::CellConfig& cell, double spacing) {
+                      const acquisition::NominalModel& placed_model, const acquisition::CellConfig& cell,
+                      double spacing) {
   PlanFigures f;
   acquisition::CoverageOptions coverage;
   coverage.sample_spacing_mm = spacing;
-  f.coverage = acquisition::predictCoverage(program.model, plan, cell.geometry, coverage);
+  f.coverage = acquisition::predictCoverage(program.model, plan, cell.geometry, cell.limits, coverage);
   const acquisition::ScanPlan placed = acquisition::placeOnFixture(plan, cell.geometry, cell.limits.index_step);
   f.motion_s = acquisition::motionSeconds(placed, cell.limits);
   acquisition::ScanPlan laser_only = placed;
@@ -52,7 +54,6 @@ PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::Part
   f.laser_motion_s = acquisition::motionSeconds(laser_only, cell.limits);
   f.problems = acquisition::checkPlan(placed, cell.limits);
   const acquisition::CollisionOptions clearance;
-  const acquisition::NominalModel placed_model = acquisition::placeOnFixture(program.model, cell.geometry);
   for (const acquisition::PlanCollision& c :
        acquisition::checkCollisions(placed_model, placed, cell.geometry.head, clearance)) {
     f.problems.push_back(acquisition::describe(c, placed, clearance.clearance_mm));
@@ -135,8 +136,9 @@ CommandRunner addPlanCommand(CLI::App& app) {
     acquisition::ScanPlan plan = acquisition::planPart(program.model, part, cell.geometry, cell.limits, planner);
     plan.name = program.name + ", generated from " + program.model_file.string() + " for " + cell.name;
 
-    const PlanFigures generated = figuresOf(plan, program, cell, planner.sample_spacing_mm);
-    const PlanFigures own = figuresOf(program.plan, program, cell, planner.sample_spacing_mm);
+    const acquisition::NominalModel placed_model = acquisition::placeOnFixture(program.model, cell.geometry);
+    const PlanFigures generated = figuresOf(plan, program, placed_model, cell, planner.sample_spacing_mm);
+    const PlanFigures own = figuresOf(program.plan, program, placed_model, cell, planner.sample_spacing_mm);
     const double bound = acquisition::scanTimeLowerBound(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
     std::printf("plan %s on %s: grid area %.0f mm^2 (facets facing the sensors), sampled every %.1f mm\n",
                 program.name.c_str(), cell.name.c_str(), generated.coverage.grid_area, planner.sample_spacing_mm);

@@ -209,7 +209,7 @@ int runScan(ScanOptions& opt) {
     std::optional<acquisition::Coverage> coverage;
     if (program) {
       const acquisition::NominalModel placed = acquisition::placeOnFixture(program->model, config.geometry);
-      coverage = acquisition::predictCoverage(placed, job.plan, config.geometry);
+      coverage = acquisition::predictCoverage(placed, job.plan, config.geometry, job.run.limits);
       const acquisition::CollisionOptions clearance;
       for (const acquisition::PlanCollision& c : acquisition::checkCollisions(placed, job.plan, config.geometry.head, clearance))
         problems.push_back(acquisition::describe(c, job.plan, clearance.clearance_mm));

@@ -60,13 +60,12 @@ TEST(PartPlanner, APlateIsSeenWholeByTheLaserAndTheCameras) {
   const CellConfig cell = virtualCell();
   const NominalModel model = plate(120, 80);
   const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
-  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  const Coverage c = predictCoverage(model, plan, cell.geometry, cell.limits);
   EXPECT_NEAR(c.grid_area, 120 * 80, 1e-6);
   EXPECT_GE(c.share(c.laser_area), 0.995);
   EXPECT_GE(c.share(c.stereo_area), 0.995);
   // Passes no wider than the stripe, overlapping by about the share asked for.
-  const double stripe = 2 * cell.geometry.digitizer.standoff_mm *
-                        std::tan(0.5 * cell.geometry.digitizer.fan_angle_deg * std::numbers::pi / 180);
+  const double stripe = stripeWidth(cell.geometry.digitizer);
   EXPECT_EQ(plan.sweepCount(Scene::Part), static_cast<std::size_t>(std::ceil(120 / (0.7 * stripe))));
   EXPECT_LT(c.overlap_area / c.laser_area, 0.45);
   EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());
@@ -84,7 +83,7 @@ TEST(PartPlanner, APocketDeeperThanTheRangeIsFlownAtSeveralHeights) {
   PlannerOptions laser_only;
   laser_only.stereo = false;
   const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits, laser_only);
-  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  const Coverage c = predictCoverage(model, plan, cell.geometry, cell.limits);
   EXPECT_GE(c.share(c.laser_area), 0.99) << c.laser_area << " of " << c.grid_area;
   // More passes than a flat part of the same footprint gets: the pocket's passes come in bands.
   const ScanPlan flat = planPart(plate(240, 240), circles(), cell.geometry, cell.limits, laser_only);
@@ -96,7 +95,7 @@ TEST(PartPlanner, WallsTooSteepForEitherSensorAreNamedAsUnseen) {
   // Walls at 85 degrees: beyond the laser's incidence limit and the cameras' resolving angle.
   const NominalModel model = pocket(160, 100, 20, 85);
   const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
-  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  const Coverage c = predictCoverage(model, plan, cell.geometry, cell.limits);
   double walls = 0, unseen = 0, unseen_on_walls = 0;
   for (std::size_t i = 0; i < c.points.size(); ++i) {
     // The flange (z = 0) and the floor (z = -20) are level; every other sample is on a wall.
@@ -137,11 +136,11 @@ TEST(PartPlanner, WhatThePartHidesFromItselfIsNotPredictedSeen) {
     EXPECT_GE(roof_seen, 0.99 * roof);
     return area;
   };
-  const Coverage with = predictCoverage(model, plan, cell.geometry);
+  const Coverage with = predictCoverage(model, plan, cell.geometry, cell.limits);
   EXPECT_GE(unseen_under_roof(with), 0.98 * 20 * 50);
   CoverageOptions no_occlusion;
   no_occlusion.occlusion = false;
-  EXPECT_LT(unseen_under_roof(predictCoverage(model, plan, cell.geometry, no_occlusion)), 0.02 * 20 * 50);
+  EXPECT_LT(unseen_under_roof(predictCoverage(model, plan, cell.geometry, cell.limits, no_occlusion)), 0.02 * 20 * 50);
 }
 
 TEST(PartPlanner, AnIndexingHeadGetsOnlyItsStops) {
@@ -161,7 +160,7 @@ TEST(PartPlanner, AnIndexingHeadGetsOnlyItsStops) {
       EXPECT_TRUE(on_stop(v.pose.a) && on_stop(v.pose.b));
     }
   }
-  const Coverage c = predictCoverage(model, plan, cell.geometry);
+  const Coverage c = predictCoverage(model, plan, cell.geometry, cell.limits);
   EXPECT_GE(c.share(c.either_area), 0.99);
 }
 
@@ -243,8 +242,8 @@ TEST(PartPlanner, TheSimulatedPartsAreCoveredAsWellAsByTheirHandMadePlans) {
     sim::writeSimulatedProgram(kind, sim::GridKind::Circle, folder, {});
     const PartProgram program = loadPartProgram(folder);
     const ScanPlan plan = planPart(program.model, program.plan.part, cell.geometry, cell.limits);
-    const Coverage generated = predictCoverage(program.model, plan, cell.geometry);
-    const Coverage hand = predictCoverage(program.model, program.plan, cell.geometry);
+    const Coverage generated = predictCoverage(program.model, plan, cell.geometry, cell.limits);
+    const Coverage hand = predictCoverage(program.model, program.plan, cell.geometry, cell.limits);
     SCOPED_TRACE(program.name);
     EXPECT_GE(generated.share(generated.either_area), std::min(0.995, hand.share(hand.either_area) - 0.002));
     EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());

@@ -68,6 +68,9 @@ struct DigitizerDrawing {
   bool operator==(const DigitizerDrawing&) const = default;
 };
 
+// The width of the laser's stripe on a surface at the standoff (mm): what one pass covers.
+double stripeWidth(const DigitizerDrawing& digitizer);
+
 // The stereo pair as drawn ([cameras]): one camera model for both, and the rig on the head. The
 // cameras sit at x = -+baseline/2, drop_mm below the head's reference point, their optical axes
 // crossing convergence_mm below the rig (OpenCV camera axes: x right, y down, z along the view).

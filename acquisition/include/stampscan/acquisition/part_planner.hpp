@@ -72,9 +72,10 @@ struct Coverage {
   double share(double area) const { return grid_area > 0 ? area / grid_area : 0; }
 };
 
-// What the part steps of `plan` (datum frame) are predicted to see of the model's grid area.
+// What the part steps of `plan` are predicted to see of the model's grid area (the plan and the model
+// in one frame). The limits give the sweeps' run-ups (the machine's acceleration).
 Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,
-                         const CoverageOptions& options = {});
+                         const MachineLimits& limits, const CoverageOptions& options = {});
 
 // A lower bound of the part's scanning time: the grid area over the stripe's width (at the standoff)
 // times the sweep speed. The moves between passes come on top.
