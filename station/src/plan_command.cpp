@@ -73,7 +73,7 @@ void printFigures(const char* label, const PlanFigures& f) {
   for (const std::string& p : f.problems) std::printf("  %-10s cannot run on this cell: %s\n", "", p.c_str());
 }
 
-// Where the grid area is not seen: the unseen samples' bounding boxes by height band, so that an
+// Where the grid area is not seen: how much, and the box the unseen samples lie in, so that an
 // engineer can find them on the model (a deep pocket, an undercut).
 void printUnseen(const acquisition::Coverage& c) {
   double unseen = 0;
