@@ -1,5 +1,6 @@
 #include "stampscan/acquisition/part_planner.hpp"
 
+#include "stampscan/acquisition/sensor_sight.hpp"
 #include "stampscan/acquisition/trace/rigid_pose.hpp"
 
 #include <Eigen/Geometry>
@@ -89,41 +90,81 @@ class PartPlanner {
     return {{head.x(), head.y(), head.z()}, a, b};
   }
 
-  // Passes along y, side by side in x. Each pass's samples (those under its stripe) give its depth
-  // bands and its length; a pass over nothing is left out.
-  void laserPasses() {
+  // One height a pass is flown at: the depth band it measures and the part of the grid area under it.
+  struct Band {
+    double z_mid = 0;           // the band's middle, where the sensor's standoff is put
+    double z_top = 0;           // the highest sample in it: where the stripe is narrowest
+    double y_lo = 0, y_hi = 0;  // the samples' extent along the pass
+  };
+
+  // The depth bands of a pass at x whose stripe is `width` wide: where the surface under it spans
+  // more than a band, several, the top one first (the head comes down from the park). Empty over
+  // nothing.
+  std::vector<Band> bandsUnder(double x, double width) const {
+    const double band = o_.depth_use * cell_.digitizer.measuring_range_mm;
+    double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
+    for (const Vec3& p : samples_.points)
+      if (std::abs(p.x() - x) <= 0.5 * width) z_lo = std::min(z_lo, p.z()), z_hi = std::max(z_hi, p.z());
+    std::vector<Band> out;
+    if (!(z_hi >= z_lo)) return out;
+    const int bands = std::max(1, static_cast<int>(std::ceil((z_hi - z_lo) / band - 1e-9)));
+    for (int layer = 0; layer < bands; ++layer) {
+      Band b;
+      b.z_mid = bands == 1 ? 0.5 * (z_lo + z_hi) : z_hi - (layer + 0.5) * (z_hi - z_lo) / bands;
+      const double half_band = 0.5 * std::max(band, (z_hi - z_lo) / bands);
+      b.y_lo = b.z_top = std::numeric_limits<double>::infinity();
+      b.y_hi = -b.y_lo;
+      b.z_top = -b.z_top;
+      for (const Vec3& p : samples_.points)
+        if (std::abs(p.x() - x) <= 0.5 * width && std::abs(p.z() - b.z_mid) <= half_band) {
+          b.y_lo = std::min(b.y_lo, p.y());
+          b.y_hi = std::max(b.y_hi, p.y());
+          b.z_top = std::max(b.z_top, p.z());
+        }
+      if (b.y_hi >= b.y_lo) out.push_back(b);
+    }
+    return out;
+  }
+
+  // The stripe a pass lays on the surface it flies over: narrowest where the surface comes nearest
+  // the sensor (the fan is narrower there than at the standoff).
+  double stripeOver(const std::vector<Band>& bands) const {
     const DigitizerDrawing& d = cell_.digitizer;
-    const double stripe = stripeWidth(d);
-    const double step = stripe * (1 - o_.strip_overlap);
-    const int passes = std::max(1, static_cast<int>(std::ceil((hi_.x() - lo_.x()) / step)));
-    const double x0 = 0.5 * (lo_.x() + hi_.x()) - 0.5 * (passes - 1) * step;
-    const double band = o_.depth_use * d.measuring_range_mm;
+    const double half_fan = 0.5 * d.fan_angle_deg * kDeg;
+    double width = stripeWidth(d);
+    for (const Band& b : bands)
+      width = std::min(width, 2 * std::max(0.0, d.standoff_mm - (b.z_top - b.z_mid)) * std::tan(half_fan));
+    return width;
+  }
+
+  // Passes along y, side by side in x, laid from one side of the grid area to the other: each
+  // pass's stripe (at the nearest surface under it) overlaps the ground its neighbour covered by the
+  // stated share, so that passes over flat ground lie wider apart than over a slope.
+  void laserPasses() {
+    const double nominal = stripeWidth(cell_.digitizer);
+    if (!(nominal > 0)) return;
     // Beyond the grid each pass runs on by an element's outline and the sweep's run-up, so that the
     // elements at its ends are crossed where the head's track can be trusted.
     const double lead = plan_.part.pitch + sweepRunUp(o_.sweep_speed, limits_.acceleration);
     std::uint32_t index = 0;
     bool forward = true;
-    for (int k = 0; k < passes; ++k) {
-      const double x = x0 + k * step;
-      double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
-      for (const Vec3& p : samples_.points)
-        if (std::abs(p.x() - x) <= 0.5 * stripe) z_lo = std::min(z_lo, p.z()), z_hi = std::max(z_hi, p.z());
-      if (!(z_hi >= z_lo)) continue;
-      const int bands = std::max(1, static_cast<int>(std::ceil((z_hi - z_lo) / band - 1e-9)));
-      for (int layer = 0; layer < bands; ++layer) {
-        // The band's middle height; the top band first (the head comes down from the park).
-        const double z_mid = bands == 1 ? 0.5 * (z_lo + z_hi) : z_hi - (layer + 0.5) * (z_hi - z_lo) / bands;
-        const double half_band = 0.5 * std::max(band, (z_hi - z_lo) / bands);
-        double y_lo = std::numeric_limits<double>::infinity(), y_hi = -y_lo;
-        for (const Vec3& p : samples_.points)
-          if (std::abs(p.x() - x) <= 0.5 * stripe && std::abs(p.z() - z_mid) <= half_band)
-            y_lo = std::min(y_lo, p.y()), y_hi = std::max(y_hi, p.y());
-        if (!(y_hi >= y_lo)) continue;
+    double covered_to = lo_.x();  // the grid area left of this is covered
+    for (int guard = 0; covered_to < hi_.x() && guard < 10000; ++guard) {
+      // The pass's place depends on its stripe, its stripe on what lies under it: a few rounds settle it.
+      double width = nominal, x = 0;
+      std::vector<Band> bands;
+      for (int round = 0; round < 4; ++round) {
+        x = covered_to - o_.strip_overlap * width + 0.5 * width;
+        bands = bandsUnder(x, width);
+        width = std::max(0.2 * nominal, stripeOver(bands));
+      }
+      covered_to = x + 0.5 * width;
+      for (const Band& band : bands) {
         const double b = stop((index % 2 ? 2.0 : -2.0) * kDeg);
         const Eigen::Matrix3d R = headRotation(0, b) * mount_.linear();
         const Vec3 along = Vec3(R(0, 1), R(1, 1), 0).normalized();
-        const Vec3 centre = Vec3(x, 0.5 * (y_lo + y_hi), z_mid) + d.standoff_mm * R.col(2);
-        const double half = 0.5 * (y_hi - y_lo) + lead;
+        const Vec3 centre = Vec3(x, 0.5 * (band.y_lo + band.y_hi), band.z_mid) + cell_.digitizer.standoff_mm * R.col(2);
+        const double half = 0.5 * (band.y_hi - band.y_lo) + lead;
         const double direction = forward ? 1.0 : -1.0;
         SweepStep s;
         s.scene = Scene::Part;
@@ -178,8 +219,9 @@ class PartPlanner {
 };
 
 // The model as Embree's scene, for lines of sight: is anything of the part between a sample and a
-// sensor? Single precision, as Embree works; the tolerance covers it at a cell's scale.
-class Occluder {
+// sensor? Single precision, as Embree works; the tolerance covers it at a cell's scale. The nominal
+// model knows no polished spots.
+class Occluder : public SightLines {
  public:
   Occluder(const NominalModel& model, double tolerance) : tolerance_(static_cast<float>(tolerance)) {
     device_ = rtcNewDevice("threads=1");
@@ -199,12 +241,14 @@ class Occluder {
     rtcReleaseGeometry(geometry);
     rtcCommitScene(scene_);
   }
-  ~Occluder() {
+  ~Occluder() override {
     if (scene_ != nullptr) rtcReleaseScene(scene_);
     if (device_ != nullptr) rtcReleaseDevice(device_);
   }
   Occluder(const Occluder&) = delete;
   Occluder& operator=(const Occluder&) = delete;
+
+  Sight sight(const Vec3& eye, const Vec3& point) const override { return {!blocked(point, eye), false}; }
 
   // True when the segment from `from` (a sample on the surface) to `to` (a sensor) meets the model
   // beyond the tolerance at either end.
@@ -235,46 +279,6 @@ class Occluder {
   RTCScene scene_ = nullptr;
 };
 
-// Does one sweep's fan cross point p (normal n) within the sensor's range and incidence limit, away
-// from the run-ups?
-struct SweepGeometry {
-  Vec3 from, direction;  // the mirror's straight track
-  double length = 0, run_up = 0;
-  Eigen::Matrix3d axes;  // the sensor's x (fan), y, z (looks down -z), machine = datum frame
-};
-
-bool laserSees(const SweepGeometry& s, const DigitizerDrawing& d, const Vec3& p, const Vec3& n, const Occluder* occluder) {
-  const double along = (p - s.from).dot(s.direction);
-  if (along < s.run_up || along > s.length - s.run_up) return false;
-  const Vec3 mirror = s.from + along * s.direction;
-  const Vec3 q = s.axes.transpose() * (p - mirror);
-  const double depth = -q.z();
-  if (std::abs(depth - d.standoff_mm) > 0.5 * d.measuring_range_mm) return false;
-  // The fan's plane holds the point when the track runs across it (a track oblique to the fan
-  // meets it a little off; the fan's own thickness is not modelled).
-  if (std::abs(q.x()) > depth * std::tan(0.5 * d.fan_angle_deg * kDeg)) return false;
-  const Vec3 to_sensor = (mirror - p).normalized();
-  if (n.dot(to_sensor) < std::cos(d.incidence_limit_deg * kDeg)) return false;
-  return occluder == nullptr || !occluder->blocked(p, mirror);
-}
-
-struct CameraView {
-  Eigen::Isometry3d camera_from_datum;
-  Vec3 centre;
-};
-
-bool cameraSees(const CameraView& c, const trace::CameraIntrinsicsRecord& k, const Vec3& p, const Vec3& n,
-                const CoverageOptions& o, const Occluder* occluder) {
-  const Vec3 q = c.camera_from_datum * p;
-  if (q.z() <= 0) return false;
-  const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
-  if (u < o.image_border_px || v < o.image_border_px || u > k.width - o.image_border_px ||
-      v > k.height - o.image_border_px)
-    return false;
-  if (n.dot((c.centre - p).normalized()) < std::cos(o.camera_max_incidence_deg * kDeg)) return false;
-  return occluder == nullptr || !occluder->blocked(p, c.centre);
-}
-
 }  // namespace
 
 ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
@@ -296,55 +300,31 @@ ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeo
 Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,
                          const MachineLimits& limits, const CoverageOptions& options) {
   const GridSamples samples = sampleGridArea(model, options.sample_spacing_mm, options.grid_normal_z);
-  const Eigen::Isometry3d mount = trace::toIsometry(toRigidPose(cell.digitizer.mount));
-  std::vector<SweepGeometry> sweeps;
-  std::vector<std::array<CameraView, 2>> views;
-  const Eigen::Isometry3d head_from_camera[2] = {trace::toIsometry(nominalCameraMount(cell.cameras, 0)),
-                                                 trace::toIsometry(nominalCameraMount(cell.cameras, 1))};
-  for (const PlanStep& step : plan.steps) {
-    if (const auto* s = std::get_if<SweepStep>(&step); s && s->scene == Scene::Part) {
-      const Eigen::Isometry3d h0 = trace::headPose(vec(s->start.position), s->start.a, s->start.b);
-      const Eigen::Isometry3d h1 = trace::headPose(vec(s->end.position), s->end.a, s->end.b);
-      SweepGeometry g;
-      g.from = h0 * mount.translation();
-      const Vec3 to = h1 * mount.translation();
-      g.length = (to - g.from).norm();
-      g.direction = g.length > 0 ? Vec3((to - g.from) / g.length) : Vec3::UnitY();
-      g.run_up = sweepRunUp(s->speed, limits.acceleration);
-      g.axes = h0.linear() * mount.linear();
-      sweeps.push_back(g);
-    } else if (const auto* v = std::get_if<StereoStep>(&step); v && v->scene == Scene::Part) {
-      const Eigen::Isometry3d head = trace::headPose(vec(v->pose.position), v->pose.a, v->pose.b);
-      std::array<CameraView, 2> pair;
-      for (int c = 0; c < 2; ++c) {
-        const Eigen::Isometry3d datum_from_camera = head * head_from_camera[c];
-        pair[static_cast<std::size_t>(c)] = {datum_from_camera.inverse(), datum_from_camera.translation()};
-      }
-      views.push_back(pair);
-    }
-  }
-  const trace::CameraIntrinsicsRecord k = nominalIntrinsics(cell.cameras);
+  const LaserSight laser = laserSight(cell.digitizer);
+  StereoSight stereo = stereoSight(cell.cameras, plan.part.line_width);
+  stereo.image_border_px = options.image_border_px;
+  stereo.max_incidence_rad = options.camera_max_incidence_deg * kDeg;
+  const PlanSight steps = planSight(plan, laser, stereo, limits.acceleration);
   std::optional<Occluder> occluder;
   if (options.occlusion) occluder.emplace(model, options.occlusion_tolerance_mm);
-  const Occluder* blocker = occluder ? &*occluder : nullptr;
+  const SightLines* lines = occluder ? &*occluder : nullptr;
   Coverage c;
   const std::size_t n = samples.points.size();
   c.points.resize(n);
   c.sample_area = samples.area;
   c.laser_passes.assign(n, 0);
   c.stereo.assign(n, 0);
-  c.sweep_area.assign(sweeps.size(), 0.0);
+  c.sweep_area.assign(steps.sweeps.size(), 0.0);
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& p = samples.points[i];
-    const Vec3& normal = samples.normals[i];
-    c.points[i] = {p.x(), p.y(), p.z()};
-    for (std::size_t s = 0; s < sweeps.size(); ++s)
-      if (laserSees(sweeps[s], cell.digitizer, p, normal, blocker)) {
+    const std::span<const Vec3> point(&samples.points[i], 1), normal(&samples.normals[i], 1);
+    c.points[i] = {point[0].x(), point[0].y(), point[0].z()};
+    for (std::size_t s = 0; s < steps.sweeps.size(); ++s)
+      if (laserSees(steps.sweeps[s], laser, point, normal, lines)) {
         c.laser_passes[i] = static_cast<std::uint16_t>(std::min<int>(c.laser_passes[i] + 1, 65535));
         c.sweep_area[s] += samples.area[i];
       }
-    for (const auto& pair : views)
-      if (cameraSees(pair[0], k, p, normal, options, blocker) && cameraSees(pair[1], k, p, normal, options, blocker)) {
+    for (const ViewSight& view : steps.views)
+      if (stereoSees(view, stereo, point[0], normal[0], {}, lines)) {
         c.stereo[i] = 1;
         break;
       }

@@ -84,12 +84,9 @@ std::int64_t toNs(double seconds) { return static_cast<std::int64_t>(std::llroun
 
 std::string number(double v) { return trace::formatNumber(v); }
 std::string poseText(const Eigen::Isometry3d& T) { return trace::formatPose(trace::toRigidPose(T)); }
-trace::CameraIntrinsicsRecord intrinsicsRecord(const CameraIntrinsics& c) {
-  return {c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2, c.k3};
-}
 std::string intrinsicsText(const CameraIntrinsics& c) {
   trace::SessionDescription s;
-  s.camera_nominal = intrinsicsRecord(c);
+  s.camera_nominal = c.record();
   return trace::encodeSession(s).at("camera_nominal_intrinsics");
 }
 

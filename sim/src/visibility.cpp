@@ -1,5 +1,7 @@
 #include "stampscan/sim/visibility.hpp"
 
+#include "stampscan/acquisition/sensor_sight.hpp"
+
 #include "stampscan/sim/cmm_motion.hpp"
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scene.hpp"
@@ -28,10 +30,6 @@ std::vector<std::uint8_t> ElementVisibility::visibleOr() const {
 
 namespace {
 
-Eigen::Isometry3d headPose(const acquisition::HeadPose& p) {
-  return HeadState{Vec3(p.position[0], p.position[1], p.position[2]), p.a, p.b}.pose();
-}
-
 // The element's printed outline on the formed part: the ring's outer edge, or the square cell's
 // boundary out to the outer edge of its lines, mapped from the blank by the forming.
 std::vector<Vec3> outline(const FormedPart& part, const GridSpec& grid, const Vec2& centre, int samples) {
@@ -53,48 +51,23 @@ std::vector<Vec3> outline(const FormedPart& part, const GridSpec& grid, const Ve
   return out;
 }
 
-// What the line of sight from `eye` meets first, when that is `q` (nothing of the part in between).
-std::optional<Hit> sightOf(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
-  const Vec3 d = q - eye;
-  const double distance = d.norm();
-  auto hit = scene.cast({eye, d / distance}, 0.0);
-  if (!hit || hit->t <= distance - tolerance) return std::nullopt;
-  return hit;
-}
-bool inSight(const PartScene& scene, const Vec3& eye, const Vec3& q, double tolerance) {
-  return sightOf(scene, eye, q, tolerance).has_value();
-}
+// The formed part's lines of sight: what the line from the eye meets first is the point itself
+// (within the tolerance), and whether that spot is polished.
+class PartSightLines : public acquisition::SightLines {
+ public:
+  PartSightLines(const PartScene& scene, double tolerance) : scene_(scene), tolerance_(tolerance) {}
+  Sight sight(const Vec3& eye, const Vec3& q) const override {
+    const Vec3 d = q - eye;
+    const double distance = d.norm();
+    const auto hit = scene_.cast({eye, d / distance}, 0.0);
+    if (!hit || hit->t <= distance - tolerance_) return {};
+    return {true, hit->shiny};
+  }
 
-struct Sweep {
-  Eigen::Isometry3d start;  // machine_from_digitizer at the sweep's start (the orientation holds)
-  Vec3 travel;              // the mirror's displacement over the sweep
-  double from = 0, to = 1;  // the share of the travel that measures (without the run-ups)
+ private:
+  const PartScene& scene_;
+  double tolerance_;
 };
-
-// The digitizer sees `q` during the sweep: the fan plane passes through it at some instant, where
-// it lies within the fan, the measuring range and the incidence limit, in sight of the mirror.
-bool laserSees(const PartScene& scene, const DigitizerSpec& d, const Sweep& s, const Vec3& q, const Vec3& normal,
-               double tolerance) {
-  const Eigen::Matrix3d R = s.start.linear();
-  const Vec3 fan_normal = R.col(1);  // the fan is the sensor's x-z plane
-  const double rate = fan_normal.dot(s.travel);
-  if (std::abs(rate) < 1e-9) return false;
-  const double f = fan_normal.dot(q - s.start.translation()) / rate;
-  if (f < s.from || f > s.to) return false;
-  const Vec3 mirror = s.start.translation() + f * s.travel;
-  const Vec3 local = R.transpose() * (q - mirror);
-  const double range = local.norm();
-  if (range < d.standoff - 0.5 * d.measuring_range || range > d.standoff + 0.5 * d.measuring_range) return false;
-  if (std::abs(std::atan2(local.x(), -local.z())) > d.half_angle) return false;
-  // Whole only where every point comes back: beyond steep_from the digitizer drops points at random
-  // (digitizer_model.cpp), and a ring with holes in it is not measured.
-  const double cos_incidence = normal.dot((mirror - q) / range);
-  if (cos_incidence <= std::cos(d.steep_from)) return false;
-  const std::optional<Hit> hit = sightOf(scene, mirror, q, tolerance);
-  // Glare: on a polished spot lit near normal incidence the triangulation camera is saturated and
-  // sees neither the sheet nor the printed line (digitizer_model.cpp).
-  return hit && !(hit->shiny && cos_incidence > std::cos(d.glare_incidence));
-}
 
 }  // namespace
 
@@ -106,31 +79,32 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   const std::unique_ptr<FormedPart> part = makePart(world);
   const Eigen::Isometry3d machine_from_datum = machineFromDatum(world);
   const PartScene scene(*part, world.grid, machine_from_datum);
+  const PartSightLines lines(scene, params.occlusion_tolerance_mm);
   const CellTruth cell = drawCellTruth(world);
-
-  std::vector<Sweep> sweeps;
-  std::vector<std::array<Eigen::Isometry3d, 2>> views;
-  for (const acquisition::PlanStep& step : plan.steps) {
-    if (const auto* s = std::get_if<acquisition::SweepStep>(&step); s && s->scene == acquisition::Scene::Part) {
-      const Eigen::Isometry3d a = headPose(s->start) * cell.head_from_digitizer;
-      const Eigen::Isometry3d b = headPose(s->end) * cell.head_from_digitizer;
-      const Vec3 travel = b.translation() - a.translation();
-      const double run_up = acquisition::sweepRunUp(s->speed, params.acceleration, params.report_interval_s);
-      const double share = travel.norm() > 0 ? run_up / travel.norm() : 1.0;
-      sweeps.push_back({a, travel, share, 1.0 - share});
-    } else if (const auto* v = std::get_if<acquisition::StereoStep>(&step); v && v->scene == acquisition::Scene::Part) {
-      const Eigen::Isometry3d head = headPose(v->pose);
-      views.push_back({head * cell.head_from_left, head * cell.head_from_right});
-    }
-  }
-  const CameraIntrinsics* cameras[2] = {&cell.left, &cell.right};
-  const double cos_camera = std::cos(params.camera_max_incidence);
-  const double tol = params.occlusion_tolerance_mm;
+  // The sensors as the simulator drew them: true mounts and intrinsics; the digitizer returns every
+  // point only up to steep_from (beyond it, towards its limit, it drops more and more at random, and an
+  // outline with holes in it is not seen whole).
+  acquisition::LaserSight laser;
+  laser.head_from_mirror = cell.head_from_digitizer;
+  laser.standoff_mm = world.digitizer.standoff;
+  laser.measuring_range_mm = world.digitizer.measuring_range;
+  laser.half_fan_rad = world.digitizer.half_angle;
+  laser.full_return_incidence_rad = world.digitizer.steep_from;
+  laser.glare_incidence_rad = world.digitizer.glare_incidence;
+  acquisition::StereoSight stereo;
+  stereo.head_from_camera = {cell.head_from_left, cell.head_from_right};
+  stereo.intrinsics = {cell.left.record(), cell.right.record()};
+  stereo.image_border_px = params.image_border_px;
+  stereo.max_incidence_rad = params.camera_max_incidence;
+  stereo.line_width_mm = world.grid.line_width;
+  stereo.min_line_px = params.min_line_px;
+  const acquisition::PlanSight steps =
+      acquisition::planSight(plan, laser, stereo, params.acceleration, params.report_interval_s);
 
   ElementVisibility out;
   out.laser.assign(truth.size(), 0);
   out.stereo.assign(truth.size(), 0);
-  std::vector<std::atomic<std::uint32_t>> per_sweep(sweeps.size());
+  std::vector<std::atomic<std::uint32_t>> per_sweep(steps.sweeps.size());
   tbb::parallel_for(std::size_t{0}, truth.size(), [&](std::size_t i) {
     std::vector<Vec3> ring = outline(*part, world.grid, Vec2(mu->second[i], mv->second[i]), params.outline_samples);
     std::vector<Vec3> normals;
@@ -138,45 +112,16 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
       normals.push_back(machine_from_datum.linear() * part->normal(q.x(), q.y()));
       q = machine_from_datum * q;
     }
-    for (std::size_t w = 0; w < sweeps.size(); ++w) {
-      bool all = true;
-      for (std::size_t k = 0; k < ring.size() && all; ++k)
-        all = laserSees(scene, world.digitizer, sweeps[w], ring[k], normals[k], tol);
-      if (all) {
+    for (std::size_t w = 0; w < steps.sweeps.size(); ++w)
+      if (acquisition::laserSees(steps.sweeps[w], laser, ring, normals, &lines)) {
         out.laser[i] = 1;
         per_sweep[w].fetch_add(1, std::memory_order_relaxed);
       }
-    }
-    const Vec3& centre = truth.positions[i];
-    const Vec3& normal = truth.normals[i];
-    for (const auto& poses : views) {
-      bool all = true;
-      for (int c = 0; c < 2 && all; ++c) {
-        const Vec3 eye = poses[static_cast<std::size_t>(c)].translation();
-        const double cos_view = normal.dot((eye - centre).normalized());
-        all = cos_view >= cos_camera;
-        const Eigen::Isometry3d camera_from_machine = poses[static_cast<std::size_t>(c)].inverse();
-        const double depth = (camera_from_machine * centre).z();
-        // The line across the direction the element tilts away in is foreshortened by the view's
-        // obliquity: the ring's thinnest line in the image.
-        all = all && depth > 0 && world.grid.line_width * cos_view * cameras[c]->fx / depth >= params.min_line_px;
-        for (std::size_t k = 0; k < ring.size() && all; ++k) {
-          const Vec3 in_camera = camera_from_machine * ring[k];
-          if (in_camera.z() <= 0) {
-            all = false;
-            break;
-          }
-          const Vec2 px = cameras[c]->project(in_camera);
-          const double border = params.image_border_px;
-          all = px.x() >= border && px.y() >= border && px.x() <= cameras[c]->width - 1 - border &&
-                px.y() <= cameras[c]->height - 1 - border && inSight(scene, eye, ring[k], tol);
-        }
-      }
-      if (all) {
+    for (const acquisition::ViewSight& view : steps.views)
+      if (acquisition::stereoSees(view, stereo, truth.positions[i], truth.normals[i], ring, &lines)) {
         out.stereo[i] = 1;
         break;
       }
-    }
   });
   for (const auto& n : per_sweep) out.laser_per_sweep.push_back(n.load());
   return out;

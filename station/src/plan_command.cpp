@@ -116,7 +116,7 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 "Make the plan the program's own: its plan file is replaced (the old one kept beside it as .bak)");
   cmd->add_option("--runs", opt->runs, "Folder of run folders (a virtual cell's program library is RUNS/programs)");
   cmd->add_flag("--laser-only", opt->laser_only, "Plan laser passes only");
-  cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's stripe its neighbour covers again")
+  cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's stripe (where the surface comes nearest) that overlaps the ground its neighbour covered")
       ->check(CLI::Range(0.0, 0.85));
   cmd->add_option("--sweep-speed", opt->planner.sweep_speed, "mm/s while the digitizer scans")->check(CLI::Range(1.0, 500.0));
   cmd->add_option("--stereo-rows", opt->planner.stereo_rows, "Rows of stereo views")->check(CLI::Range(0, 20));
@@ -145,9 +145,9 @@ CommandRunner addPlanCommand(CLI::App& app) {
     printFigures("generated", generated);
     printFigures("program's", own);
     std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe x %.0f mm/s)); the generated "
-                "passes take %.1f s with their moves (%.2f x; their overlap alone makes %.2f x), the program's %.1f s\n",
-                bound, planner.sweep_speed, generated.laser_motion_s,
-                bound > 0 ? generated.laser_motion_s / bound : 0.0, 1 / (1 - planner.strip_overlap), own.laser_motion_s);
+                "passes take %.1f s with their moves (%.2f x), the program's %.1f s (%.2f x)\n",
+                bound, planner.sweep_speed, generated.laser_motion_s, bound > 0 ? generated.laser_motion_s / bound : 0.0,
+                own.laser_motion_s, bound > 0 ? own.laser_motion_s / bound : 0.0);
     printUnseen(generated.coverage);
     if (generated.collisions == 0)
       std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part along every "

@@ -1,21 +1,25 @@
 // Scan plans from a part's nominal model and the cell's sensors, and what a plan is predicted to see.
 //
 // The planner works in the part's datum frame (the nominal model's frame, where a part program's
-// plan is written; placeOnFixture carries it onto a cell's table). It slices the model's grid area
-// into laser passes no wider than the digitizer's stripe at its standoff, each pass a straight sweep
-// at one height: where the model's surface under a pass spans more than the sensor's measuring range
-// (a deep pan), the pass is flown at several heights, each covering a band of the depth. Neighbouring
-// passes overlap by a stated share and cross at +-2 degrees (the paper's Sec. 3.1); they are flown in
-// alternate directions, so that the move from one pass's end to the next's start is short. The stereo
-// pair looks at the grid area from a rows x columns lattice of poses, the outer ones tilted inwards so
-// that the walls are seen. Head angles are the head's nearest stops (an indexing head).
+// plan is written; placeOnFixture carries it onto a cell's table). It lays laser passes across the
+// model's grid area from one side to the other, each a straight sweep at one height: where the
+// model's surface under a pass spans more than the sensor's measuring range (a deep pan), the pass is
+// flown at several heights, each covering a band of the depth. Each pass is placed so that its stripe
+// (as wide as the fan is where the surface under it comes nearest the sensor) overlaps the ground
+// the previous one covered by a stated share: passes lie wider apart over flat ground than over
+// slopes. They cross at +-2 degrees (the paper's Sec. 3.1) and are flown in alternate directions, so
+// that the move from one pass's end to the next's start is short. The stereo pair looks at the grid
+// area from a rows x columns lattice of poses, the outer ones tilted inwards so that the walls are
+// seen. Head angles are the head's nearest stops (an indexing head).
 //
 // The prediction samples the model's grid area (its facets facing the sensors' side) at a stated
-// spacing and asks, for each sample, whether one part sweep crosses it with the fan, within the
-// measuring range and the incidence limit and away from the sweep's run-ups; and whether both
-// cameras of one part view have it inside their images at an angle they can resolve. Each line of
-// sight (to the digitizer's mirror, to each camera) is cast against the model itself with Embree,
-// so a wall that hides a pocket's floor hides it here too.
+// spacing and asks of each sample what the cell's sensors see of it in each part step
+// (sensor_sight.hpp, the model the virtual cell's yardstick uses too): whether one part sweep
+// crosses it with the fan within the measuring range and the incidence limit, away from the sweep's
+// run-ups; and whether both cameras of one part view have it inside their images at an angle they
+// can resolve, its printed line wide enough. Each line of sight (to the digitizer's mirror, to each
+// camera) is cast against the model itself with Embree, so a wall that hides a pocket's floor hides
+// it here too.
 #pragma once
 
 #include "stampscan/acquisition/cell_geometry.hpp"
@@ -31,7 +35,10 @@ namespace stampscan::acquisition {
 
 struct PlannerOptions {
   bool laser = true, stereo = true;
-  double strip_overlap = 0.3;   // the share of a pass's stripe its neighbour covers again
+  // The share of a pass's stripe (where the surface under it comes nearest the sensor, and the
+  // stripe is narrowest) that overlaps the ground its neighbour covered: it absorbs the +-2 degree
+  // crossing and the stripe's ragged edges on a slope.
+  double strip_overlap = 0.1;
   double sweep_speed = 25;      // mm/s while the digitizer scans
   double travel_speed = 200;    // mm/s between steps
   double depth_use = 0.8;       // the share of the measuring range one pass's depth band may take

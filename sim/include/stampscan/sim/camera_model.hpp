@@ -5,6 +5,7 @@
 // Camera frame as in OpenCV: x right, y down, z along the optical axis.
 #pragma once
 
+#include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/sim/scene.hpp"
 
 #include <Eigen/Geometry>
@@ -27,6 +28,8 @@ struct CameraIntrinsics {
   Vec3 ray(double u, double v) const;
   // Scales resolution and focal length together (a smaller sensor with the same field of view).
   CameraIntrinsics scaled(double factor) const;
+  // As the trace's session description records intrinsics.
+  trace::CameraIntrinsicsRecord record() const { return {width, height, fx, fy, cx, cy, k1, k2, p1, p2, k3}; }
 };
 
 struct CameraSensor {

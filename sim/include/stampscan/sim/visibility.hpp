@@ -1,24 +1,14 @@
 // Which grid elements of a part a scan plan can see at all, from the simulator's truth: the
 // yardstick for the share of the visible elements a scan finds. An element is visible when its
 // whole printed outline (the ring, or the square cell, out to the outer edge of its line) is seen
-// by one sensor at once:
-//
-// - the laser digitizer, in one part sweep of the plan: every point of the outline is crossed by
-//   the fan within its angle and its measuring range, with nothing of the part in between, and lit
-//   at an incidence where the sensor returns every point (DigitizerSpec::steep_from: beyond it,
-//   towards its limit max_incidence, it loses more and more points at random, and an outline with
-//   holes in it is not seen whole) but not so near normal incidence on a polished spot that glare
-//   saturates that camera (DigitizerSpec::glare_incidence), away from the sweep's run-ups at either
-//   end, where the head's track from the CMM's position reports is not to be trusted
-//   (acquisition::sweepRunUp);
-// - the stereo pair, in one part view of the plan: every point of the outline is inside both
-//   images (clear of a border), neither camera's line of sight to it meets the part first, both
-//   cameras see the element within `camera_max_incidence` of its normal, and its printed line is at
-//   least `min_line_px` wide in both images where it is thinnest (foreshortened by the obliquity of
-//   the view).
-//
-// The sensors are placed through the cell's true mounts and intrinsics (drawCellTruth), the plan's
-// head poses as commanded. Nothing here looks at what was measured.
+// by one sensor at once, in one part sweep of the plan or in one part view: what a sensor sees is
+// the station's own model of it (acquisition/sensor_sight.hpp), which the planner's coverage
+// prediction uses too. Here it is asked of the simulator's world: the formed part (its polished
+// spots, and what hides what), the cell's true mounts and intrinsics (drawCellTruth), and the
+// digitizer's full returns only up to DigitizerSpec::steep_from (beyond it, towards its limit
+// max_incidence, it loses more and more points at random, and an outline with holes in it is not
+// seen whole). The plan's head poses are taken as commanded. Nothing here looks at what was
+// measured.
 #pragma once
 
 #include "stampscan/acquisition/scan_plan.hpp"
