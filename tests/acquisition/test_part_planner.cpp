@@ -249,6 +249,7 @@ TEST(PartPlanner, TheSimulatedPartsAreCoveredAsWellAsByTheirHandMadePlansInLessT
   };
   const Case cases[] = {{sim::PartKind::Dome, {}},
                         {sim::PartKind::Pan, {}},
+                        {sim::PartKind::Dome, {0.7, 20, 0}},
                         {sim::PartKind::Pan, {0.7, 20, 0}},
                         {sim::PartKind::Pan, {1.2, 45, 0}}};
   int n = 0;

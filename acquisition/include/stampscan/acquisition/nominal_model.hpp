@@ -76,7 +76,10 @@ struct HeightGrid {
 };
 struct StepSurfaceOptions {
   double tolerance_mm = 0.005;  // the B-spline approximation's 3D tolerance at the samples
-  int degree_min = 3, degree_max = 8;
+  // Up to quintic: at degree 8 the approximation of a smaller dome (scale 0.7) came out with
+  // oscillations that Open CASCADE's mesher could not tessellate within gigabytes; more knots of a
+  // lower degree meet the tolerance and tessellate in a second.
+  int degree_min = 3, degree_max = 5;
 };
 // Writes the height grid as a STEP file (AP214) holding one face on a B-spline surface, atomically.
 // Throws ModelError when the grid is too small or the approximation fails.
