@@ -186,7 +186,7 @@ class PartPlanner {
     const Eigen::Vector2d mid(0.5 * (lo_.x() + hi_.x()), 0.5 * (lo_.y() + hi_.y()));
     const Eigen::Vector2d half(0.5 * (hi_.x() - lo_.x()), 0.5 * (hi_.y() - lo_.y()));
     const double z_mid = 0.5 * (lo_.z() + hi_.z());
-    const double max_reach = 0.6 * half.norm() + 1e-9;
+    const double max_reach = half.norm() + 1e-9;
     std::uint32_t index = 0;
     for (int j = 0; j < rows; ++j)
       for (int i = 0; i < cols; ++i) {

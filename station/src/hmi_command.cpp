@@ -1,6 +1,8 @@
 // `station hmi`: the operator's panel in the browser. A thin caller of station/hmi (the server, the
 // API and the page): it reads the options, hosts the virtual cell when no --cell is given (as
 // `station scan` does), prepares the scan and the verification the panel may start, and serves.
+#include "stampscan/acquisition/part_planner.hpp"
+#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
 #include "stampscan/hmi/panel_log.hpp"
@@ -39,6 +41,30 @@ namespace fs = std::filesystem;
 // parts (written on first use). A scan of a program puts its simulated part on the virtual fixture
 // (`hosted`, when the cell is hosted; its truth scores the scan); a scan of the panel's own plan puts
 // the world's part back.
+// What the program's plan is predicted to see of its model (as `station plan` prints it, at 2 mm
+// samples: a few thousand points to draw), the samples carried onto the fixture like the model's STL.
+hmi::ProgramCoverage predictedCoverage(const acquisition::PartProgram& program, const acquisition::CellConfig& config) {
+  acquisition::CoverageOptions options;
+  options.sample_spacing_mm = 2;
+  const acquisition::Coverage c =
+      acquisition::predictCoverage(program.model, program.plan, config.geometry, config.limits, options);
+  hmi::ProgramCoverage out;
+  out.grid_area_mm2 = c.grid_area;
+  out.spacing_mm = options.sample_spacing_mm;
+  out.laser = c.share(c.laser_area);
+  out.stereo = c.share(c.stereo_area);
+  out.either = c.share(c.either_area);
+  out.sweeps = program.plan.sweepCount(acquisition::Scene::Part);
+  out.views = program.plan.stereoCount(acquisition::Scene::Part);
+  const Eigen::Isometry3d machine_from_datum = trace::toIsometry(acquisition::toRigidPose(config.geometry.fixture.datum));
+  for (std::size_t i = 0; i < c.points.size(); ++i) {
+    const Eigen::Vector3d q = machine_from_datum * Eigen::Vector3d(c.points[i][0], c.points[i][1], c.points[i][2]);
+    for (int k = 0; k < 3; ++k) out.xyz.push_back(static_cast<float>(q[k]));
+    out.seen.push_back(static_cast<std::uint8_t>((c.laser_passes[i] > 0 ? 1 : 0) | (c.stereo[i] ? 2 : 0)));
+  }
+  return out;
+}
+
 hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs,
                                 const sim::ScanParams& world, const std::unique_ptr<HostedVirtualCell>* hosted) {
   hmi::CellPrograms p;
@@ -111,6 +137,21 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
         acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
     std::lock_guard lock(cache->mutex);
     return cache->stl.emplace(name, std::move(bytes)).first->second;
+  };
+  // Predictions computed once per program (its plan and model do not change while the panel serves).
+  struct CoverageCache {
+    std::mutex mutex;
+    std::map<std::string, hmi::ProgramCoverage> coverage;
+  };
+  auto predicted = std::make_shared<CoverageCache>();
+  p.coverage = [=](const std::string& name) {
+    {
+      std::lock_guard lock(predicted->mutex);
+      if (const auto it = predicted->coverage.find(name); it != predicted->coverage.end()) return it->second;
+    }
+    hmi::ProgramCoverage out = predictedCoverage(programFromLibrary(name, config, virtual_cell, runs), config);
+    std::lock_guard lock(predicted->mutex);
+    return predicted->coverage.emplace(name, std::move(out)).first->second;
   };
   p.by_line_number = [=](std::uint16_t line_number) {
     return programByLineNumber(line_number, config, virtual_cell, runs);

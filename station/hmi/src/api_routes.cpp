@@ -118,6 +118,19 @@ void addApiRoutes(HmiServer::Impl& impl) {
       return sendError(res, 404, e.what());
     }
   });
+  s.Get(R"(/api/programs/([A-Za-z0-9._-]+)/coverage)", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const CellPrograms& programs = impl.jobs.setup().programs;
+    const std::string name = req.matches[1];
+    if (!programs.coverage || !isPartId(name)) return sendError(res, 404, "no such program");
+    try {
+      const ProgramCoverage c = programs.coverage(name);
+      sendJson(res, {{"grid_area_mm2", c.grid_area_mm2}, {"spacing_mm", c.spacing_mm}, {"laser", c.laser},
+                     {"stereo", c.stereo}, {"either", c.either}, {"sweeps", c.sweeps}, {"views", c.views},
+                     {"xyz", c.xyz}, {"seen", c.seen}});
+    } catch (const std::exception& e) {
+      return sendError(res, 404, e.what());
+    }
+  });
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {
     const Session who = *impl.sessionOf(req);
     const auto refused = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");

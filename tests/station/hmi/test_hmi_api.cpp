@@ -240,6 +240,19 @@ TEST_F(HmiTest, ThePanelListsThePartProgramsShowsAModelAndScansOne) {
   EXPECT_GT(triangles, 1000u);
   EXPECT_EQ(model->body.size(), 84u + 50u * triangles);  // a whole binary STL
   EXPECT_EQ(client_->Get("/api/programs/no-such/model.stl")->status, 404);
+  // What its plan is predicted to see, sample by sample, where the model is drawn.
+  const json coverage = body(client_->Get("/api/programs/sim-pan-square/coverage"));
+  EXPECT_GE(coverage["either"].get<double>(), 0.99) << coverage.dump().substr(0, 300);
+  EXPECT_GE(coverage["laser"].get<double>(), 0.99);
+  EXPECT_GT(coverage["sweeps"].get<int>(), 0);
+  const std::size_t samples = coverage["seen"].size();
+  EXPECT_GT(static_cast<double>(samples) * coverage["spacing_mm"].get<double>() * coverage["spacing_mm"].get<double>(),
+            0.5 * coverage["grid_area_mm2"].get<double>());
+  EXPECT_EQ(coverage["xyz"].size(), 3 * samples);
+  std::size_t seen = 0;
+  for (const json& s : coverage["seen"]) seen += s.get<int>() != 0 ? 1 : 0;
+  EXPECT_GE(seen, samples * 99 / 100);
+  EXPECT_EQ(client_->Get("/api/programs/no-such/coverage")->status, 404);
   // Written into the library on first use, and listed as such from then on.
   EXPECT_TRUE(fs::exists(root_ / "runs" / "programs" / "sim-pan-square" / "program.toml"));
 

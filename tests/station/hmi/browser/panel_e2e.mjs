@@ -92,6 +92,10 @@ try {
   await waitFor(page, 'the part programs listed', () => document.getElementById('part-program').options.length > 1, 20000);
   await page.select('#part-program', 'sim-dome-circle');
   await waitFor(page, 'the program\'s model in 3D', () => document.body.dataset.programShown === 'sim-dome-circle', 60000);
+  // With what its plan is predicted to see marked on it, and said in words.
+  await waitFor(page, 'the plan\'s predicted coverage on the model', () => document.body.dataset.coverageShown === 'sim-dome-circle', 60000);
+  const coverageText = await page.$eval('#coverage-info', (e) => e.textContent);
+  if (!/predicted to see \d+(\.\d)? % of the grid area/.test(coverageText)) throw new Error(`the coverage is not said: ${coverageText}`);
   await shot(page, '2-program.png');
   await page.select('#part-program', '');
 

@@ -24,6 +24,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace stampscan::hmi {
 
@@ -45,6 +46,17 @@ struct ProgramScan {
   std::optional<station::SimulationTruth> truth;
 };
 
+// What a program's plan is predicted to see of its model's grid area (acquisition/part_planner.hpp),
+// for the 3D view: samples of the grid area where the fixture holds the part (the machine frame, as
+// the model's STL), each marked by the sensors that see it.
+struct ProgramCoverage {
+  double grid_area_mm2 = 0, spacing_mm = 0;
+  double laser = 0, stereo = 0, either = 0;  // shares of the grid area
+  std::size_t sweeps = 0, views = 0;         // the plan's part steps
+  std::vector<float> xyz;                    // three per sample
+  std::vector<std::uint8_t> seen;            // per sample: 1 the laser, 2 the cameras, 3 both, 0 neither
+};
+
 // The cell's part programs, as the command serving the cell reads them from its library. Empty
 // functions: the panel offers none, and scans the setup's plan only.
 struct CellPrograms {
@@ -53,6 +65,8 @@ struct CellPrograms {
   std::function<ProgramScan(const std::string& name)> prepare;
   // The program's nominal model as binary STL bytes, for the 3D view; throws like prepare.
   std::function<std::string(const std::string& name)> model_stl;
+  // What the program's plan is predicted to see of its model; throws like prepare.
+  std::function<ProgramCoverage(const std::string& name)> coverage;
   // Before a scan of the setup's own plan: a virtual cell puts its own part back on the fixture
   // (after a program's). May be empty.
   std::function<void()> restore;
