@@ -40,7 +40,7 @@ const std::map<std::string, std::set<std::string>>& knownKeys() {
       {"sphere", {"centre_mm", "diameter_mm"}},
       {"ball_bar", {"centre_mm", "diameter_mm", "distance_mm"}},
       {"plate", {"columns", "rows", "pitch_mm", "dot_diameter_mm", "centre_mm", "rotation_deg"}},
-      {"fixture", {"name", "datum_mm", "datum_rotation_deg"}},
+      {"fixture", {"name", "datum_mm", "datum_rotation_deg", "body"}},
       {"calibration", {"dir", "validity_days", "digitizer_residual_mm", "camera_reprojection_px", "head_mount_residual_mm",
                        "drift_mount_mm", "drift_latency_ms", "drift_baseline_mm", "form_mpe_mm", "size_mpe_mm",
                        "length_mpe_mm", "stereo_form_mpe_mm", "stereo_length_mpe_mm", "plate_views", "sphere_sweeps",
@@ -281,6 +281,20 @@ BodySolid readBodySolid(const SectionReader& s) {
   return b;
 }
 
+// [[SECTION.body]] entries: the solids of the head's body, or of the fixture.
+std::vector<BodySolid> readBodySolids(const toml::table& t, const SectionReader& section, const std::string& file,
+                                      const std::string& name) {
+  std::vector<BodySolid> out;
+  const toml::node* body = t[name]["body"].node();
+  if (body == nullptr) return out;
+  const toml::array* solids = body->as_array();
+  if (solids == nullptr || !solids->is_array_of_tables())
+    section.fail("body", "must be an array of tables ([[" + name + ".body]] entries)");
+  for (std::size_t i = 0; i < solids->size(); ++i)
+    out.push_back(readBodySolid(SectionReader((*solids)[i].as_table(), file, name + ".body " + std::to_string(i + 1), nullptr)));
+  return out;
+}
+
 void readHead(const toml::table& t, const SectionReader& h, const std::string& file, HeadDescription& head,
               MachineLimits& limits) {
   const std::string kind = h.text("kind", toString(head.kind));
@@ -290,15 +304,7 @@ void readHead(const toml::table& t, const SectionReader& h, const std::string& f
   head.index_step_deg = h.number("index_step_deg", head.index_step_deg, SectionReader::Sign::Positive);
   if (head.index_step_deg > 90) h.fail("index_step_deg", "must be at most 90");
   limits.index_step = head.kind == HeadDescription::Kind::Indexing ? head.index_step_deg * kDeg : 0;
-  if (const toml::node* body = t["head"]["body"].node()) {
-    const toml::array* solids = body->as_array();
-    if (solids == nullptr || !solids->is_array_of_tables())
-      h.fail("body", "must be an array of tables ([[head.body]] entries)");
-    head.body.clear();
-    for (std::size_t i = 0; i < solids->size(); ++i)
-      head.body.push_back(readBodySolid(
-          SectionReader((*solids)[i].as_table(), file, "head.body " + std::to_string(i + 1), nullptr)));
-  }
+  head.body = readBodySolids(t, h, file, "head");
 }
 
 void readDigitizerDrawing(const SectionReader& s, DigitizerDrawing& d) {
@@ -467,6 +473,7 @@ CellConfig parseCellConfig(const std::string& text, const std::string& file, con
   const SectionReader fixture = sectionNamed("fixture");
   c.geometry.fixture.name = fixture.text("name", "");
   c.geometry.fixture.datum = fixture.placement("datum_mm", "datum_rotation_deg", {});
+  c.geometry.fixture.body = readBodySolids(t, fixture, file, "fixture");
 
   readCalibrationPolicy(sectionNamed("calibration"), c.calibration);
   c.results_database = sectionNamed("results").text("database", "");
@@ -582,6 +589,25 @@ std::string hex(unsigned v) {
 namespace {
 
 // [cmm], [machine], [head]: the machine and its head.
+// [[SECTION.body]] entries.
+void listBodySolids(CellListing& l, const std::string& section, const std::vector<BodySolid>& solids) {
+  for (const BodySolid& b : solids) {
+    l.raw("[[" + section + ".body]]");
+    l.raw("name = " + CellListing::quoted(b.name));
+    l.raw(std::string("shape = \"") + toString(b.shape) + "\"");
+    const auto& p = b.placement;
+    l.raw("centre_mm = [" + CellListing::shown(p.position_mm[0]) + ", " + CellListing::shown(p.position_mm[1]) + ", " +
+          CellListing::shown(p.position_mm[2]) + "]");
+    l.raw("rotation_deg = [" + CellListing::shown(p.rotation_deg[0]) + ", " + CellListing::shown(p.rotation_deg[1]) + ", " +
+          CellListing::shown(p.rotation_deg[2]) + "]");
+    if (b.shape == BodySolid::Shape::Box)
+      l.raw("size_mm = [" + CellListing::shown(b.size_mm[0]) + ", " + CellListing::shown(b.size_mm[1]) + ", " +
+            CellListing::shown(b.size_mm[2]) + "]");
+    else l.raw("radius_mm = " + CellListing::shown(b.radius_mm));
+    if (b.shape == BodySolid::Shape::Cylinder) l.raw("length_mm = " + CellListing::shown(b.length_mm));
+  }
+}
+
 void listMachine(CellListing& l, const CellConfig& c) {
   const CellGeometry& g = c.geometry;
   l.section("cmm");
@@ -601,21 +627,7 @@ void listMachine(CellListing& l, const CellConfig& c) {
   l.number("b_max_deg", c.limits.max_turn / kDeg);
   l.number("rate_deg_s", c.limits.head_rate / kDeg);
   l.number("acceleration_deg_s2", c.limits.head_acceleration / kDeg);
-  for (const BodySolid& b : g.head.body) {
-    l.raw("[[head.body]]");
-    l.raw("name = " + CellListing::quoted(b.name));
-    l.raw(std::string("shape = \"") + toString(b.shape) + "\"");
-    const auto& p = b.placement;
-    l.raw("centre_mm = [" + CellListing::shown(p.position_mm[0]) + ", " + CellListing::shown(p.position_mm[1]) + ", " +
-          CellListing::shown(p.position_mm[2]) + "]");
-    l.raw("rotation_deg = [" + CellListing::shown(p.rotation_deg[0]) + ", " + CellListing::shown(p.rotation_deg[1]) + ", " +
-          CellListing::shown(p.rotation_deg[2]) + "]");
-    if (b.shape == BodySolid::Shape::Box)
-      l.raw("size_mm = [" + CellListing::shown(b.size_mm[0]) + ", " + CellListing::shown(b.size_mm[1]) + ", " +
-            CellListing::shown(b.size_mm[2]) + "]");
-    else l.raw("radius_mm = " + CellListing::shown(b.radius_mm));
-    if (b.shape == BodySolid::Shape::Cylinder) l.raw("length_mm = " + CellListing::shown(b.length_mm));
-  }
+  listBodySolids(l, "head", g.head.body);
 }
 
 // [plc], [plc.registers], [cameras], [digitizer]: the devices.
@@ -687,6 +699,7 @@ void listArtefacts(CellListing& l, const CellConfig& c) {
   l.text("name", g.fixture.name);
   l.triple("datum_mm", g.fixture.datum.position_mm);
   l.triple("datum_rotation_deg", g.fixture.datum.rotation_deg);
+  listBodySolids(l, "fixture", g.fixture.body);
 }
 
 // [calibration], [results], [report], [programs], [hmi]: the cell's rules and places.

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <optional>
 
@@ -46,44 +47,58 @@ std::shared_ptr<fcl::BVHModel<fcl::OBBRSSd>> meshOf(const NominalModel& model) {
   return mesh;
 }
 
+// What stands in the head's way: the part's triangles, and the fixture's solids.
+struct Obstacle {
+  std::string name;  // "the part", or "the fixture's NAME"
+  std::shared_ptr<fcl::CollisionGeometryd> geometry;
+  Eigen::Isometry3d frame_from_obstacle = Eigen::Isometry3d::Identity();
+};
+
 // FCL's collision query stops at the first overlap, its distance query must visit the whole
-// neighbourhood: each pose is first tested with the solids grown by the clearance (cheap), and the
-// distance is measured only where that test finds the part.
+// neighbourhood: each pose is first tested with the head's solids grown by the clearance (cheap),
+// and the distance is measured only where that test finds something.
 class BodyAgainstPart {
  public:
-  BodyAgainstPart(const NominalModel& model, const HeadDescription& head, double clearance) : part_(meshOf(model)) {
+  BodyAgainstPart(std::vector<Obstacle> obstacles, const HeadDescription& head, double clearance)
+      : obstacles_(std::move(obstacles)) {
     for (const BodySolid& s : head.body)
       solids_.push_back({s.name, shapeOf(s, 0), shapeOf(s, clearance), trace::toIsometry(toRigidPose(s.placement))});
   }
 
-  // The first solid that comes within the clearance of the part with the head at `pose`; null when none.
-  const std::string* tooClose(const HeadPose& pose) const {
+  // Whether a solid comes within the clearance of an obstacle with the head at `pose`.
+  bool tooClose(const HeadPose& pose) const {
     const Eigen::Isometry3d head = headAt(pose);
-    for (const Solid& s : solids_) {
-      fcl::CollisionRequestd request;
-      fcl::CollisionResultd result;
-      if (fcl::collide(s.grown.get(), fcl::Transform3d(head * s.head_from_solid), part_.get(),
-                       fcl::Transform3d::Identity(), request, result) > 0)
-        return &s.name;
-    }
-    return nullptr;
+    for (const Solid& s : solids_)
+      for (const Obstacle& o : obstacles_) {
+        fcl::CollisionRequestd request;
+        fcl::CollisionResultd result;
+        if (fcl::collide(s.grown.get(), fcl::Transform3d(head * s.head_from_solid), o.geometry.get(),
+                         fcl::Transform3d(o.frame_from_obstacle), request, result) > 0)
+          return true;
+      }
+    return false;
   }
 
-  // The least distance from any solid to the part with the head at `pose`, and which solid.
-  std::pair<double, const std::string*> clearance(const HeadPose& pose) const {
+  struct Closest {
+    double distance = std::numeric_limits<double>::infinity();
+    const std::string* solid = nullptr;
+    const std::string* obstacle = nullptr;
+  };
+  // The least distance from any solid to any obstacle with the head at `pose`, and between which.
+  Closest clearance(const HeadPose& pose) const {
     const Eigen::Isometry3d head = headAt(pose);
-    double least = std::numeric_limits<double>::infinity();
-    const std::string* which = nullptr;
-    for (const Solid& s : solids_) {
-      fcl::DistanceRequestd request;
-      fcl::DistanceResultd result;
-      fcl::distance(s.shape.get(), fcl::Transform3d(head * s.head_from_solid), part_.get(), fcl::Transform3d::Identity(),
-                    request, result);
-      // FCL reports a negative distance for solids that overlap the part.
-      const double d = std::max(0.0, result.min_distance);
-      if (d < least) least = d, which = &s.name;
-    }
-    return {least, which};
+    Closest closest;
+    for (const Solid& s : solids_)
+      for (const Obstacle& o : obstacles_) {
+        fcl::DistanceRequestd request;
+        fcl::DistanceResultd result;
+        fcl::distance(s.shape.get(), fcl::Transform3d(head * s.head_from_solid), o.geometry.get(),
+                      fcl::Transform3d(o.frame_from_obstacle), request, result);
+        // FCL reports a negative distance for solids that overlap.
+        const double d = std::max(0.0, result.min_distance);
+        if (d < closest.distance) closest = {d, &s.name, &o.name};
+      }
+    return closest;
   }
 
  private:
@@ -93,7 +108,7 @@ class BodyAgainstPart {
     std::shared_ptr<fcl::CollisionGeometryd> shape, grown;
     Eigen::Isometry3d head_from_solid;
   };
-  std::shared_ptr<fcl::BVHModel<fcl::OBBRSSd>> part_;
+  std::vector<Obstacle> obstacles_;
   std::vector<Solid> solids_;
 };
 
@@ -115,18 +130,19 @@ std::optional<PlanCollision> checkPath(const BodyAgainstPart& body, const HeadPo
   std::vector<HeadPose> close;
   for (int k = 0; k <= n; ++k) {
     const HeadPose p = between(from, to, static_cast<double>(k) / n);
-    if (body.tooClose(p) != nullptr) close.push_back(p);
+    if (body.tooClose(p)) close.push_back(p);
   }
   if (close.empty()) return std::nullopt;
   constexpr std::size_t kMeasured = 8;
   const std::size_t stride = std::max<std::size_t>(1, close.size() / kMeasured);
   std::optional<PlanCollision> worst;
   for (std::size_t i = 0; i < close.size(); i += stride) {
-    const auto [d, solid] = body.clearance(close[i]);
-    if (worst && d >= worst->clearance_mm) continue;
+    const BodyAgainstPart::Closest closest = body.clearance(close[i]);
+    if (worst && closest.distance >= worst->clearance_mm) continue;
     PlanCollision c;
-    c.solid = solid != nullptr ? *solid : std::string();
-    c.clearance_mm = std::min(d, o.clearance_mm);
+    c.solid = closest.solid != nullptr ? *closest.solid : std::string();
+    c.obstacle = closest.obstacle != nullptr ? *closest.obstacle : std::string();
+    c.clearance_mm = std::min(closest.distance, o.clearance_mm);
     c.head_mm = close[i].position;
     worst = c;
   }
@@ -137,9 +153,20 @@ std::optional<PlanCollision> checkPath(const BodyAgainstPart& body, const HeadPo
 
 std::vector<PlanCollision> checkCollisions(const NominalModel& model, const ScanPlan& plan, const HeadDescription& head,
                                            const CollisionOptions& options) {
+  return checkCollisions(model, {}, trace::RigidPose{}, plan, head, options);
+}
+
+std::vector<PlanCollision> checkCollisions(const NominalModel& model, const std::vector<BodySolid>& fixture,
+                                           const trace::RigidPose& frame_from_datum, const ScanPlan& plan,
+                                           const HeadDescription& head, const CollisionOptions& options) {
   std::vector<PlanCollision> found;
-  if (head.body.empty() || model.triangles.empty()) return found;
-  const BodyAgainstPart body(model, head, options.clearance_mm);
+  std::vector<Obstacle> obstacles;
+  if (!model.triangles.empty()) obstacles.push_back({"the part", meshOf(model), Eigen::Isometry3d::Identity()});
+  const Eigen::Isometry3d datum = trace::toIsometry(frame_from_datum);
+  for (const BodySolid& s : fixture)
+    obstacles.push_back({"the fixture's " + s.name, shapeOf(s, 0), datum * trace::toIsometry(toRigidPose(s.placement))});
+  if (head.body.empty() || obstacles.empty()) return found;
+  const BodyAgainstPart body(std::move(obstacles), head, options.clearance_mm);
   std::optional<HeadPose> at;
   if (options.from_park) at = plan.park;
   const auto record = [&](std::optional<PlanCollision> c, std::size_t step, bool move) {
@@ -172,9 +199,10 @@ std::vector<PlanCollision> checkCollisions(const NominalModel& model, const Scan
 
 std::string describe(const PlanCollision& c, const ScanPlan& plan, double clearance_mm) {
   char text[256];
-  std::snprintf(text, sizeof text, "%s%s: the %s comes within %.1f mm of the part (the clearance is %.1f mm; head at %.1f, %.1f, %.1f mm)",
+  std::snprintf(text, sizeof text, "%s%s: the %s comes within %.1f mm of %s (the clearance is %.1f mm; head at %.1f, %.1f, %.1f mm)",
                 c.during_move ? "the move to " : "", c.step < plan.steps.size() ? stepName(c.step, plan.steps[c.step]).c_str() : "?",
-                c.solid.c_str(), c.clearance_mm, clearance_mm, c.head_mm[0], c.head_mm[1], c.head_mm[2]);
+                c.solid.c_str(), c.clearance_mm, c.obstacle.empty() ? "the part" : c.obstacle.c_str(), clearance_mm,
+                c.head_mm[0], c.head_mm[1], c.head_mm[2]);
   return text;
 }
 

@@ -55,7 +55,8 @@ PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::Part
   f.problems = acquisition::checkPlan(placed, cell.limits);
   const acquisition::CollisionOptions clearance;
   for (const acquisition::PlanCollision& c :
-       acquisition::checkCollisions(placed_model, placed, cell.geometry.head, clearance)) {
+       acquisition::checkCollisions(placed_model, cell.geometry.fixture.body, acquisition::toRigidPose(cell.geometry.fixture.datum),
+                                    placed, cell.geometry.head, clearance)) {
     f.problems.push_back(acquisition::describe(c, placed, clearance.clearance_mm));
     ++f.collisions;
   }
@@ -150,9 +151,9 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 own.laser_motion_s, bound > 0 ? own.laser_motion_s / bound : 0.0);
     printUnseen(generated.coverage);
     if (generated.collisions == 0)
-      std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part along every "
-                  "pass and move of the generated plan (the fixture is not in the cell file: not checked)\n",
-                  cell.geometry.head.body.size(), acquisition::CollisionOptions{}.clearance_mm);
+      std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part and the fixture "
+                  "(%zu solids of the cell file) along every pass and move of the generated plan\n",
+                  cell.geometry.head.body.size(), acquisition::CollisionOptions{}.clearance_mm, cell.geometry.fixture.body.size());
     if (!opt->output.empty()) {
       writePlan(plan, opt->output);
       std::printf("  written    %s\n", opt->output.c_str());

@@ -211,7 +211,9 @@ int runScan(ScanOptions& opt) {
       const acquisition::NominalModel placed = acquisition::placeOnFixture(program->model, config.geometry);
       coverage = acquisition::predictCoverage(placed, job.plan, config.geometry, job.run.limits);
       const acquisition::CollisionOptions clearance;
-      for (const acquisition::PlanCollision& c : acquisition::checkCollisions(placed, job.plan, config.geometry.head, clearance))
+      for (const acquisition::PlanCollision& c :
+           acquisition::checkCollisions(placed, config.geometry.fixture.body, acquisition::toRigidPose(config.geometry.fixture.datum),
+                                        job.plan, config.geometry.head, clearance))
         problems.push_back(acquisition::describe(c, job.plan, clearance.clearance_mm));
     }
     printDryRun(job.plan, config, job.run.limits, problems, coverage ? &*coverage : nullptr);

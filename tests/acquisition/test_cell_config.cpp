@@ -72,6 +72,11 @@ TEST_F(CellFileTest, ASecondCellDiffersInEverySectionAndIsReadAsWritten) {
   EXPECT_NEAR(b.limits.max_tilt, 105 * kDeg, 1e-12);
   ASSERT_EQ(b.geometry.head.body.size(), 3u);
   EXPECT_EQ(b.geometry.head.body[0].shape, BodySolid::Shape::Sphere);
+  // The fixture's solids, in the part's datum frame.
+  ASSERT_EQ(b.geometry.fixture.body.size(), 3u);
+  EXPECT_EQ(b.geometry.fixture.body[0].name, "base plate");
+  EXPECT_EQ(b.geometry.fixture.body[1].shape, BodySolid::Shape::Cylinder);
+  EXPECT_EQ(b.geometry.fixture.body[1].placement.position_mm, (std::array<double, 3>{150, 0, -52}));
   EXPECT_EQ(b.geometry.cameras.width, 1600);
   EXPECT_EQ(b.geometry.cameras.bits, 16);
   EXPECT_EQ(b.geometry.digitizer.latency_ms, 5);
@@ -175,6 +180,9 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
       {"[head]\nkind = \"wobbly\"\n", "[head] kind is \"wobbly\": expected continuous or indexing"},
       {"[head]\n[[head.body]]\nname = \"ram\"\nshape = \"cylinder\"\nradius_mm = 30\n", "[head.body 1] length_mm is missing"},
       {"[head]\n[[head.body]]\nshape = \"box\"\n", "[head.body 1] name is missing"},
+      {"[fixture]\n[[fixture.body]]\nname = \"clamp\"\nshape = \"cone\"\n",
+       "[fixture.body 1] shape is \"cone\": expected box, cylinder or sphere"},
+      {"[fixture]\nbody = 3\n", "[fixture] body must be an array of tables ([[fixture.body]] entries)"},
       {"[machine]\nmax_tilt_deg = 90\n", "[machine] max_tilt_deg has moved: write it as [head] a_max_deg"},
       {"[machine]\ntravel_min = [0, 0, 0]\ntravel_max = [0, 1, 1]\n", "[machine] travel_min must be below travel_max"},
       {"[sphere]\ncentre_mm = [250, 0, 40]\n[ball_bar]\ncentre_mm = [250, -120, 40]\ndistance_mm = 100\n",

@@ -237,6 +237,35 @@ TEST(PlanCollisions, TheHeadsBodyIsCheckedAlongEverySweepAndMove) {
   EXPECT_TRUE(checkCollisions(flat, through, bodiless, options).empty());
 }
 
+// The fixture's solids stand in the head's way too: the cell file's nest is clear of a plan over a
+// plate; a clamp standing up into the passes is named, with the pass; carried with the datum, the
+// same clamp is checked where the fixture puts it.
+TEST(PlanCollisions, TheFixturesSolidsAreCheckedWhereTheFixtureHoldsThem) {
+  const CellConfig cell = virtualCell();
+  ASSERT_FALSE(cell.geometry.fixture.body.empty());
+  const NominalModel flat = plate(120, 80);
+  const ScanPlan plan = planPart(flat, circles(), cell.geometry, cell.limits);
+  EXPECT_TRUE(checkCollisions(flat, cell.geometry.fixture.body, trace::RigidPose{}, plan, cell.geometry.head).empty());
+
+  BodySolid clamp;
+  clamp.name = "clamp 1";
+  clamp.shape = BodySolid::Shape::Box;
+  clamp.placement.position_mm = {0, 0, 60};  // 20 x 20 mm, standing 120 mm tall in the plate's middle
+  clamp.size_mm = {20, 20, 120};
+  const std::vector<PlanCollision> hits = checkCollisions(flat, {clamp}, trace::RigidPose{}, plan, cell.geometry.head);
+  ASSERT_FALSE(hits.empty());
+  for (const PlanCollision& c : hits) EXPECT_EQ(c.obstacle, "the fixture's clamp 1") << describe(c, plan, 5);
+  EXPECT_NE(describe(hits[0], plan, 5).find("of the fixture's clamp 1"), std::string::npos) << describe(hits[0], plan, 5);
+  // The same clamp, the plan and the plate placed 400 mm along x: the clamp goes with the datum.
+  CellGeometry moved = cell.geometry;
+  moved.fixture.datum.position_mm = {400, 0, 0};
+  const ScanPlan placed = placeOnFixture(plan, moved, cell.limits.index_step);
+  EXPECT_FALSE(checkCollisions(placeOnFixture(flat, moved), {clamp}, toRigidPose(moved.fixture.datum), placed,
+                               cell.geometry.head).empty());
+  // Left in the machine frame's origin while the part moved away, it is no longer in the way.
+  EXPECT_TRUE(checkCollisions(placeOnFixture(flat, moved), {clamp}, trace::RigidPose{}, placed, cell.geometry.head).empty());
+}
+
 // The simulator's whole parts, as their programs describe them, at their own size and at other
 // scales and depths: the generated plan sees as much of the grid area as the hand-made one, in about
 // as much motion or less, keeps to the machine and clear of the part.

@@ -30,8 +30,8 @@ struct Placement {
 };
 trace::RigidPose toRigidPose(const Placement& placement);
 
-// One simple solid of the head-and-sensor body, in the head frame (the CMM's reference point), for
-// collision checks of the plans: a box (size_mm: its x, y, z extents, centred on the placement), a
+// One simple solid of the head-and-sensor body, in the head frame (the CMM's reference point), or of
+// the fixture, in the part's datum frame, for collision checks of the plans: a box (size_mm: its x, y, z extents, centred on the placement), a
 // cylinder (radius_mm, length_mm along the placement's z, centred on it) or a sphere (radius_mm).
 struct BodySolid {
   enum class Shape : std::uint8_t { Box, Cylinder, Sphere };
@@ -118,10 +118,12 @@ struct PlateArtefact {
 trace::RigidPose machineFromPlate(const PlateArtefact& plate);  // dot (i, j) at (i, j) * pitch in the plate frame
 
 // The fixture that holds the part ([fixture]): where the part's datum frame (the frame of its
-// nominal model) is on the table.
+// nominal model) is on the table, and what of it stands in the head's way ([[fixture.body]]: its
+// base, clamps, locators as simple solids in the datum frame, checked against the head's body).
 struct Fixture {
   std::string name;
   Placement datum;  // machine_from_datum
+  std::vector<BodySolid> body;
   bool operator==(const Fixture&) const = default;
 };
 
