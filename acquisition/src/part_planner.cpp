@@ -92,8 +92,9 @@ class PartPlanner {
 
   // One height a pass is flown at: the depth band it measures and the part of the grid area under it.
   struct Band {
-    double z_mid = 0;           // the band's middle, where the sensor's standoff is put
+    double z_mid = 0;           // the band's middle: which samples it measures
     double z_top = 0;           // the highest sample in it: where the stripe is narrowest
+    double z_fly = 0;           // where the sensor's standoff is put: as high as the band's lowest sample allows
     double y_lo = 0, y_hi = 0;  // the samples' extent along the pass
   };
 
@@ -115,25 +116,31 @@ class PartPlanner {
       b.y_lo = b.z_top = std::numeric_limits<double>::infinity();
       b.y_hi = -b.y_lo;
       b.z_top = -b.z_top;
+      double z_bottom = b.z_mid;
       for (const Vec3& p : samples_.points)
         if (std::abs(p.x() - x) <= 0.5 * width && std::abs(p.z() - b.z_mid) <= half_band) {
           b.y_lo = std::min(b.y_lo, p.y());
           b.y_hi = std::max(b.y_hi, p.y());
           b.z_top = std::max(b.z_top, p.z());
+          z_bottom = std::min(z_bottom, p.z());
         }
+      // The stripe is wider the further the surface lies: the sensor flies as high as keeps the
+      // band's lowest sample within the share of the measuring range a band may take.
+      b.z_fly = std::max(b.z_top - 0.5 * band, z_bottom + 0.5 * band);
       if (b.y_hi >= b.y_lo) out.push_back(b);
     }
     return out;
   }
 
   // The stripe a pass lays on the surface it flies over: narrowest where the surface comes nearest
-  // the sensor (the fan is narrower there than at the standoff).
+  // the sensor (the fan widens with the distance). Over nothing, the stripe at the standoff.
   double stripeOver(const std::vector<Band>& bands) const {
     const DigitizerDrawing& d = cell_.digitizer;
     const double half_fan = 0.5 * d.fan_angle_deg * kDeg;
-    double width = stripeWidth(d);
+    if (bands.empty()) return stripeWidth(d);
+    double width = std::numeric_limits<double>::infinity();
     for (const Band& b : bands)
-      width = std::min(width, 2 * std::max(0.0, d.standoff_mm - (b.z_top - b.z_mid)) * std::tan(half_fan));
+      width = std::min(width, 2 * std::max(0.0, d.standoff_mm - (b.z_top - b.z_fly)) * std::tan(half_fan));
     return width;
   }
 
@@ -163,7 +170,7 @@ class PartPlanner {
         const double b = stop((index % 2 ? 2.0 : -2.0) * kDeg);
         const Eigen::Matrix3d R = headRotation(0, b) * mount_.linear();
         const Vec3 along = Vec3(R(0, 1), R(1, 1), 0).normalized();
-        const Vec3 centre = Vec3(x, 0.5 * (band.y_lo + band.y_hi), band.z_mid) + cell_.digitizer.standoff_mm * R.col(2);
+        const Vec3 centre = Vec3(x, 0.5 * (band.y_lo + band.y_hi), band.z_fly) + cell_.digitizer.standoff_mm * R.col(2);
         const double half = 0.5 * (band.y_hi - band.y_lo) + lead;
         const double direction = forward ? 1.0 : -1.0;
         SweepStep s;
@@ -341,6 +348,12 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
 double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed) {
   const double stripe = stripeWidth(cell.digitizer);
   return stripe > 0 && sweep_speed > 0 ? grid_area / (stripe * sweep_speed) : 0;
+}
+
+double scanTimeFloor(double grid_area, const CellGeometry& cell, double sweep_speed) {
+  const DigitizerDrawing& d = cell.digitizer;
+  const double far = d.standoff_mm + 0.5 * d.measuring_range_mm;
+  return scanTimeLowerBound(grid_area, cell, sweep_speed) * d.standoff_mm / far;
 }
 
 }  // namespace stampscan::acquisition

@@ -145,10 +145,13 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 program.name.c_str(), cell.name.c_str(), generated.coverage.grid_area, planner.sample_spacing_mm);
     printFigures("generated", generated);
     printFigures("program's", own);
-    std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe x %.0f mm/s)); the generated "
-                "passes take %.1f s with their moves (%.2f x), the program's %.1f s (%.2f x)\n",
-                bound, planner.sweep_speed, generated.laser_motion_s, bound > 0 ? generated.laser_motion_s / bound : 0.0,
-                own.laser_motion_s, bound > 0 ? own.laser_motion_s / bound : 0.0);
+    const double floor = acquisition::scanTimeFloor(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
+    std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe at the standoff x %.0f mm/s); "
+                "%.1f s with the stripe at the far end of the range); the generated passes take %.1f s with their moves "
+                "(%.2f x; %.2f x), the program's %.1f s (%.2f x; %.2f x)\n",
+                bound, planner.sweep_speed, floor, generated.laser_motion_s, bound > 0 ? generated.laser_motion_s / bound : 0.0,
+                floor > 0 ? generated.laser_motion_s / floor : 0.0, own.laser_motion_s,
+                bound > 0 ? own.laser_motion_s / bound : 0.0, floor > 0 ? own.laser_motion_s / floor : 0.0);
     printUnseen(generated.coverage);
     if (generated.collisions == 0)
       std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part and the fixture "

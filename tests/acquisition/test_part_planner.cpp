@@ -65,15 +65,21 @@ TEST(PartPlanner, APlateIsSeenWholeByTheLaserAndTheCameras) {
   EXPECT_GE(c.share(c.laser_area), 0.995);
   EXPECT_GE(c.share(c.stereo_area), 0.995);
   // Passes no wider than the stripe, each overlapping the ground its neighbour covered by the share
-  // asked for (the first one reaching as far beyond the plate's edge).
-  const double stripe = stripeWidth(cell.geometry.digitizer);
-  const double overlap = PlannerOptions{}.strip_overlap;
+  // asked for (the first one reaching as far beyond the plate's edge). Over flat ground the sensor
+  // flies as high as the share of the measuring range a band may take allows, where the stripe is
+  // wider than at the standoff.
+  const DigitizerDrawing& d = cell.geometry.digitizer;
+  const PlannerOptions defaults;
+  const double flown = d.standoff_mm + 0.5 * defaults.depth_use * d.measuring_range_mm;
+  const double stripe = stripeWidth(d) * flown / d.standoff_mm;
+  const double overlap = defaults.strip_overlap;
   EXPECT_EQ(plan.sweepCount(Scene::Part), static_cast<std::size_t>(std::ceil(120 / ((1 - overlap) * stripe))));
   EXPECT_LT(c.overlap_area / c.laser_area, 2.5 * overlap);
   EXPECT_TRUE(checkPlan(placeOnFixture(plan, cell.geometry, cell.limits.index_step), cell.limits).empty());
   // Within the planning goal of the lower bound (the moves between passes come on top).
   const double bound = scanTimeLowerBound(c.grid_area, cell.geometry, 25);
   EXPECT_GT(bound, 0);
+  EXPECT_LT(scanTimeFloor(c.grid_area, cell.geometry, 25), bound);
   EXPECT_LT(motionSeconds(plan, cell.limits), 3.0 * bound + 20);
 }
 

@@ -4,10 +4,11 @@
 // plan is written; placeOnFixture carries it onto a cell's table). It lays laser passes across the
 // model's grid area from one side to the other, each a straight sweep at one height: where the
 // model's surface under a pass spans more than the sensor's measuring range (a deep pan), the pass is
-// flown at several heights, each covering a band of the depth. Each pass is placed so that its stripe
-// (as wide as the fan is where the surface under it comes nearest the sensor) overlaps the ground
-// the previous one covered by a stated share: passes lie wider apart over flat ground than over
-// slopes. They cross at +-2 degrees (the paper's Sec. 3.1) and are flown in alternate directions, so
+// flown at several heights, each covering a band of the depth. The fan widens with the distance, so
+// each pass flies as high as keeps the lowest surface of its band within the share of the measuring
+// range a band may take. Each pass is placed so that its stripe (as wide as the fan is where the
+// surface under it comes nearest the sensor) overlaps the ground the previous one covered by a
+// stated share: passes lie wider apart over flat ground than over slopes. They cross at +-2 degrees (the paper's Sec. 3.1) and are flown in alternate directions, so
 // that the move from one pass's end to the next's start is short. The stereo pair looks at the grid
 // area from a rows x columns lattice of poses, the outer ones tilted inwards so that the walls are
 // seen. Head angles are the head's nearest stops (an indexing head).
@@ -87,5 +88,9 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
 // A lower bound of the part's scanning time: the grid area over the stripe's width (at the standoff)
 // times the sweep speed. The moves between passes come on top.
 double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed);
+// The same with the widest stripe the digitizer lays (at the far end of its measuring range): no
+// plan can scan the grid area faster. A plan that flies higher than the standoff over flat ground
+// can beat the bound above, not this one.
+double scanTimeFloor(double grid_area, const CellGeometry& cell, double sweep_speed);
 
 }  // namespace stampscan::acquisition
