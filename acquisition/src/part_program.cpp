@@ -105,8 +105,10 @@ class ProgramReader {
 };
 
 // A file named in program.toml: relative to the program's folder, of an expected kind.
-fs::path relativeFile(const ProgramReader& in, const toml::table& top, const char* key) {
-  const fs::path file = *in.text(top, "", key, true);
+fs::path relativeFile(const ProgramReader& in, const toml::table& top, const char* key, bool required = true) {
+  const std::optional<std::string> given = in.text(top, "", key, required);
+  if (!given) return {};
+  const fs::path file = *given;
   if (file.empty()) in.fail("", key, "must name a file");
   if (file.is_absolute()) in.fail("", key, "must be a path relative to the program's folder");
   return file;
@@ -155,7 +157,7 @@ PartProgram parseProgramFile(const std::string& text, const std::string& source)
   std::string ext = p.model_file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext != ".stl" && ext != ".step" && ext != ".stp") in.fail("", "model", "must name a .stl, .step or .stp file");
-  p.plan_file = relativeFile(in, top, "plan");
+  p.plan_file = relativeFile(in, top, "plan", false);  // none yet: `station plan --into-program` makes one
 
   const toml::table& grid = *in.section(top, "grid", true);
   in.onlyKeys(grid, "[grid]", {"kind", "pitch_mm", "circle_diameter_mm", "line_width_mm"});
@@ -208,6 +210,7 @@ PartProgram parseProgramFile(const std::string& text, const std::string& source)
 
 std::vector<std::string> checkConsistency(const PartProgram& p) {
   std::vector<std::string> problems;
+  if (!p.hasPlan()) return problems;
   const PartSpec& part = p.plan.part;
   const std::string plan = "the plan's [part] ";
   if (part.grid != p.grid.kind) problems.push_back("[grid] kind is \"" + p.grid.kind + "\" but " + plan + "grid is \"" + part.grid + "\"");
@@ -239,11 +242,12 @@ PartProgram loadPartProgram(const fs::path& dir_or_file) {
 
   const ProgramReader in(file.string());
   for (const auto& [key, name] : {std::pair{"plan", p.plan_file}, std::pair{"model", p.model_file}}) {
+    if (name.empty()) continue;  // a program without a plan yet
     const fs::path path = p.folder / name;
     if (!fs::exists(path, ec)) in.fail("", key, "names \"" + name.string() + "\", which does not exist in " + p.folder.string());
     if (!fs::is_regular_file(path, ec)) in.fail("", key, "names \"" + name.string() + "\", which is not a regular file");
   }
-  p.plan = loadScanPlan(p.folder / p.plan_file);
+  if (p.hasPlan()) p.plan = loadScanPlan(p.folder / p.plan_file);
   const std::vector<std::string> problems = checkConsistency(p);
   if (!problems.empty()) {
     std::string line = file.string() + ": disagrees with " + (p.folder / p.plan_file).string() + ": ";
@@ -259,7 +263,7 @@ std::string toToml(const PartProgram& p) {
   o << "name = " << quoted(p.name) << "\n";
   if (!p.description.empty()) o << "description = " << quoted(p.description) << "\n";
   o << "model = " << quoted(p.model_file.generic_string()) << "\n";
-  o << "plan = " << quoted(p.plan_file.generic_string()) << "\n";
+  if (p.hasPlan()) o << "plan = " << quoted(p.plan_file.generic_string()) << "\n";
   if (!p.press_program.empty()) o << "press_program = " << quoted(p.press_program) << "\n";
   if (p.line_number) o << "line_number = " << *p.line_number << "\n";
   o << "\n[grid]\nkind = " << quoted(p.grid.kind) << "\npitch_mm = " << number(p.grid.pitch_mm)

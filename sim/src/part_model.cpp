@@ -1,5 +1,7 @@
 #include "stampscan/sim/part_model.hpp"
 
+#include "stampscan/acquisition/part_planner.hpp"
+
 #include "stampscan/fitting/atomic_file.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 
@@ -96,7 +98,7 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
   program.material = options.material;
   program.sheet_thickness_mm = options.sheet_thickness_mm;
   program.plan_file = "plan.toml";
-  program.plan = planScan(params);
+  program.plan = planScan(params);  // the sample region's; a whole part's is generated below, from its model
   if (kind == PartKind::Dome) {
     program.description = "The simulator's punch-stretched dome (" + toString(grid) + " grid), nominal model a STEP B-spline surface";
     if (options.sample_region) program.description += "; the plan scans its sample region";
@@ -119,7 +121,6 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw std::runtime_error(dir.string() + ": cannot create the program folder: " + ec.message());
-  fitting::writeFileAtomically(dir / program.plan_file, acquisition::toToml(program.plan));
   if (kind == PartKind::Dome) {
     program.model_file = "model.step";
     const acquisition::HeightGrid heights = sampleHeights(*part, options.step_spacing_mm);
@@ -131,6 +132,15 @@ acquisition::PartProgram writeSimulatedProgram(PartKind kind, GridKind grid, con
     acquisition::writeStl(program.model, dir / program.model_file, true);
   }
   program.model.source = (dir / program.model_file).string();
+  if (!options.sample_region) {
+    // As an engineer teaching a new part would: planned from its nominal model for the cell
+    // (acquisition::planPart), for its printed grid.
+    const acquisition::CellConfig cell = options.cell != nullptr ? *options.cell : acquisition::virtualCell();
+    const acquisition::PartSpec spec = program.plan.part;
+    program.plan = acquisition::planPart(program.model, spec, cell.geometry, cell.limits);
+    program.plan.name = program.name + ", generated from its nominal model for " + cell.name;
+  }
+  fitting::writeFileAtomically(dir / program.plan_file, acquisition::toToml(program.plan));
   acquisition::writePartProgram(program, dir);  // last: the folder is a program only once it is whole
   return program;
 }

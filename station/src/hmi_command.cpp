@@ -88,9 +88,10 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
         const acquisition::PartProgram program = acquisition::parseProgramFile(text.str(), (dir / acquisition::kProgramFile).string());
         names.insert(program.name);
         out.push_back({program.name, program.description, program.grid.kind, program.material, program.grid.pitch_mm,
-                       program.sheet_thickness_mm, "", lineNumberOf(program, virtual_cell)});
+                       program.sheet_thickness_mm, program.hasPlan() ? "" : "not planned yet",
+                       lineNumberOf(program, virtual_cell), program.hasPlan()});
       } catch (const std::exception& e) {
-        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what(), std::nullopt});
+        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what(), std::nullopt, false});
       }
     }
     if (virtual_cell)
@@ -100,7 +101,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
                          "the virtual cell's simulated " + simulated.part + " (" + simulated.grid + " grid)" +
                              (simulated.sample_region ? ", its sample region" : ""),
                          simulated.grid, "DC04", 2.54, 0.8, "written into the library on first use",
-                         simulated.line_number});
+                         simulated.line_number, true});
     return out;
   };
   p.prepare = [=](const std::string& name) {
@@ -149,9 +150,19 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
       std::lock_guard lock(predicted->mutex);
       if (const auto it = predicted->coverage.find(name); it != predicted->coverage.end()) return it->second;
     }
-    hmi::ProgramCoverage out = predictedCoverage(programFromLibrary(name, config, virtual_cell, runs), config);
+    const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
+    if (!program.hasPlan()) throw std::runtime_error(name + " has no scan plan yet: Plan makes one from its model");
+    hmi::ProgramCoverage out = predictedCoverage(program, config);
     std::lock_guard lock(predicted->mutex);
-    return predicted->coverage.emplace(name, std::move(out)).first->second;
+    return predicted->coverage.insert_or_assign(name, std::move(out)).first->second;
+  };
+  p.plan = [=](const std::string& name) {
+    acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
+    program.plan = generatedPlan(program, config);
+    adoptPlan(program, program.plan);
+    hmi::ProgramCoverage out = predictedCoverage(program, config);
+    std::lock_guard lock(predicted->mutex);
+    return predicted->coverage.insert_or_assign(name, std::move(out)).first->second;
   };
   p.by_line_number = [=](std::uint16_t line_number) {
     return programByLineNumber(line_number, config, virtual_cell, runs);

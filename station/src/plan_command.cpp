@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace stampscan::station {
@@ -96,11 +97,6 @@ void printUnseen(const acquisition::Coverage& c) {
               unseen, 100 * c.share(unseen), lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
 }
 
-void writePlan(const acquisition::ScanPlan& plan, const fs::path& file) {
-  if (file.has_parent_path()) fs::create_directories(file.parent_path());
-  fitting::writeFileAtomically(file, acquisition::toToml(plan));
-}
-
 }  // namespace
 
 CommandRunner addPlanCommand(CLI::App& app) {
@@ -129,43 +125,45 @@ CommandRunner addPlanCommand(CLI::App& app) {
     acquisition::PartProgram program = programToScan(opt->program, cell, opt->cell.hosted(), opt->runs);
     acquisition::PlannerOptions planner = opt->planner;
     if (opt->laser_only) planner.stereo = false;
-    acquisition::PartSpec part = program.plan.part;
-    part.grid = program.grid.kind;
-    part.pitch = program.grid.pitch_mm;
-    part.circle_diameter = program.grid.circle_diameter_mm;
-    part.line_width = program.grid.line_width_mm;
-    acquisition::ScanPlan plan = acquisition::planPart(program.model, part, cell.geometry, cell.limits, planner);
-    plan.name = program.name + ", generated from " + program.model_file.string() + " for " + cell.name;
+    const acquisition::ScanPlan plan = generatedPlan(program, cell, planner);
 
     const acquisition::NominalModel placed_model = acquisition::placeOnFixture(program.model, cell.geometry);
     const PlanFigures generated = figuresOf(plan, program, placed_model, cell, planner.sample_spacing_mm);
-    const PlanFigures own = figuresOf(program.plan, program, placed_model, cell, planner.sample_spacing_mm);
+    const std::optional<PlanFigures> own =
+        program.hasPlan() ? std::optional(figuresOf(program.plan, program, placed_model, cell, planner.sample_spacing_mm))
+                          : std::nullopt;
     const double bound = acquisition::scanTimeLowerBound(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
     std::printf("plan %s on %s: grid area %.0f mm^2 (facets facing the sensors), sampled every %.1f mm\n",
                 program.name.c_str(), cell.name.c_str(), generated.coverage.grid_area, planner.sample_spacing_mm);
     printFigures("generated", generated);
-    printFigures("program's", own);
+    if (own) printFigures("program's", *own);
+    else std::printf("  program's  none yet (write the generated one into the program with --into-program)\n");
     const double floor = acquisition::scanTimeFloor(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
+    const auto ratios = [&](double seconds) {
+      char text[64];
+      std::snprintf(text, sizeof text, "%.1f s (%.2f x; %.2f x)", seconds, bound > 0 ? seconds / bound : 0.0,
+                    floor > 0 ? seconds / floor : 0.0);
+      return std::string(text);
+    };
     std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe at the standoff x %.0f mm/s); "
-                "%.1f s with the stripe at the far end of the range); the generated passes take %.1f s with their moves "
-                "(%.2f x; %.2f x), the program's %.1f s (%.2f x; %.2f x)\n",
-                bound, planner.sweep_speed, floor, generated.laser_motion_s, bound > 0 ? generated.laser_motion_s / bound : 0.0,
-                floor > 0 ? generated.laser_motion_s / floor : 0.0, own.laser_motion_s,
-                bound > 0 ? own.laser_motion_s / bound : 0.0, floor > 0 ? own.laser_motion_s / floor : 0.0);
+                "%.1f s with the stripe at the far end of the range); the generated passes take %s with their moves%s\n",
+                bound, planner.sweep_speed, floor, ratios(generated.laser_motion_s).c_str(),
+                own ? (", the program's " + ratios(own->laser_motion_s)).c_str() : "");
     printUnseen(generated.coverage);
     if (generated.collisions == 0)
       std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part and the fixture "
                   "(%zu solids of the cell file) along every pass and move of the generated plan\n",
                   cell.geometry.head.body.size(), acquisition::CollisionOptions{}.clearance_mm, cell.geometry.fixture.body.size());
     if (!opt->output.empty()) {
-      writePlan(plan, opt->output);
+      fs::create_directories(fs::absolute(opt->output).parent_path());
+      fitting::writeFileAtomically(opt->output, acquisition::toToml(plan));
       std::printf("  written    %s\n", opt->output.c_str());
     }
     if (opt->into_program) {
-      const fs::path target = program.folder / program.plan_file;
-      if (fs::exists(target)) fs::copy_file(target, target.string() + ".bak", fs::copy_options::overwrite_existing);
-      writePlan(plan, target);
-      std::printf("  written    %s (the program's plan; the old one is %s.bak)\n", target.c_str(), target.c_str());
+      const bool had_plan = program.hasPlan();
+      const fs::path target = adoptPlan(program, plan);
+      std::printf("  written    %s (the program's plan%s)\n", target.c_str(),
+                  had_plan ? ("; the old one is " + target.string() + ".bak").c_str() : ", named in its program file now");
     }
     return generated.problems.empty() ? 0 : 1;
   };

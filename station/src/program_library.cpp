@@ -1,5 +1,7 @@
 #include "program_library.hpp"
 
+#include "stampscan/fitting/atomic_file.hpp"
+
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/part_model.hpp"
 
@@ -98,6 +100,10 @@ std::optional<std::string> programByLineNumber(std::uint16_t line_number, const 
 
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
                                   const acquisition::CalibrationScenes& scenes, bool calibration_scenes) {
+  if (!program.hasPlan())
+    throw std::runtime_error(program.name + " (" + program.folder.string() +
+                             ") has no scan plan yet: make one from its model with `station plan " + program.folder.string() +
+                             " --into-program` (or Plan on the panel's scan page)");
   // The program's plan is in the part's datum frame; the cell's fixture puts it on the table.
   acquisition::ScanPlan plan = acquisition::placeOnFixture(program.plan, cell.geometry, cell.limits.index_step);
   if (calibration_scenes) {
@@ -106,6 +112,29 @@ acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const
     plan.steps = std::move(calibration.steps);
   }
   return plan;
+}
+
+acquisition::ScanPlan generatedPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
+                                    const acquisition::PlannerOptions& options) {
+  acquisition::PartSpec part = program.plan.part;
+  if (!program.hasPlan()) part.kind = program.simulated_part.empty() ? program.name : program.simulated_part;
+  part.grid = program.grid.kind;
+  part.pitch = program.grid.pitch_mm;
+  part.circle_diameter = program.grid.circle_diameter_mm;
+  part.line_width = program.grid.line_width_mm;
+  acquisition::ScanPlan plan = acquisition::planPart(program.model, part, cell.geometry, cell.limits, options);
+  plan.name = program.name + ", generated from " + program.model_file.string() + " for " + cell.name;
+  return plan;
+}
+
+fs::path adoptPlan(acquisition::PartProgram program, const acquisition::ScanPlan& plan) {
+  const bool had_plan = program.hasPlan();
+  if (!had_plan) program.plan_file = "plan.toml";
+  const fs::path target = program.folder / program.plan_file;
+  if (fs::exists(target)) fs::copy_file(target, target.string() + ".bak", fs::copy_options::overwrite_existing);
+  fitting::writeFileAtomically(target, acquisition::toToml(plan));
+  if (!had_plan) acquisition::writePartProgram(program, program.folder);
+  return target;
 }
 
 }  // namespace stampscan::station

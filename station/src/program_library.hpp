@@ -5,6 +5,7 @@
 
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/acquisition/part_planner.hpp"
 #include "stampscan/acquisition/part_program.hpp"
 
 #include <cstdint>
@@ -50,8 +51,19 @@ std::vector<SimulatedProgramName> simulatedProgramNames();
 
 // The plan a scan of the program runs: its own, carried from the part's datum frame onto the cell's
 // fixture (acquisition::placeOnFixture), after the cell's calibration scenes (the reference sphere's
-// sweeps and the plate's views, planned for the cell's artefacts) when asked for.
+// sweeps and the plate's views, planned for the cell's artefacts) when asked for. Throws naming the
+// way to make one when the program has no plan yet.
 acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
                                   const acquisition::CalibrationScenes& scenes, bool calibration_scenes);
+
+// A plan generated from the program's nominal model for the cell's sensors (acquisition::planPart),
+// for the program's printed grid; in the part's datum frame, like the program's own.
+acquisition::ScanPlan generatedPlan(const acquisition::PartProgram& program, const acquisition::CellConfig& cell,
+                                    const acquisition::PlannerOptions& options = {});
+
+// The plan becomes the program's own: its plan file is replaced (the old one kept beside it as
+// .bak); a program without a plan gets plan.toml, and its program file names it from then on.
+// Returns the plan file written.
+std::filesystem::path adoptPlan(acquisition::PartProgram program, const acquisition::ScanPlan& plan);
 
 }  // namespace stampscan::station

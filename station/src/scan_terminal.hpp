@@ -64,7 +64,7 @@ inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::Ce
               plan.stereoCount());
   std::printf("  motion      %.1f s\n", acquisition::motionSeconds(plan, limits));
   if (coverage)
-    std::printf("  clearance   the head's body checked against the part's model along every step and move\n");
+    std::printf("  clearance   the head's body checked against the part's model and the fixture along every step and move\n");
   if (coverage)
     std::printf("  coverage    predicted of the model's grid area (%.0f mm^2): laser %.1f %%, stereo %.1f %%, either %.1f %% "
                 "(`station plan` says where the rest is)\n",

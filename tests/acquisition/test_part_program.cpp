@@ -294,7 +294,7 @@ TEST(PartProgram, EachMistakeIsRefusedNamingTheFileTheSectionAndTheKey) {
       {"model = \"model.stl\"\n", "", "model is missing"},
       {"model = \"model.stl\"", "model = \"model.obj\"", "model must name a .stl, .step or .stp file"},
       {"model = \"model.stl\"", "model = \"/abs/model.stl\"", "model must be a path relative to the program's folder"},
-      {"plan = \"plan.toml\"\n", "", "plan is missing"},
+      {"plan = \"plan.toml\"\n", "plan = \"\"\n", "plan must name a file"},
       {"pitch_mm = 2.54", "pitch_mm = -2.54", "[grid] pitch_mm must be a positive number"},
       {"pitch_mm = 2.54", "pitch_mm = \"2.54\"", "[grid] pitch_mm must be a positive number, found a string"},
       {"pitch_mm = 2.54", "pitch_mm = nan", "[grid] pitch_mm must be a positive number"},
@@ -326,6 +326,12 @@ TEST(PartProgram, EachMistakeIsRefusedNamingTheFileTheSectionAndTheKey) {
     SCOPED_TRACE(c.message);
     expectOneLineNaming(errorOf([&] { parseProgramFile(replaced(kProgram, c.from, c.to), file); }), file, c.message);
   }
+  // A program without a plan is one not planned yet: it reads, says so, and is written back without.
+  const PartProgram unplanned = parseProgramFile(replaced(kProgram, "plan = \"plan.toml\"\n", ""), file);
+  EXPECT_FALSE(unplanned.hasPlan());
+  EXPECT_TRUE(checkConsistency(unplanned).empty());
+  EXPECT_EQ(toToml(unplanned).find("plan ="), std::string::npos);
+  EXPECT_FALSE(parseProgramFile(toToml(unplanned), file).hasPlan());
   // A simulated part family's parameters; those left out are the family's own.
   const PartProgram scaled = parseProgramFile(replaced(kProgram, "part = \"pan\"", "part = \"pan\"\nscale = 0.8\ndepth_mm = 14"), file);
   EXPECT_EQ(scaled.simulation, (SimulationParameters{0.8, 14, 0}));

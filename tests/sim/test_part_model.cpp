@@ -137,7 +137,7 @@ TEST(PartModel, AFamilysParametersMakeANewPartAndItsProgram) {
   options.simulation = parameters;
   options.name = "pan-small-4711";
   const fs::path folder = dir.path / "pan-small";
-  writeSimulatedProgram(PartKind::Pan, GridKind::Square, folder, options);
+  const acquisition::PartProgram written = writeSimulatedProgram(PartKind::Pan, GridKind::Square, folder, options);
   const acquisition::PartProgram p = acquisition::loadPartProgram(folder);
   EXPECT_EQ(p.name, "pan-small-4711");
   EXPECT_EQ(p.simulation, parameters);
@@ -157,10 +157,9 @@ TEST(PartModel, AFamilysParametersMakeANewPartAndItsProgram) {
   EXPECT_NEAR(box.min[2], -14, 0.05);
   EXPECT_NEAR(box.max[2], 0, 1e-9);
   EXPECT_LT(box.max[0] - box.min[0], 0.85 * (StampedPanPart{}.footprint().max.x() - StampedPanPart{}.footprint().min.x()));
-  // Its plan is the planner's for that part; its strain peaks where asked.
-  ScanParams planned = world;
-  planned.calibration = false;
-  EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(planScan(planned)));
+  // Its plan is generated from that part's model; its strain peaks where asked.
+  EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(written.plan));
+  EXPECT_GT(p.plan.sweepCount(acquisition::Scene::Part), 0u);
   const auto peakOf = [&](const FormedPart& formed) {
     double peak = 0;
     for (const Vec3& q : groundTruth(formed, world.grid).positions) peak = std::max(peak, formed.deformationAt(q.x(), q.y()).major_strain);
@@ -190,12 +189,11 @@ TEST(PartModel, SimulatedProgramsLoadAsPartPrograms) {
       EXPECT_EQ(p.model_file, kind == PartKind::Dome ? "model.step" : "model.stl");
       EXPECT_EQ(p.regions, written.regions);
       EXPECT_EQ(acquisition::toToml(p), acquisition::toToml(written));
-      // The plan is the simulator's whole-part plan: laser and stereo, no calibration scenes.
-      ScanParams params;
-      params.part = kind;
-      params.grid.kind = grid;
-      params.calibration = false;
-      EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(planScan(params)));
+      // The plan is generated from the part's model for the built-in cell: laser and stereo, no
+      // calibration scenes, for the program's grid.
+      EXPECT_EQ(acquisition::toToml(p.plan), acquisition::toToml(written.plan));
+      EXPECT_NE(p.plan.name.find("generated from its nominal model"), std::string::npos) << p.plan.name;
+      EXPECT_EQ(p.plan.part.grid, toString(grid));
       EXPECT_GT(p.plan.sweepCount(acquisition::Scene::Part), 0u);
       EXPECT_GT(p.plan.stereoCount(acquisition::Scene::Part), 0u);
       EXPECT_EQ(p.plan.sweepCount(acquisition::Scene::ReferenceSphere), 0u);

@@ -1,11 +1,12 @@
 // The cell and its jobs: GET /api/cell, /api/status, /api/health, /api/materials, /api/calibration,
-// /api/scan/cloud; POST /api/scan/start, /api/scan/abort, /api/verify, /api/calibrate;
-// GET /api/actions. See API.md.
+// /api/scan/cloud, /api/programs (a program's model and predicted coverage); POST /api/scan/start,
+// /api/scan/abort, /api/verify, /api/calibrate, /api/programs/NAME/plan; GET /api/actions. See API.md.
 #include "json_views.hpp"
 #include "server_impl.hpp"
 #include "stampscan/hmi/cell_health.hpp"
 #include "stampscan/report/material.hpp"
 
+#include <algorithm>
 #include <fstream>
 
 namespace stampscan::hmi {
@@ -27,6 +28,12 @@ std::optional<std::string> textField(const json& body, const char* name, std::si
     return std::nullopt;
   }
   return v;
+}
+
+// What a program's plan is predicted to see (API.md: GET /api/programs/NAME/coverage).
+json coverageJson(const ProgramCoverage& c) {
+  return {{"grid_area_mm2", c.grid_area_mm2}, {"spacing_mm", c.spacing_mm}, {"laser", c.laser}, {"stereo", c.stereo},
+          {"either", c.either}, {"sweeps", c.sweeps}, {"views", c.views}, {"xyz", c.xyz}, {"seen", c.seen}};
 }
 
 // Part ids become folder names: letters, digits and - _ . only.
@@ -102,7 +109,7 @@ void addApiRoutes(HmiServer::Impl& impl) {
         for (const ProgramSummary& p : programs.list())
           list.push_back({{"name", p.name}, {"description", p.description}, {"grid", p.grid}, {"pitch_mm", p.pitch_mm},
                           {"material", p.material}, {"sheet_thickness_mm", p.sheet_thickness_mm}, {"note", p.note},
-                          {"line_number", p.line_number ? json(*p.line_number) : json(nullptr)}});
+                          {"line_number", p.line_number ? json(*p.line_number) : json(nullptr)}, {"has_plan", p.has_plan}});
     } catch (const std::exception& e) {
       return sendError(res, 500, std::string("the program library cannot be read: ") + e.what());
     }
@@ -123,12 +130,31 @@ void addApiRoutes(HmiServer::Impl& impl) {
     const std::string name = req.matches[1];
     if (!programs.coverage || !isPartId(name)) return sendError(res, 404, "no such program");
     try {
-      const ProgramCoverage c = programs.coverage(name);
-      sendJson(res, {{"grid_area_mm2", c.grid_area_mm2}, {"spacing_mm", c.spacing_mm}, {"laser", c.laser},
-                     {"stereo", c.stereo}, {"either", c.either}, {"sweeps", c.sweeps}, {"views", c.views},
-                     {"xyz", c.xyz}, {"seen", c.seen}});
+      sendJson(res, coverageJson(programs.coverage(name)));
     } catch (const std::exception& e) {
       return sendError(res, 404, e.what());
+    }
+  });
+  // Plans a program from its nominal model and makes the plan its own (maintenance: it changes the
+  // program); refused while a job runs, which may be scanning it.
+  s.Post(R"(/api/programs/([A-Za-z0-9._-]+)/plan)", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const CellPrograms& programs = impl.jobs.setup().programs;
+    const std::string name = req.matches[1];
+    if (!programs.plan || !isPartId(name)) return sendError(res, 404, "no such program");
+    const Session who = *impl.sessionOf(req);
+    if (programs.list) {
+      const std::vector<ProgramSummary> listed = programs.list();
+      if (std::none_of(listed.begin(), listed.end(), [&](const ProgramSummary& p) { return p.name == name; }))
+        return sendError(res, 404, "no such program: " + name);
+    }
+    if (impl.jobs.status().busy) return sendError(res, 409, "a job is running: plan the program when it has finished");
+    try {
+      const ProgramCoverage c = programs.plan(name);
+      impl.recordAction(who, "program planned", {{"program", name}, {"laser", c.laser}, {"either", c.either}}, req);
+      sendJson(res, coverageJson(c));
+    } catch (const std::exception& e) {
+      impl.recordAction(who, "program plan refused", {{"program", name}, {"reason", e.what()}}, req);
+      return sendError(res, 422, e.what());
     }
   });
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {

@@ -56,6 +56,8 @@ std::optional<Role> neededRole(const httplib::Request& req) {
   const std::string& p = req.path;
   if (p == "/api/verify" || p == "/api/calibrate" || p == "/api/actions" || p == "/api/settings")
     return Role::Maintenance;
+  // Planning a part program changes it: the engineers' work.
+  if (p.rfind("/api/programs/", 0) == 0 && p.size() > 5 && p.compare(p.size() - 5, 5, "/plan") == 0) return Role::Maintenance;
   return Role::Operator;
 }
 

@@ -1,8 +1,9 @@
 // The cell's part programs on the scan page: the list to choose from (GET /api/programs) and the
 // chosen program's nominal model in a 3D view before the scan (GET /api/programs/NAME/model.stl),
 // with what its plan is predicted to see marked on it (GET /api/programs/NAME/coverage): seen by the
-// laser, by the cameras, by both, or by neither. Choosing a program also takes its material; the
-// scan then runs the program's plan.
+// laser, by the cameras, by both, or by neither. A program not planned yet offers Plan, which plans
+// it from its model for the cell (POST /api/programs/NAME/plan, maintenance). Choosing a program
+// also takes its material; the scan then runs the program's plan.
 'use strict';
 
 const programs = { list: [], view: null };
@@ -45,6 +46,23 @@ async function showProgram(name) {
   const triangles = geometry.getAttribute('position').count / 3;
   $('program-info').textContent = $('program-info').textContent.replace('loading the model…', `${triangles} triangles`);
   document.body.dataset.programShown = name;
+  $('plan-program').classList.toggle('hidden', p.has_plan !== false);
+  if (p.has_plan === false) $('coverage-info').textContent = 'This program has no scan plan yet: Plan makes one from its model for this cell.';
+  else showCoverage(name);
+}
+
+// Plans the chosen program from its model, then shows what the new plan is predicted to see.
+async function planProgram() {
+  const name = $('part-program').value;
+  if (!name) return;
+  $('plan-program').disabled = true;
+  $('coverage-info').textContent = 'planning from the model…';
+  const r = await api(`/api/programs/${encodeURIComponent(name)}/plan`, { body: {} });
+  $('plan-program').disabled = false;
+  if (!r.ok) { $('coverage-info').textContent = `not planned: ${r.body.error || r.status}`; return; }
+  const p = programs.list.find((x) => x.name === name);
+  if (p) p.has_plan = true;
+  $('plan-program').classList.add('hidden');
   showCoverage(name);
 }
 
@@ -77,4 +95,5 @@ async function showCoverage(name) {
 }
 
 $('part-program').addEventListener('change', () => showProgram($('part-program').value));
+$('plan-program').addEventListener('click', planProgram);
 loadPrograms();

@@ -256,6 +256,44 @@ TEST_F(HmiTest, ThePanelListsThePartProgramsShowsAModelAndScansOne) {
   // Written into the library on first use, and listed as such from then on.
   EXPECT_TRUE(fs::exists(root_ / "runs" / "programs" / "sim-pan-square" / "program.toml"));
 
+  // A program not planned yet (a copy of it without its plan): listed as such, no prediction, and
+  // planned on request from its model; its program file names the new plan from then on.
+  const fs::path library = root_ / "runs" / "programs";
+  fs::copy(library / "sim-pan-square", library / "bracket-17", fs::copy_options::recursive);
+  fs::remove(library / "bracket-17" / "plan.toml");
+  {
+    std::istringstream in(readText(library / "bracket-17" / "program.toml"));
+    std::string text, line;
+    bool named = false;
+    while (std::getline(in, line)) {
+      if (line.rfind("plan = ", 0) == 0) continue;
+      if (!named && line.rfind("name = ", 0) == 0) line = "name = \"bracket-17\"", named = true;
+      text += line + "\n";
+    }
+    std::ofstream(library / "bracket-17" / "program.toml") << text;
+  }
+  const auto hasPlan = [&](const std::string& name) {
+    const json listed = body(client_->Get("/api/programs"));
+    for (const json& p : listed["programs"])
+      if (p["name"] == name) return p["has_plan"].get<bool>();
+    ADD_FAILURE() << name << " is not listed";
+    return false;
+  };
+  EXPECT_FALSE(hasPlan("bracket-17"));
+  EXPECT_TRUE(hasPlan("sim-pan-square"));
+  EXPECT_EQ(client_->Get("/api/programs/bracket-17/coverage")->status, 404);
+  const std::string planning_token = csrf();
+  auto planned = post("/api/programs/bracket-17/plan", "{}", planning_token);
+  ASSERT_TRUE(planned);
+  ASSERT_EQ(planned->status, 200) << planned->body;
+  const json plan_coverage = json::parse(planned->body);
+  EXPECT_GE(plan_coverage["either"].get<double>(), 0.99) << planned->body.substr(0, 300);
+  EXPECT_GT(plan_coverage["sweeps"].get<int>(), 0);
+  EXPECT_TRUE(fs::exists(library / "bracket-17" / "plan.toml"));
+  EXPECT_TRUE(hasPlan("bracket-17"));
+  EXPECT_EQ(client_->Get("/api/programs/bracket-17/coverage")->status, 200);
+  EXPECT_EQ(post("/api/programs/no-such/plan", "{}", planning_token)->status, 404);
+
   EventReader events(station_->port());
   ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
   const std::string token = csrf();

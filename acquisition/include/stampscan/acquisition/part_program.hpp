@@ -2,14 +2,15 @@
 //
 //   DIR/program.toml   the program file (below)
 //   DIR/model.stl      the nominal formed part in the part's datum frame, mm (.stl, or .step/.stp)
-//   DIR/plan.toml      the scan plan (scan_plan.hpp's plan file)
+//   DIR/plan.toml      the scan plan (scan_plan.hpp's plan file), once the part is planned
 //
 // program.toml:
 //
 //   name = "pan-4711"             # the part number; required
 //   description = "..."           # optional
 //   model = "model.stl"           # required, relative to the folder
-//   plan = "plan.toml"            # required, relative to the folder
+//   plan = "plan.toml"            # relative to the folder; absent: not planned yet (`station plan
+//                                 # PROGRAM --into-program`, or the panel, makes one from the model)
 //   press_program = "..."         # optional: the press program that forms it
 //   line_number = 12              # optional, 1 .. 65535: the number the line's PLC starts it by
 //   [grid]                        # the grid printed on the blank; required
@@ -88,7 +89,7 @@ struct PartProgram {
   std::string description;
   std::filesystem::path folder;      // the program's folder
   std::filesystem::path model_file;  // as written in program.toml: relative to the folder
-  std::filesystem::path plan_file;   // likewise
+  std::filesystem::path plan_file;   // likewise; empty: the program has no plan yet
   PrintedGrid grid;
   std::string material;
   double sheet_thickness_mm = 0;
@@ -99,8 +100,9 @@ struct PartProgram {
   std::vector<RegionOfInterest> regions;
   std::string simulated_part;  // "dome" or "pan" when the virtual cell is to simulate it; "" when none
   SimulationParameters simulation;
-  ScanPlan plan;
+  ScanPlan plan;  // no steps when the program has no plan yet
   NominalModel model;
+  bool hasPlan() const { return !plan_file.empty(); }
 };
 
 // The program file alone (model and plan not read): `source_name` prefixes the errors.

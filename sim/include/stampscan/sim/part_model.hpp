@@ -55,8 +55,10 @@ ScanParams worldForProgram(ScanParams world, const acquisition::PartProgram& pro
 // The name of a simulated part's program: sim-<part>-<grid>, with -sample for the sample region.
 std::string simulatedProgramName(PartKind part, GridKind grid, bool sample_region = false);
 
-// Writes a complete program folder for a built-in part: plan.toml, the simulator's plan of the
-// whole part or its sample region (sim::planScan, laser and stereo, no calibration scenes); the model, the dome as STEP (one
+// Writes a complete program folder for a built-in part: plan.toml, the whole part's plan generated
+// from its nominal model for the cell (acquisition::planPart, as `station plan` makes one for any
+// part), or the simulator's plan of its sample region (sim::planScan; laser and stereo, no
+// calibration scenes either way); the model, the dome as STEP (one
 // B-spline face approximating its height field), the pan as binary STL; and program.toml last, with
 // [simulation] part, so that a folder holding program.toml is complete. Every file is written
 // atomically. Returns the program as written; its model is the mesh written (pan), or the sampled

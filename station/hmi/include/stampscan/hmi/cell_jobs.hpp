@@ -34,6 +34,7 @@ struct ProgramSummary {
   double pitch_mm = 0, sheet_thickness_mm = 0;
   std::string note;  // e.g. "written on first use" for a virtual cell's own part not yet in the library
   std::optional<std::uint16_t> line_number;  // the number the line's PLC starts it by
+  bool has_plan = true;  // false: not planned yet (a scan of it is refused until it is)
 };
 
 // What a scan of a program runs, prepared by the command that serves the cell: the program's plan
@@ -65,8 +66,12 @@ struct CellPrograms {
   std::function<ProgramScan(const std::string& name)> prepare;
   // The program's nominal model as binary STL bytes, for the 3D view; throws like prepare.
   std::function<std::string(const std::string& name)> model_stl;
-  // What the program's plan is predicted to see of its model; throws like prepare.
+  // What the program's plan is predicted to see of its model; throws like prepare (and for a
+  // program without a plan).
   std::function<ProgramCoverage(const std::string& name)> coverage;
+  // Plans the program from its nominal model for the cell and makes the plan its own (as `station
+  // plan NAME --into-program`); what the new plan is predicted to see. Throws like prepare.
+  std::function<ProgramCoverage(const std::string& name)> plan;
   // Before a scan of the setup's own plan: a virtual cell puts its own part back on the fixture
   // (after a program's). May be empty.
   std::function<void()> restore;
