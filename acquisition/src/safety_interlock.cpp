@@ -35,7 +35,7 @@ void SafetyInterlock::State::onPlcEvent(const drivers::plc::PlcEvent& event) {
     std::lock_guard lock(mutex);
     if (stop) tripped = true;
     index = events.size();
-    events.push_back({event.when, what, faultKindOf(event.kind)});
+    events.push_back({event.when, what, faultKindOf(event)});
   }
   if (!stop) return;
   // abort() is safe from another thread and returns at once; a CMM that is not moving ignores it.

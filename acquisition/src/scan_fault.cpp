@@ -41,6 +41,18 @@ FaultKind faultKindOf(drivers::plc::PlcEventKind kind) {
   return FaultKind::Other;
 }
 
+FaultKind faultKindOf(const drivers::plc::PlcEvent& event) {
+  using drivers::plc::FaultBit;
+  if (event.kind == drivers::plc::PlcEventKind::InterlockTripped) {
+    const auto has = [&](FaultBit bit) { return (event.fault_word & (1U << static_cast<unsigned>(bit))) != 0; };
+    if (has(FaultBit::EStopBroken)) return FaultKind::EStop;
+    if (has(FaultBit::DoorOpen)) return FaultKind::DoorOpen;
+    if (has(FaultBit::LightCurtainInterrupted)) return FaultKind::LightCurtain;
+    if (has(FaultBit::AirPressureLow)) return FaultKind::NoAir;
+  }
+  return faultKindOf(event.kind);
+}
+
 FaultKind faultKindOf(const std::exception& error) {
   if (const auto* fault = dynamic_cast<const FaultError*>(&error)) return fault->kind();
   if (const auto* device = dynamic_cast<const drivers::DeviceError*>(&error)) {

@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <mutex>
@@ -63,6 +64,54 @@ hmi::ProgramCoverage predictedCoverage(const acquisition::PartProgram& program, 
     out.seen.push_back(static_cast<std::uint8_t>((c.laser_passes[i] > 0 ? 1 : 0) | (c.stereo[i] ? 2 : 0)));
   }
   return out;
+}
+
+// Something of each program computed once and kept while the panel serves (a STEP model is
+// tessellated on reading; a prediction casts a ray per sample and sensor).
+template <typename T>
+class PerProgram {
+ public:
+  T get(const std::string& name, const std::function<T()>& make) {
+    {
+      std::lock_guard lock(mutex_);
+      if (const auto it = kept_.find(name); it != kept_.end()) return it->second;
+    }
+    return put(name, make());
+  }
+  T put(const std::string& name, T value) {
+    std::lock_guard lock(mutex_);
+    return kept_.insert_or_assign(name, std::move(value)).first->second;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, T> kept_;
+};
+
+// The 3D view's program model, what its plan is predicted to see, and planning it on request.
+void addProgramViews(hmi::CellPrograms& p, const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs) {
+  auto models = std::make_shared<PerProgram<std::string>>();
+  p.model_stl = [=](const std::string& name) {
+    return models->get(name, [&] {
+      // Where the fixture holds the part: in the frame of the scan's cloud and surface.
+      return acquisition::binaryStl(
+          acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
+    });
+  };
+  auto predicted = std::make_shared<PerProgram<hmi::ProgramCoverage>>();
+  p.coverage = [=](const std::string& name) {
+    return predicted->get(name, [&] {
+      const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
+      if (!program.hasPlan()) throw std::runtime_error(name + " has no scan plan yet: Plan makes one from its model");
+      return predictedCoverage(program, config);
+    });
+  };
+  p.plan = [=](const std::string& name) {
+    acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
+    program.plan = generatedPlan(program, config);
+    adoptPlan(program, program.plan);
+    return predicted->put(name, predictedCoverage(program, config));
+  };
 }
 
 hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs,
@@ -122,48 +171,7 @@ hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virt
     }
     return scan;
   };
-  // Models read once (a STEP model is tessellated on reading).
-  struct ModelCache {
-    std::mutex mutex;
-    std::map<std::string, std::string> stl;
-  };
-  auto cache = std::make_shared<ModelCache>();
-  p.model_stl = [=](const std::string& name) {
-    {
-      std::lock_guard lock(cache->mutex);
-      if (const auto it = cache->stl.find(name); it != cache->stl.end()) return it->second;
-    }
-    // Where the fixture holds the part: in the frame of the scan's cloud and surface.
-    std::string bytes = acquisition::binaryStl(
-        acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
-    std::lock_guard lock(cache->mutex);
-    return cache->stl.emplace(name, std::move(bytes)).first->second;
-  };
-  // Predictions computed once per program (its plan and model do not change while the panel serves).
-  struct CoverageCache {
-    std::mutex mutex;
-    std::map<std::string, hmi::ProgramCoverage> coverage;
-  };
-  auto predicted = std::make_shared<CoverageCache>();
-  p.coverage = [=](const std::string& name) {
-    {
-      std::lock_guard lock(predicted->mutex);
-      if (const auto it = predicted->coverage.find(name); it != predicted->coverage.end()) return it->second;
-    }
-    const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
-    if (!program.hasPlan()) throw std::runtime_error(name + " has no scan plan yet: Plan makes one from its model");
-    hmi::ProgramCoverage out = predictedCoverage(program, config);
-    std::lock_guard lock(predicted->mutex);
-    return predicted->coverage.insert_or_assign(name, std::move(out)).first->second;
-  };
-  p.plan = [=](const std::string& name) {
-    acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
-    program.plan = generatedPlan(program, config);
-    adoptPlan(program, program.plan);
-    hmi::ProgramCoverage out = predictedCoverage(program, config);
-    std::lock_guard lock(predicted->mutex);
-    return predicted->coverage.insert_or_assign(name, std::move(out)).first->second;
-  };
+  addProgramViews(p, config, virtual_cell, runs);
   p.by_line_number = [=](std::uint16_t line_number) {
     return programByLineNumber(line_number, config, virtual_cell, runs);
   };

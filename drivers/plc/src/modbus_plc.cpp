@@ -344,8 +344,8 @@ std::optional<PlcInputs> ModbusPlc::lastInputs() const {
   return impl_->last_inputs;
 }
 
-PlcEvent ModbusPlc::recordEvent(PlcEventKind kind, std::string text) {
-  PlcEvent event{std::chrono::system_clock::now(), kind, std::move(text)};
+PlcEvent ModbusPlc::recordEvent(PlcEventKind kind, std::string text, std::uint16_t fault_word) {
+  PlcEvent event{std::chrono::system_clock::now(), kind, std::move(text), fault_word};
   std::lock_guard lock(impl_->events_mutex);
   impl_->events.push_back(event);
   return event;
@@ -457,7 +457,7 @@ void ModbusPlc::noteInputs(const PlcInputs& in) {
       const std::string causes = describeFaultWord(in.fault_word);
       pending.push_back(recordEvent(
           PlcEventKind::InterlockTripped,
-          "interlock tripped (" + causes + "): laser shutter closed, motion enable dropped"));
+          "interlock tripped (" + causes + "): laser shutter closed, motion enable dropped", in.fault_word));
       fault("interlock", "PLC interlock tripped: " + causes);
     } else {
       pending.push_back(recordEvent(PlcEventKind::InterlockCleared, "interlock clear"));

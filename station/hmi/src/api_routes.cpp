@@ -64,43 +64,9 @@ void startScan(HmiServer::Impl& impl, const httplib::Request& req, httplib::Resp
   sendJson(res, {{"started", true}, {"job", statusJson(impl.jobs.status())}}, 202);
 }
 
-}  // namespace
-
-void addApiRoutes(HmiServer::Impl& impl) {
-  auto& s = impl.server;
-  s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) {
-    json cell = cellJson(impl.jobs);
-    if (impl.line_handshake) cell["line"] = lineJson(impl.line_handshake->state());
-    sendJson(res, cell);
-  });
-  s.Get("/api/status", [&impl](const httplib::Request&, httplib::Response& res) {
-    sendJson(res, statusJson(impl.jobs.status()));
-  });
-  // For the plant's monitoring: 200 while the cell can scan (findings may warn), 503 when it cannot.
-  // Without a session (a monitoring probe on a panel with a login) only the status and findings.
-  s.Get("/api/health", [&impl](const httplib::Request& req, httplib::Response& res) {
-    const CellHealth health = impl.health();
-    const bool with_detail = !impl.auth.loginRequired() || impl.sessionOf(req).has_value();
-    sendJson(res, healthJson(health, with_detail), health.level == HealthLevel::Fault ? 503 : 200);
-  });
-  s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
-    json names = json::array();
-    for (const auto& m : report::builtInMaterials().materials()) names.push_back(m.name);
-    sendJson(res, {{"materials", names}, {"default", report::kDefaultMaterial}});
-  });
-  s.Get("/api/calibration", [&impl](const httplib::Request&, httplib::Response& res) {
-    json j = calibrationJson(impl.jobs.setup().calibration_dir, configInUse(impl.jobs));
-    j["verify_available"] = impl.jobs.setup().verify.has_value();
-    sendJson(res, j);
-  });
-  s.Get("/api/scan/cloud", [&impl](const httplib::Request&, httplib::Response& res) {
-    // Everything the live view has been sent so far, for a page opened mid-scan (live_cloud.hpp).
-    const LiveCloud::Snapshot c = impl.jobs.liveCloud().snapshot();
-    sendJson(res, {{"run_id", c.run_id}, {"measured", c.measured}, {"shown", c.points.size()}, {"batches", c.batches},
-                   {"xyz", c.points.xyz}, {"thickness", c.points.thickness}});
-  });
-  s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
-  // The cell's part programs, and a program's nominal model (binary STL) for the 3D view.
+// The cell's part programs: the list, a program's nominal model (binary STL) for the 3D view, what
+// its plan is predicted to see, and planning it.
+void addProgramRoutes(httplib::Server& s, HmiServer::Impl& impl) {
   s.Get("/api/programs", [&impl](const httplib::Request&, httplib::Response& res) {
     const CellPrograms& programs = impl.jobs.setup().programs;
     json list = json::array();
@@ -157,6 +123,45 @@ void addApiRoutes(HmiServer::Impl& impl) {
       return sendError(res, 422, e.what());
     }
   });
+}
+
+}  // namespace
+
+void addApiRoutes(HmiServer::Impl& impl) {
+  auto& s = impl.server;
+  s.Get("/api/cell", [&impl](const httplib::Request&, httplib::Response& res) {
+    json cell = cellJson(impl.jobs);
+    if (impl.line_handshake) cell["line"] = lineJson(impl.line_handshake->state());
+    sendJson(res, cell);
+  });
+  s.Get("/api/status", [&impl](const httplib::Request&, httplib::Response& res) {
+    sendJson(res, statusJson(impl.jobs.status()));
+  });
+  // For the plant's monitoring: 200 while the cell can scan (findings may warn), 503 when it cannot.
+  // Without a session (a monitoring probe on a panel with a login) only the status and findings.
+  s.Get("/api/health", [&impl](const httplib::Request& req, httplib::Response& res) {
+    const CellHealth health = impl.health();
+    const bool with_detail = !impl.auth.loginRequired() || impl.sessionOf(req).has_value();
+    sendJson(res, healthJson(health, with_detail), health.level == HealthLevel::Fault ? 503 : 200);
+  });
+  s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
+    json names = json::array();
+    for (const auto& m : report::builtInMaterials().materials()) names.push_back(m.name);
+    sendJson(res, {{"materials", names}, {"default", report::kDefaultMaterial}});
+  });
+  s.Get("/api/calibration", [&impl](const httplib::Request&, httplib::Response& res) {
+    json j = calibrationJson(impl.jobs.setup().calibration_dir, configInUse(impl.jobs));
+    j["verify_available"] = impl.jobs.setup().verify.has_value();
+    sendJson(res, j);
+  });
+  s.Get("/api/scan/cloud", [&impl](const httplib::Request&, httplib::Response& res) {
+    // Everything the live view has been sent so far, for a page opened mid-scan (live_cloud.hpp).
+    const LiveCloud::Snapshot c = impl.jobs.liveCloud().snapshot();
+    sendJson(res, {{"run_id", c.run_id}, {"measured", c.measured}, {"shown", c.points.size()}, {"batches", c.batches},
+                   {"xyz", c.points.xyz}, {"thickness", c.points.thickness}});
+  });
+  s.Post("/api/scan/start", [&impl](const httplib::Request& req, httplib::Response& res) { startScan(impl, req, res); });
+  addProgramRoutes(s, impl);
   s.Post("/api/scan/abort", [&impl](const httplib::Request& req, httplib::Response& res) {
     const Session who = *impl.sessionOf(req);
     const auto refused = impl.jobs.abort("operator abort (" + who.user + ", on the panel)");

@@ -159,6 +159,17 @@ TEST(HmiAdvice, TheKindComesFromTheErrorNotItsWords) {
   EXPECT_EQ(acquisition::faultKindOf(std::runtime_error("air")), FaultKind::Other);
   EXPECT_EQ(acquisition::faultKindOf(drivers::plc::PlcEventKind::DoorOpened), FaultKind::DoorOpen);
   EXPECT_EQ(acquisition::faultKindOf(drivers::plc::PlcEventKind::DoorClosed), FaultKind::Other);
+  // A trip of the PLC's interlock read before the input that caused it: its fault word says what.
+  using drivers::plc::FaultBit;
+  const auto trip = [](std::initializer_list<FaultBit> causes) {
+    drivers::plc::PlcEvent e{{}, drivers::plc::PlcEventKind::InterlockTripped, "interlock tripped", 0};
+    for (const FaultBit b : causes) e.fault_word = static_cast<std::uint16_t>(e.fault_word | (1U << static_cast<unsigned>(b)));
+    return e;
+  };
+  EXPECT_EQ(acquisition::faultKindOf(trip({FaultBit::DoorOpen})), FaultKind::DoorOpen);
+  EXPECT_EQ(acquisition::faultKindOf(trip({FaultBit::DoorOpen, FaultBit::EStopBroken})), FaultKind::EStop);
+  EXPECT_EQ(acquisition::faultKindOf(trip({FaultBit::AirPressureLow})), FaultKind::NoAir);
+  EXPECT_EQ(acquisition::faultKindOf(trip({FaultBit::StationHeartbeatLost})), FaultKind::Interlock);
   EXPECT_STREQ(acquisition::toString(FaultKind::DeviceSilent), "device_silent");
 }
 

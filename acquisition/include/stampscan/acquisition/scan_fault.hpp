@@ -37,7 +37,10 @@ class FaultError : public std::runtime_error {
   FaultKind kind_;
 };
 
-// The kind of a PLC event that stops a scan (Other for those that do not).
+// The kind of a PLC event that stops a scan (Other for those that do not); a trip of the PLC's
+// interlock by the most pressing cause its fault word names (the e-stop chain, the door, the light
+// curtain, the air), so that it gets that cause's advice whichever register the driver read first.
+FaultKind faultKindOf(const drivers::plc::PlcEvent& event);
 FaultKind faultKindOf(drivers::plc::PlcEventKind kind);
 // The kind of any error a scan may end with: a FaultError's own, a DeviceError's from its code,
 // Other for the rest.

@@ -98,6 +98,9 @@ struct PlcEvent {
   std::chrono::system_clock::time_point when;  // station clock, when the driver saw the change
   PlcEventKind kind;
   std::string text;
+  // InterlockTripped: the PLC's fault word (FaultBit), its causes. The trip may be read before the
+  // input that caused it changes in another register's read: the word says what it was.
+  std::uint16_t fault_word = 0;
 };
 
 class ModbusPlc : public Device {
@@ -159,7 +162,7 @@ class ModbusPlc : public Device {
   void watchdogLoop();
   // Compares with the last state the watchdog saw; records and delivers the change events.
   void noteInputs(const PlcInputs& inputs);
-  PlcEvent recordEvent(PlcEventKind kind, std::string text);
+  PlcEvent recordEvent(PlcEventKind kind, std::string text, std::uint16_t fault_word = 0);
   void deliver(const std::vector<PlcEvent>& events);
   std::string endpoint() const;
 
