@@ -1,5 +1,7 @@
 #include "stampscan/sim/camera_model.hpp"
 
+#include "stampscan/acquisition/sensor_sight.hpp"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -9,14 +11,8 @@
 
 namespace stampscan::sim {
 
-Vec2 CameraIntrinsics::project(const Vec3& c) const {
-  const double x = c.x() / c.z(), y = c.y() / c.z();
-  const double r2 = x * x + y * y;
-  const double radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3));
-  const double xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
-  const double yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y;
-  return {fx * xd + cx, fy * yd + cy};
-}
+// OpenCV's model, written once: the station's own projection (acquisition/sensor_sight.hpp).
+Vec2 CameraIntrinsics::project(const Vec3& c) const { return acquisition::projectPixel(record(), c); }
 
 Vec3 CameraIntrinsics::ray(double u, double v) const {
   const double x0 = (u - cx) / fx, y0 = (v - cy) / fy;
