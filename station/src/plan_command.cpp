@@ -33,6 +33,7 @@ struct PlanFigures {
   acquisition::Coverage coverage;
   double motion_s = 0;
   double laser_motion_s = 0;  // the laser passes alone (from the park, back to it)
+  double sweeping_s = 0;      // of which sweeping
   std::size_t collisions = 0;
   std::size_t sweeps = 0, views = 0;
   std::vector<std::string> problems;  // against the cell's travel and head, and the head's body against the part
@@ -53,6 +54,7 @@ PlanFigures figuresOf(const acquisition::ScanPlan& plan, const acquisition::Part
     return std::holds_alternative<acquisition::StereoStep>(step);
   });
   f.laser_motion_s = acquisition::motionSeconds(laser_only, cell.limits);
+  f.sweeping_s = acquisition::sweepingSeconds(laser_only, cell.limits);
   f.problems = acquisition::checkPlan(placed, cell.limits);
   const acquisition::CollisionOptions clearance;
   for (const acquisition::PlanCollision& c :
@@ -113,7 +115,7 @@ CommandRunner addPlanCommand(CLI::App& app) {
                 "Make the plan the program's own: its plan file is replaced (the old one kept beside it as .bak)");
   cmd->add_option("--runs", opt->runs, "Folder of run folders (a virtual cell's program library is RUNS/programs)");
   cmd->add_flag("--laser-only", opt->laser_only, "Plan laser passes only");
-  cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's stripe (where the surface comes nearest) that overlaps the ground its neighbour covered")
+  cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's fan that overlaps its neighbour's (less where that saves passes, never less than keeps every element whole within one stripe)")
       ->check(CLI::Range(0.0, 0.85));
   cmd->add_option("--sweep-speed", opt->planner.sweep_speed, "mm/s while the digitizer scans")->check(CLI::Range(1.0, 500.0));
   cmd->add_option("--stereo-rows", opt->planner.stereo_rows, "Rows of stereo views")->check(CLI::Range(0, 20));
@@ -139,16 +141,21 @@ CommandRunner addPlanCommand(CLI::App& app) {
     if (own) printFigures("program's", *own);
     else std::printf("  program's  none yet (write the generated one into the program with --into-program)\n");
     const double floor = acquisition::scanTimeFloor(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
-    const auto ratios = [&](double seconds) {
-      char text[64];
-      std::snprintf(text, sizeof text, "%.1f s (%.2f x; %.2f x)", seconds, bound > 0 ? seconds / bound : 0.0,
-                    floor > 0 ? seconds / floor : 0.0);
+    // The bound is the sweeping bound plus the head's moves: each plan against the bound
+    // plus its own moves, and its sweeping alone against the bound and the floor.
+    const auto ratios = [&](const PlanFigures& f) {
+      const double moves = f.laser_motion_s - f.sweeping_s;
+      char text[200];
+      std::snprintf(text, sizeof text, "%.1f s (sweeping %.1f s + moving %.1f s) = %.2f x the bound with those moves; sweeping %.2f x the bound, %.2f x the floor",
+                    f.laser_motion_s, f.sweeping_s, moves, bound > 0 ? f.laser_motion_s / (bound + moves) : 0.0,
+                    bound > 0 ? f.sweeping_s / bound : 0.0, floor > 0 ? f.sweeping_s / floor : 0.0);
       return std::string(text);
     };
-    std::printf("  bound      the laser needs at least %.1f s for the grid area (area / (stripe at the standoff x %.0f mm/s); "
-                "%.1f s with the stripe at the far end of the range); the generated passes take %s with their moves%s\n",
-                bound, planner.sweep_speed, floor, ratios(generated.laser_motion_s).c_str(),
-                own ? (", the program's " + ratios(own->laser_motion_s)).c_str() : "");
+    std::printf("  bound      sweeping the grid area takes at least %.1f s (area / (stripe at the standoff x %.0f mm/s); "
+                "%.1f s, the floor, with the stripe at the far end of the range)\n",
+                bound, planner.sweep_speed, floor);
+    std::printf("  passes     generated: %s\n", ratios(generated).c_str());
+    if (own) std::printf("             program's: %s\n", ratios(*own).c_str());
     printUnseen(generated.coverage);
     if (generated.collisions == 0)
       std::printf("  clearance  the head's body (%zu solids of the cell file) keeps %.0f mm from the part and the fixture "

@@ -6,12 +6,18 @@
 // model's surface under a pass spans more than the sensor's measuring range (a deep pan), the pass is
 // flown at several heights, each covering a band of the depth. The fan widens with the distance, so
 // each pass flies as high as keeps the lowest surface of its band within the share of the measuring
-// range a band may take. Each pass is placed so that its stripe (as wide as the fan is where the
-// surface under it comes nearest the sensor) overlaps the ground the previous one covered by a
-// stated share: passes lie wider apart over flat ground than over slopes. They cross at +-2 degrees (the paper's Sec. 3.1) and are flown in alternate directions, so
-// that the move from one pass's end to the next's start is short. The stereo pair looks at the grid
-// area from a rows x columns lattice of poses, the outer ones tilted inwards so that the walls are
-// seen. Head angles are the head's nearest stops (an indexing head).
+// range a band may take. Each pass claims the samples of the grid area its fan meets within the
+// band's depth and the incidence limit, but for a margin at either edge of the fan, and the passes
+// are laid greedily from one side: each as far on as still claims everything left of it. So they lie
+// wider apart over low and flat ground than over crowns and slopes. The margin makes neighbouring
+// stripes overlap by the stated share of the fan and never by less than a formed element and the
+// part's placement tolerance (every element lies whole within one stripe); where less overlap, down to
+// that least, saves passes, the passes are as few as it allows and spread with the most overlap that
+// count leaves. Passes cross at +-2 degrees (the paper's Sec. 3.1; each pass takes the turn that lets
+// it reach further, the stripe slanted by it) and are flown in alternate directions, so that the move
+// from one pass's end to the next's start is short. The stereo pair looks at the grid area from a
+// rows x columns lattice of poses, the outer ones tilted inwards so that the walls are seen. Head
+// angles are the head's nearest stops (an indexing head).
 //
 // The prediction samples the model's grid area (its facets facing the sensors' side) at a stated
 // spacing and asks of each sample what the cell's sensors see of it in each part step
@@ -36,10 +42,11 @@ namespace stampscan::acquisition {
 
 struct PlannerOptions {
   bool laser = true, stereo = true;
-  // The share of a pass's stripe (where the surface under it comes nearest the sensor, and the
-  // stripe is narrowest) that overlaps the ground its neighbour covered: it absorbs the +-2 degree
-  // crossing and the stripe's ragged edges on a slope.
+  // The share of a pass's fan that overlaps its neighbour's. Where less overlap saves passes the
+  // planner takes it, down to what keeps every element whole within one stripe: on each side half a
+  // formed element (the printed one stretched by 40 %) and the tolerance of the part's place.
   double strip_overlap = 0.1;
+  double placement_tolerance_mm = 0.5;
   double sweep_speed = 25;      // mm/s while the digitizer scans
   double travel_speed = 200;    // mm/s between steps
   double depth_use = 0.8;       // the share of the measuring range one pass's depth band may take
@@ -86,11 +93,15 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
                          const MachineLimits& limits, const CoverageOptions& options = {});
 
 // A lower bound of the part's scanning time: the grid area over the stripe's width (at the standoff)
-// times the sweep speed. The moves between passes come on top.
+// times the sweep speed. The head's moves (from the park, between the sweeps, back) come on top:
+// compare a plan's motion with this plus its moves, and its sweeping (sweepingSeconds) with this.
 double scanTimeLowerBound(double grid_area, const CellGeometry& cell, double sweep_speed);
 // The same with the widest stripe the digitizer lays (at the far end of its measuring range): no
 // plan can scan the grid area faster. A plan that flies higher than the standoff over flat ground
 // can beat the bound above, not this one.
 double scanTimeFloor(double grid_area, const CellGeometry& cell, double sweep_speed);
+// The time a plan's part sweeps take themselves, from start to end with their run-ups; the rest of
+// its motion time is the head's moves and the stereo views.
+double sweepingSeconds(const ScanPlan& plan, const MachineLimits& limits);
 
 }  // namespace stampscan::acquisition
