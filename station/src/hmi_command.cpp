@@ -67,32 +67,58 @@ hmi::ProgramCoverage predictedCoverage(const acquisition::PartProgram& program, 
 }
 
 // Something of each program computed once and kept while the panel serves (a STEP model is
-// tessellated on reading; a prediction casts a ray per sample and sensor).
+// tessellated on reading; a prediction casts a ray per sample and sensor), until the program's folder
+// changes (a plan written from the command line, a new model).
 template <typename T>
 class PerProgram {
  public:
-  T get(const std::string& name, const std::function<T()>& make) {
+  // `stamp` tells the program folder's state; taken again after `make`, which may write the folder
+  // (a virtual cell's own program on first use).
+  T get(const std::string& name, const std::function<std::string()>& stamp, const std::function<T()>& make) {
     {
       std::lock_guard lock(mutex_);
-      if (const auto it = kept_.find(name); it != kept_.end()) return it->second;
+      if (const auto it = kept_.find(name); it != kept_.end() && it->second.first == stamp()) return it->second.second;
     }
-    return put(name, make());
+    T value = make();
+    return put(name, stamp(), std::move(value));
   }
-  T put(const std::string& name, T value) {
+  T put(const std::string& name, const std::string& stamp, T value) {
     std::lock_guard lock(mutex_);
-    return kept_.insert_or_assign(name, std::move(value)).first->second;
+    return kept_.insert_or_assign(name, std::pair(stamp, std::move(value))).first->second.second;
   }
 
  private:
   std::mutex mutex_;
-  std::map<std::string, T> kept_;
+  std::map<std::string, std::pair<std::string, T>> kept_;
 };
+
+// The program folder's files as they stand (names, sizes, times written); empty when the program
+// is not written yet.
+std::string programStamp(const std::string& name, const acquisition::CellConfig& config, bool virtual_cell,
+                         const fs::path& runs) {
+  std::string stamp;
+  try {
+    const fs::path folder = acquisition::findProgram(programLibrary(config, virtual_cell, runs), name);
+    std::error_code ec;
+    for (const fs::directory_entry& e : fs::directory_iterator(folder, ec)) {
+      if (!e.is_regular_file(ec)) continue;
+      stamp += e.path().filename().string() + ':' + std::to_string(e.file_size(ec)) + ':' +
+               std::to_string(e.last_write_time(ec).time_since_epoch().count()) + ';';
+    }
+  } catch (const std::exception&) {
+    return {};  // not written yet (a virtual cell writes its own on first use) or not there: its reader says
+  }
+  return stamp;
+}
 
 // The 3D view's program model, what its plan is predicted to see, and planning it on request.
 void addProgramViews(hmi::CellPrograms& p, const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs) {
+  const auto stamp = [=](const std::string& name) {
+    return std::function<std::string()>([=] { return programStamp(name, config, virtual_cell, runs); });
+  };
   auto models = std::make_shared<PerProgram<std::string>>();
   p.model_stl = [=](const std::string& name) {
-    return models->get(name, [&] {
+    return models->get(name, stamp(name), [&] {
       // Where the fixture holds the part: in the frame of the scan's cloud and surface.
       return acquisition::binaryStl(
           acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
@@ -100,7 +126,7 @@ void addProgramViews(hmi::CellPrograms& p, const acquisition::CellConfig& config
   };
   auto predicted = std::make_shared<PerProgram<hmi::ProgramCoverage>>();
   p.coverage = [=](const std::string& name) {
-    return predicted->get(name, [&] {
+    return predicted->get(name, stamp(name), [&] {
       const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
       if (!program.hasPlan()) throw std::runtime_error(name + " has no scan plan yet: Plan makes one from its model");
       return predictedCoverage(program, config);
@@ -110,7 +136,8 @@ void addProgramViews(hmi::CellPrograms& p, const acquisition::CellConfig& config
     acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
     program.plan = generatedPlan(program, config);
     adoptPlan(program, program.plan);
-    return predicted->put(name, predictedCoverage(program, config));
+    hmi::ProgramCoverage coverage = predictedCoverage(program, config);
+    return predicted->put(name, stamp(name)(), std::move(coverage));
   };
 }
 

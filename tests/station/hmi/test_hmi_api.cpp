@@ -293,6 +293,15 @@ TEST_F(HmiTest, ThePanelListsThePartProgramsShowsAModelAndScansOne) {
   EXPECT_TRUE(hasPlan("bracket-17"));
   EXPECT_EQ(client_->Get("/api/programs/bracket-17/coverage")->status, 200);
   EXPECT_EQ(post("/api/programs/no-such/plan", "{}", planning_token)->status, 404);
+  // A plan written beside the panel (from the command line, by hand) is what the panel predicts from
+  // then on: here the plan cut to its first sweep.
+  {
+    const std::string plan = readText(library / "bracket-17" / "plan.toml");
+    const std::size_t first = plan.find("[[step]]"), second = plan.find("[[step]]", first + 1);
+    ASSERT_NE(second, std::string::npos);
+    std::ofstream(library / "bracket-17" / "plan.toml") << plan.substr(0, second);
+  }
+  EXPECT_EQ(body(client_->Get("/api/programs/bracket-17/coverage"))["sweeps"].get<int>(), 1);
 
   EventReader events(station_->port());
   ASSERT_TRUE(events.waitFor("hello", std::chrono::seconds(10)));
