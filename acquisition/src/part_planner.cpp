@@ -470,27 +470,80 @@ class PartPlanner {
   std::vector<std::vector<Band>> lattice_bands_;  // the tracks' reference y; how far a track's x strays from its value there
 };
 
-// The model as Embree's scene, for lines of sight: is anything of the part between a sample and a
-// sensor? Single precision, as Embree works; the tolerance covers it at a cell's scale. The nominal
-// model knows no polished spots.
+// A fixture's solid as triangles in the datum frame, for lines of sight: a box's six faces, a
+// cylinder's mantle and caps, a sphere's bands (fine enough to shade a sample a millimetre apart).
+NominalModel solidTriangles(const BodySolid& solid) {
+  NominalModel m;
+  const Eigen::Isometry3d pose = trace::toIsometry(toRigidPose(solid.placement));
+  const auto add = [&](const Vec3& p) {
+    const Vec3 q = pose * p;
+    m.vertices.push_back({q.x(), q.y(), q.z()});
+    return static_cast<std::uint32_t>(m.vertices.size() - 1);
+  };
+  constexpr int kSegments = 48;
+  switch (solid.shape) {
+    case BodySolid::Shape::Box: {
+      const Vec3 h = 0.5 * vec(solid.size_mm);
+      std::uint32_t c[8];
+      for (int i = 0; i < 8; ++i) c[i] = add(Vec3(i & 1 ? h.x() : -h.x(), i & 2 ? h.y() : -h.y(), i & 4 ? h.z() : -h.z()));
+      const int faces[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+      for (const auto& f : faces) {
+        m.triangles.push_back({c[f[0]], c[f[1]], c[f[2]]});
+        m.triangles.push_back({c[f[0]], c[f[2]], c[f[3]]});
+      }
+      break;
+    }
+    case BodySolid::Shape::Cylinder: {
+      const double r = solid.radius_mm, h = 0.5 * solid.length_mm;
+      const std::uint32_t bottom = add(Vec3(0, 0, -h)), top = add(Vec3(0, 0, h));
+      std::vector<std::uint32_t> lo, hi;
+      for (int k = 0; k < kSegments; ++k) {
+        const double t = 2 * std::numbers::pi * k / kSegments;
+        lo.push_back(add(Vec3(r * std::cos(t), r * std::sin(t), -h)));
+        hi.push_back(add(Vec3(r * std::cos(t), r * std::sin(t), h)));
+      }
+      for (int k = 0; k < kSegments; ++k) {
+        const int n = (k + 1) % kSegments;
+        m.triangles.push_back({lo[k], lo[n], hi[n]});
+        m.triangles.push_back({lo[k], hi[n], hi[k]});
+        m.triangles.push_back({bottom, lo[n], lo[k]});
+        m.triangles.push_back({top, hi[k], hi[n]});
+      }
+      break;
+    }
+    case BodySolid::Shape::Sphere: {
+      const double r = solid.radius_mm;
+      const int rings = kSegments / 2;
+      std::vector<std::vector<std::uint32_t>> at(rings + 1);
+      for (int i = 0; i <= rings; ++i)
+        for (int k = 0; k < kSegments; ++k) {
+          const double polar = std::numbers::pi * i / rings, t = 2 * std::numbers::pi * k / kSegments;
+          at[i].push_back(add(r * Vec3(std::sin(polar) * std::cos(t), std::sin(polar) * std::sin(t), std::cos(polar))));
+        }
+      for (int i = 0; i < rings; ++i)
+        for (int k = 0; k < kSegments; ++k) {
+          const int n = (k + 1) % kSegments;
+          m.triangles.push_back({at[i][k], at[i + 1][k], at[i + 1][n]});
+          m.triangles.push_back({at[i][k], at[i + 1][n], at[i][n]});
+        }
+      break;
+    }
+  }
+  return m;
+}
+
+// The model and the fixture's solids as Embree's scene, for lines of sight: is anything of the part
+// or the fixture between a sample and a sensor? Single precision, as Embree works; the tolerance
+// covers it at a cell's scale. The nominal model knows no polished spots.
 class Occluder : public SightLines {
  public:
-  Occluder(const NominalModel& model, double tolerance) : tolerance_(static_cast<float>(tolerance)) {
+  Occluder(const NominalModel& model, const std::vector<BodySolid>& fixture, double tolerance)
+      : tolerance_(static_cast<float>(tolerance)) {
     device_ = rtcNewDevice("threads=1");
     if (device_ == nullptr) throw std::runtime_error("Embree: cannot create a device for the model's lines of sight");
     scene_ = rtcNewScene(device_);
-    RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                          3 * sizeof(float), model.vertices.size()));
-    auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                             3 * sizeof(unsigned), model.triangles.size()));
-    for (std::size_t i = 0; i < model.vertices.size(); ++i)
-      for (std::size_t k = 0; k < 3; ++k) v[3 * i + k] = static_cast<float>(model.vertices[i][k]);
-    for (std::size_t i = 0; i < model.triangles.size(); ++i)
-      for (std::size_t k = 0; k < 3; ++k) t[3 * i + k] = model.triangles[i][k];
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometry(scene_, geometry);
-    rtcReleaseGeometry(geometry);
+    attach(model);
+    for (const BodySolid& solid : fixture) attach(solidTriangles(solid));
     rtcCommitScene(scene_);
   }
   ~Occluder() override {
@@ -526,6 +579,22 @@ class Occluder : public SightLines {
   }
 
  private:
+  void attach(const NominalModel& model) {
+    if (model.triangles.empty()) return;
+    RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), model.vertices.size()));
+    auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                             3 * sizeof(unsigned), model.triangles.size()));
+    for (std::size_t i = 0; i < model.vertices.size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) v[3 * i + k] = static_cast<float>(model.vertices[i][k]);
+    for (std::size_t i = 0; i < model.triangles.size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) t[3 * i + k] = model.triangles[i][k];
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene_, geometry);
+    rtcReleaseGeometry(geometry);
+  }
+
   float tolerance_;
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
@@ -558,7 +627,7 @@ Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const 
   stereo.max_incidence_rad = options.camera_max_incidence_deg * kDeg;
   const PlanSight steps = planSight(plan, laser, stereo, limits.acceleration);
   std::optional<Occluder> occluder;
-  if (options.occlusion) occluder.emplace(model, options.occlusion_tolerance_mm);
+  if (options.occlusion) occluder.emplace(model, cell.fixture.body, options.occlusion_tolerance_mm);
   const SightLines* lines = occluder ? &*occluder : nullptr;
   Coverage c;
   const std::size_t n = samples.points.size();

@@ -25,8 +25,9 @@
 // crosses it with the fan within the measuring range and the incidence limit, away from the sweep's
 // run-ups; and whether both cameras of one part view have it inside their images at an angle they
 // can resolve, its printed line wide enough. Each line of sight (to the digitizer's mirror, to each
-// camera) is cast against the model itself with Embree, so a wall that hides a pocket's floor hides
-// it here too.
+// camera) is cast with Embree against the model itself and the fixture's solids (the cell's
+// [[fixture.body]], in the datum frame), so a wall that hides a pocket's floor, or a clamp over the
+// part, hides it here too.
 #pragma once
 
 #include "stampscan/acquisition/cell_geometry.hpp"
