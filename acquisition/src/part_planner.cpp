@@ -1,5 +1,6 @@
 #include "stampscan/acquisition/part_planner.hpp"
 
+#include "stampscan/acquisition/plan_collisions.hpp"
 #include "stampscan/acquisition/sensor_sight.hpp"
 #include "stampscan/acquisition/trace/rigid_pose.hpp"
 
@@ -602,6 +603,34 @@ class Occluder : public SightLines {
 
 }  // namespace
 
+// A sweep along which the head's body would come nearer the part or the fixture than the clearance
+// is left out: the part is planned as far as it can be, and the prediction names what is then not
+// seen (a pocket too narrow for the sensor carrier). The moves between steps are not changed; the
+// plan's check names any that come too near.
+void leaveOutCollidingSweeps(ScanPlan& plan, const NominalModel& model, const CellGeometry& cell, double clearance_mm) {
+  if (cell.head.body.empty()) return;
+  CollisionOptions options;
+  options.clearance_mm = clearance_mm;
+  std::vector<char> colliding(plan.steps.size(), 0);
+  for (const PlanCollision& c : checkCollisions(model, cell.fixture.body, trace::RigidPose{}, plan, cell.head, options))
+    if (!c.during_move && std::holds_alternative<SweepStep>(plan.steps[c.step])) colliding[c.step] = 1;
+  std::vector<PlanStep> kept;
+  std::uint32_t index = 0;
+  bool forward = true;
+  for (std::size_t i = 0; i < plan.steps.size(); ++i) {
+    if (colliding[i]) continue;
+    if (auto* sweep = std::get_if<SweepStep>(&plan.steps[i])) {
+      sweep->index = index++;
+      // Keep the passes alternating so that each starts where the last one ended.
+      const bool sweep_forward = sweep->end.position[1] >= sweep->start.position[1];
+      if (sweep_forward != forward) std::swap(sweep->start, sweep->end);
+      forward = !forward;
+    }
+    kept.push_back(std::move(plan.steps[i]));
+  }
+  plan.steps = std::move(kept);
+}
+
 ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
                   const PlannerOptions& options) {
   if (!(options.strip_overlap >= 0 && options.strip_overlap < 0.9))
@@ -615,7 +644,9 @@ ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeo
   if (samples.points.empty())
     throw std::invalid_argument((model.source.empty() ? std::string("the model") : model.source) +
                                 ": no facet faces the sensors' side (+z of the datum frame): nothing to plan");
-  return PartPlanner(thinned(samples, options.sample_spacing_mm), part, cell, limits, options).plan();
+  ScanPlan plan = PartPlanner(thinned(samples, options.sample_spacing_mm), part, cell, limits, options).plan();
+  if (options.leave_out_colliding_sweeps) leaveOutCollidingSweeps(plan, model, cell, options.clearance_mm);
+  return plan;
 }
 
 Coverage predictCoverage(const NominalModel& model, const ScanPlan& plan, const CellGeometry& cell,

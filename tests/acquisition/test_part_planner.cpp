@@ -277,7 +277,8 @@ TEST(PartPlanner, AModelWithNothingFacingTheSensorsIsRefusedNamingIt) {
 // The head's body along the plan (FCL): clear of a plate, named where it would dive into a pocket
 // narrower than itself or where a hand-made sweep runs through the part.
 TEST(PlanCollisions, TheHeadsBodyIsCheckedAlongEverySweepAndMove) {
-  const CellConfig cell = virtualCell();
+  CellConfig cell = virtualCell();
+  cell.geometry.fixture.body.clear();  // the built-in nest's base would cut through the deep pocket below
   ASSERT_FALSE(cell.geometry.head.body.empty());
   const NominalModel flat = plate(120, 80);
   const ScanPlan over_plate = planPart(flat, circles(), cell.geometry, cell.limits);
@@ -288,6 +289,7 @@ TEST(PlanCollisions, TheHeadsBodyIsCheckedAlongEverySweepAndMove) {
   const NominalModel deep = pocket(300, 160, 160, 75);
   PlannerOptions laser_only;
   laser_only.stereo = false;
+  laser_only.leave_out_colliding_sweeps = false;  // as laid, to see the check find them
   const ScanPlan into_pocket = planPart(deep, circles(), cell.geometry, cell.limits, laser_only);
   const std::vector<PlanCollision> hits = checkCollisions(deep, into_pocket, cell.geometry.head);
   ASSERT_FALSE(hits.empty());
@@ -303,6 +305,18 @@ TEST(PlanCollisions, TheHeadsBodyIsCheckedAlongEverySweepAndMove) {
     }
   }
   EXPECT_TRUE(low_sweep_hit);
+  // As the planner gives it, those sweeps are left out: none of its sweeps comes too near, and the
+  // pocket's floor they would have scanned is predicted unseen.
+  laser_only.leave_out_colliding_sweeps = true;
+  const ScanPlan clear = planPart(deep, circles(), cell.geometry, cell.limits, laser_only);
+  EXPECT_LT(clear.sweepCount(), into_pocket.sweepCount());
+  for (const PlanCollision& c : checkCollisions(deep, clear, cell.geometry.head)) {
+    EXPECT_TRUE(c.during_move) << describe(c, clear, 5);
+  }
+  const Coverage all = predictCoverage(deep, into_pocket, cell.geometry, cell.limits);
+  const Coverage planned = predictCoverage(deep, clear, cell.geometry, cell.limits);
+  EXPECT_LT(planned.laser_area, all.laser_area);
+  EXPECT_GT(planned.laser_area, 0.3 * all.laser_area);  // the flange and the walls' upper bands stay
 
   // A sweep through the plate itself: the step, the solid and a clearance of 0.
   ScanPlan through;

@@ -48,6 +48,10 @@ struct PlannerOptions {
   // formed element (the printed one stretched by 40 %) and the tolerance of the part's place.
   double strip_overlap = 0.1;
   double placement_tolerance_mm = 0.5;
+  // A sweep along which the head's body (the cell's [[head.body]]) would come nearer the part or the
+  // fixture than the clearance is left out, and what only it would have seen is predicted unseen.
+  bool leave_out_colliding_sweeps = true;
+  double clearance_mm = 5;
   double sweep_speed = 25;      // mm/s while the digitizer scans
   double travel_speed = 200;    // mm/s between steps
   double depth_use = 0.8;       // the share of the measuring range one pass's depth band may take
