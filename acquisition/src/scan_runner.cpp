@@ -48,7 +48,6 @@ struct ScanRunner::Impl {
 
   std::mutex sink_mutex;  // the devices' threads write one message at a time
   std::atomic<std::uint64_t> positions{0}, profiles{0}, plc_states{0};
-  std::atomic<std::uint64_t> last_profile_device_ns{0};
   std::int64_t cmm_offset = 0;  // CMM clock to station clock; the CMM driver's reader thread's alone
   std::mutex pair_mutex;  // the stereo pairs that arrived, by trigger id
   std::condition_variable pair_arrived;
@@ -287,21 +286,6 @@ struct ScanRunner::Impl {
   }
 
   void shutter(bool open) { dev.plc.setOutput(Coil::LaserShutterOpenRequest, open); }
-
-  // The digitizer delivers a profile some time after its exposure (processing, USB): wait until the
-  // profiles up to now have arrived before stopping it, or the end of the sweep is lost. Bounded:
-  // a device that has fallen far behind loses the rest, and the trace shows where it stopped.
-  void drainDigitizer(std::chrono::milliseconds limit = std::chrono::milliseconds(10000)) {
-    std::uint64_t device_now = 0;
-    try {
-      device_now = dev.digitizer.readStatus().device_time_ns;
-    } catch (const drivers::DeviceError&) {
-      return;
-    }
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    while (last_profile_device_ns < device_now && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
 
   // ---- The run, phase by phase ----------------------------------------------------------------
 
@@ -602,10 +586,9 @@ struct ScanRunner::Impl {
     }
     event(msg::CmmEventKind::SweepEnd, label);
     samplePose();
-    timed(spent.digitizer, [&] {
-      drainDigitizer();
-      dev.digitizer.stop();
-    });
+    // Stop returns once the profiles the head made before it have arrived (the end of the sweep,
+    // delivered late on a loaded host), or counts the ones that never came as lost.
+    timed(spent.digitizer, [&] { dev.digitizer.stop(); });
     shutter(false);
     clockSync();
     r.motion_done += moveSeconds(sweep.start, sweep.end, sweep.speed, r.params.limits);
@@ -626,7 +609,6 @@ struct ScanRunner::Impl {
       m.range = std::move(p.range);
       m.intensity = std::move(p.intensity);
       ++profiles;
-      last_profile_device_ns = p.device_time_ns;
       write(msg::topics::kLaserProfile, clock.now(), msg::encode(m));
     });
   }

@@ -63,6 +63,7 @@ struct UsbDigitizer::Impl {
   bool silent = false;  // a timeout was reported and no profile has arrived since
   bool have_sequence = false;
   std::uint32_t last_sequence = 0;
+  std::uint32_t first_sequence = 0;  // the stream's first profile's, read before Start
   DigitizerCounters counters;
   std::thread events;
 
@@ -154,6 +155,39 @@ struct UsbDigitizer::Impl {
               " bus " + std::to_string(libusb_get_bus_number(device)) + " device " +
               std::to_string(libusb_get_device_address(device));
     return true;
+  }
+
+  // After Stop: waits until every profile the head made up to `made_end` (one past the last) has
+  // arrived, while they keep arriving; what is still missing after drain_timeout without one is
+  // counted lost (a sweep that lost its end must say so, not end early unnoticed).
+  void receiveMadeProfiles(std::uint32_t made_end) {
+    const auto timeout = owner.options_.drain_timeout;
+    auto last_progress = std::chrono::steady_clock::now();
+    std::uint64_t seen = 0;
+    for (bool first = true;; first = false) {
+      std::uint32_t missing = 0;
+      {
+        std::lock_guard lock(mutex);
+        const std::uint32_t next = have_sequence ? last_sequence + 1 : first_sequence;
+        const auto left = static_cast<std::int32_t>(made_end - next);  // modulo 2^32
+        if (left <= 0 || gone || in_flight == 0) return;
+        const auto now = std::chrono::steady_clock::now();
+        if (first || counters.profiles != seen) {
+          seen = counters.profiles;
+          last_progress = now;
+        } else if (now - last_progress >= timeout) {
+          missing = static_cast<std::uint32_t>(left);
+          counters.lost_profiles += missing;
+          ++counters.sequence_gaps;
+        }
+      }
+      if (missing > 0) {
+        owner.reportFault("sequence-gap", std::to_string(missing) + " profile(s) the head made before Stop never arrived (none for " +
+                                              std::to_string(timeout.count()) + " ms)");
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
   }
 
   void handlePacket(ByteView bytes) {
@@ -426,6 +460,11 @@ void UsbDigitizer::start(ProfileCallback on_profile) {
     throw fault("device-error", "start: could not submit the bulk transfers");
   }
   try {
+    const DeviceStatus before = readStatus();
+    {
+      std::lock_guard lock(d.mutex);
+      d.first_sequence = before.next_sequence;
+    }
     d.controlOut(Request::Start, {});
   } catch (...) {
     stop();
@@ -440,6 +479,7 @@ void UsbDigitizer::stop() noexcept {
   if (!d.gone) {
     try {
       d.controlOut(Request::Stop, {});
+      d.receiveMadeProfiles(readStatus().next_sequence);
     } catch (const std::exception&) {
       // Recorded by fault(); the transfers are cancelled below either way.
     }

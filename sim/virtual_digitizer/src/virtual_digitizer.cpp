@@ -4,7 +4,9 @@
 #include <linux/usbdevice_fs.h>
 #include <umockdev.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -59,6 +61,10 @@ struct VirtualDigitizer::Impl {
   std::uint32_t sequence = 0;
   std::uint32_t stream_first_sequence = 0;
   std::chrono::steady_clock::time_point stream_start;
+  // Paced: one past the last profile the stream made before Stop. A real head exposes at its rate
+  // into a buffer and still sends what it made after Stop, however late the host reaps it; the
+  // simulator renders a profile only when it is reaped, so "made" is counted by the clock.
+  std::uint32_t made_before_stop = 0;
   const std::chrono::steady_clock::time_point clock_zero = std::chrono::steady_clock::now();
   std::deque<Urb> control_done;  // answered control URBs, reaped first
   std::deque<Urb> bulk_posted;   // bulk-in URBs waiting for a profile
@@ -79,6 +85,13 @@ struct VirtualDigitizer::Impl {
   }
   std::uint64_t deviceTime(std::uint32_t seq) const {
     return static_cast<std::uint64_t>(static_cast<double>(seq) * 1e9 / config.profile_rate_hz);
+  }
+  // Paced: one past the last profile made by now (the one being exposed counts as made: Stop
+  // finishes it).
+  std::uint32_t madeEnd() const {
+    if (!streaming) return made_before_stop;
+    const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - stream_start).count();
+    return stream_first_sequence + static_cast<std::uint32_t>(std::floor(since * config.profile_rate_hz)) + 1;
   }
   std::uint64_t clockNow() const {
     return static_cast<std::uint64_t>(
@@ -110,7 +123,8 @@ struct VirtualDigitizer::Impl {
           break;
         }
         case Request::GetStatus:
-          reply(encode(DeviceStatus{statusWord(), sequence, options.paced ? clockNow() : deviceTime(sequence)}));
+          reply(encode(DeviceStatus{statusWord(), options.paced ? madeEnd() : sequence,
+                                    options.paced ? clockNow() : deviceTime(sequence)}));
           break;
         default: break;
       }
@@ -127,13 +141,19 @@ struct VirtualDigitizer::Impl {
           break;
         case Request::Start:
           if (!streaming) {
+            // What the last stream made and the host never took is dropped with its buffer.
+            if (options.paced) sequence = std::max(sequence, made_before_stop);
             streaming = true;
             stream_start = std::chrono::steady_clock::now();
             stream_first_sequence = sequence;
           }
           u.status = 0;
           break;
-        case Request::Stop: streaming = false; u.status = 0; break;
+        case Request::Stop:
+          if (streaming && options.paced) made_before_stop = madeEnd();
+          streaming = false;
+          u.status = 0;
+          break;
         default: break;
       }
     }
@@ -151,12 +171,10 @@ struct VirtualDigitizer::Impl {
       out.actual_length = 0;
       return true;
     }
-    if (!streaming || halted || silent) return false;
-    if (options.paced) {
-      const double due = (sequence - stream_first_sequence) / config.profile_rate_hz;
-      if (std::chrono::steady_clock::now() - stream_start < std::chrono::duration<double>(due))
-        return false;
-    }
+    if (halted || silent) return false;
+    // Paced, a profile goes out once it is made, also after Stop (the head's buffer); unpaced, only
+    // while streaming, as fast as the host reaps.
+    if (options.paced ? sequence >= madeEnd() : !streaming) return false;
     Profile profile;
     for (; drop > 0; --drop) source(sequence++, config, profile);  // made, then lost on the wire
     profile = Profile{};
@@ -440,7 +458,7 @@ DigitizerConfig VirtualDigitizer::config() const {
 
 std::uint32_t VirtualDigitizer::nextSequence() const {
   std::lock_guard lock(impl_->mutex);
-  return impl_->sequence;
+  return impl_->options.paced ? impl_->madeEnd() : impl_->sequence;
 }
 
 std::uint64_t VirtualDigitizer::profilesSent() const {

@@ -11,12 +11,14 @@
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <thread>
 
 namespace stampscan::drivers::digitizer {
 namespace {
 
 using namespace std::chrono_literals;
 using sim::VirtualDigitizer;
+using sim::VirtualDigitizerOptions;
 
 // What the driver delivered, with bounded waits on it.
 class Collector {
@@ -273,6 +275,63 @@ TEST_F(UsbDigitizerTest, SustainsTheProfileRateWithoutLoss) {
               collector_.count(), seconds, rate, rate * static_cast<double>(profilePacketSize(1024)) / 1e6);
   EXPECT_TRUE(missingSequences().empty());
   EXPECT_EQ(driver_->counters().lost_profiles, 0u);
+}
+
+
+// A real head exposes at its rate into a buffer. A paced device whose profiles are reaped slower than
+// they are made (here a source that takes 4 ms a profile against the 2 ms period, as a loaded host
+// running the simulator) still sends, after Stop, every profile it made before Stop: the whole sweep
+// arrives, later, and nothing is lost or silently cut off.
+TEST_F(UsbDigitizerTest, AHeadReapedLateSendsEveryProfileItMadeBeforeStop) {
+  device_.reset();
+  VirtualDigitizerOptions paced;
+  paced.paced = true;
+  device_ = std::make_unique<VirtualDigitizer>(paced);
+  device_->setProfileSource([](std::uint32_t seq, const DigitizerConfig& c, Profile& p) {
+    std::this_thread::sleep_for(4ms);
+    VirtualDigitizer::testPattern(seq, c, p);
+  });
+  connect();
+  start();
+  const auto t0 = std::chrono::steady_clock::now();
+  std::this_thread::sleep_for(600ms);
+  const std::size_t before_stop = collector_.count();
+  driver_->stop();
+  const double streamed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto profiles = collector_.profiles();
+  ASSERT_FALSE(profiles.empty());
+  EXPECT_EQ(profiles.back().sequence + 1, device_->nextSequence());
+  EXPECT_EQ(profiles.size(), device_->nextSequence() - profiles.front().sequence);
+  EXPECT_TRUE(missingSequences().empty());
+  EXPECT_EQ(driver_->counters().lost_profiles, 0u);
+  // 600 ms at 500 profiles/s: about 300 made; the host had taken at most about half at Stop.
+  EXPECT_GE(profiles.size(), 290u);
+  EXPECT_LT(before_stop, profiles.size());
+  EXPECT_GE(streamed, 1.0);
+}
+
+// Profiles the head made before Stop that never arrive (the head falls silent) are counted lost once
+// none has come for the drain timeout: a sweep that lost its end says so.
+TEST_F(UsbDigitizerTest, MadeProfilesThatNeverArriveAreCountedLost) {
+  device_.reset();
+  VirtualDigitizerOptions paced;
+  paced.paced = true;
+  device_ = std::make_unique<VirtualDigitizer>(paced);
+  UsbDigitizerOptions options;
+  options.drain_timeout = 300ms;
+  connect(options);
+  start();
+  ASSERT_TRUE(collector_.waitProfiles(50));
+  device_->setSilent(true);
+  std::this_thread::sleep_for(200ms);
+  driver_->stop();
+  const auto profiles = collector_.profiles();
+  const std::uint32_t made = device_->nextSequence() - profiles.front().sequence;
+  EXPECT_GE(made, profiles.size() + 50);
+  EXPECT_EQ(driver_->counters().lost_profiles, made - profiles.size());
+  bool named = false;
+  for (const DeviceFault& f : collector_.faults()) named |= f.code == "sequence-gap";
+  EXPECT_TRUE(named);
 }
 
 }  // namespace

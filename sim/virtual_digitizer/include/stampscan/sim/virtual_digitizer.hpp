@@ -15,7 +15,10 @@
 // still between streams. Paced, the device has a free-running clock like the real head's (ns since
 // the device was made): GetStatus reports it, and profile k of a stream is exposed at
 // start + k / rate, whenever the host happens to reap it, and stamped `stamp_latency_ns` later; a
-// timed profile source is told that exposure time, so it renders the world as it was then.
+// timed profile source is told that exposure time, so it renders the world as it was then. Like the
+// real head's buffer, a paced device counts a profile as made when it falls due (GetStatus's
+// next_sequence), and after Stop still sends every profile it made before it: a host that reaps
+// late (a loaded machine, a slow profile source) gets the whole sweep, later.
 //
 // Threads: umockdev runs the ioctl handler on its own worker thread; the profile source runs there,
 // under the device's lock, so it must not call back into the VirtualDigitizer. Every public method
@@ -83,7 +86,7 @@ class VirtualDigitizer {
   // What happened, for tests.
   bool streaming() const;
   drivers::digitizer::DigitizerConfig config() const;
-  std::uint32_t nextSequence() const;
+  std::uint32_t nextSequence() const;  // as GetStatus says (paced: one past the last profile made)
   std::uint64_t profilesSent() const;
   std::uint64_t haltsCleared() const;
 

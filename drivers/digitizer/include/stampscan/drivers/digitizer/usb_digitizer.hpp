@@ -39,6 +39,10 @@ struct UsbDigitizerOptions {
   std::chrono::milliseconds control_timeout{500};
   // A bulk transfer that sees no profile for this long ends with fault "timeout" and is resubmitted.
   std::chrono::milliseconds transfer_timeout{500};
+  // After Stop the head still sends the profiles it made (GetStatus's next_sequence says how many):
+  // stop() waits for them while they keep coming, and counts those still missing after this long
+  // without one as lost.
+  std::chrono::milliseconds drain_timeout{2000};
 };
 
 struct DigitizerCounters {
