@@ -11,13 +11,14 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <optional>
+#include <unordered_map>
 
 namespace stampscan::fitting {
 
@@ -255,35 +256,54 @@ void AnchoredSurface::Impl::chooseBandwidths(AnchoredStats& stats) {
 
 void AnchoredSurface::Impl::buildAnchors() {
   // Each point joins the cell of its level (its bandwidth rounded down to h0 * 1.5^level); a cell's
-  // points make one anchor at their centroid.
+  // points make one anchor at their centroid (summed in the points' order), the anchors sorted by
+  // key. The keys are found in parallel a block of points at a time and gathered in a table of the
+  // cells: a sorted key per point would take 160 MB more on a session's ten million returns.
   const std::size_t n = points.size();
-  std::vector<std::pair<Key, std::uint32_t>> keyed(n);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const auto [h, limited] = h_field->atAndOther(points[i], curvature_limited, 4);
-      keyed[i] = {keyFor(points[i], tierOf(levelFor(h), limited > kFineShare)), static_cast<std::uint32_t>(i)};
-    }
-  });
-  tbb::parallel_sort(keyed.begin(), keyed.end());
+  constexpr std::size_t kBlock = std::size_t{1} << 20;
   anchor_of_point.assign(n, 0);
-  // Exactly one anchor per distinct cell: reserve them all, so the array never doubles.
-  std::size_t cells = 0;
-  for (std::size_t k = 0; k < n; ++k) cells += k == 0 || keyed[k].first != keyed[k - 1].first;
-  anchors.reserve(cells);
-  for (std::size_t start = 0; start < n;) {
-    std::size_t end = start;
-    Vec3 sum = Vec3::Zero();
-    while (end < n && keyed[end].first == keyed[start].first) sum += points[keyed[end++].second];
-    Anchor a;
-    a.key = keyed[start].first;
-    a.centre = sum / static_cast<double>(end - start);
-    a.cell = cellSize(static_cast<int>(a.key >> (3 * kCellBits)));
-    for (std::size_t k = start; k < end; ++k) {
-      anchor_of_point[keyed[k].second] = static_cast<std::uint32_t>(anchors.size());
+  std::unordered_map<Key, std::uint32_t> cell_index;
+  std::vector<Key> cell_keys;
+  std::vector<Vec3> cell_sums;
+  std::vector<std::uint32_t> cell_counts;
+  std::vector<Key> block(std::min(n, kBlock));
+  for (std::size_t begin = 0; begin < n; begin += kBlock) {
+    const std::size_t end = std::min(n, begin + kBlock);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(begin, end, 1024), [&](const auto& range) {
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        const auto [h, limited] = h_field->atAndOther(points[i], curvature_limited, 4);
+        block[i - begin] = keyFor(points[i], tierOf(levelFor(h), limited > kFineShare));
+      }
+    });
+    for (std::size_t i = begin; i < end; ++i) {
+      const auto [at, added] = cell_index.try_emplace(block[i - begin], static_cast<std::uint32_t>(cell_keys.size()));
+      if (added) {
+        cell_keys.push_back(block[i - begin]);
+        cell_sums.push_back(Vec3::Zero());
+        cell_counts.push_back(0);
+      }
+      cell_sums[at->second] += points[i];
+      ++cell_counts[at->second];
+      anchor_of_point[i] = at->second;
     }
-    anchors.push_back(a);
-    start = end;
   }
+  std::vector<std::uint32_t> by_key(cell_keys.size());
+  std::iota(by_key.begin(), by_key.end(), 0u);
+  std::sort(by_key.begin(), by_key.end(), [&](std::uint32_t a, std::uint32_t b) { return cell_keys[a] < cell_keys[b]; });
+  std::vector<std::uint32_t> rank(by_key.size());
+  anchors.reserve(by_key.size());
+  for (std::uint32_t r = 0; r < by_key.size(); ++r) {
+    const std::uint32_t c = by_key[r];
+    rank[c] = r;
+    Anchor a;
+    a.key = cell_keys[c];
+    a.centre = cell_sums[c] / static_cast<double>(cell_counts[c]);
+    a.cell = cellSize(static_cast<int>(a.key >> (3 * kCellBits)));
+    anchors.push_back(a);
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) anchor_of_point[i] = rank[anchor_of_point[i]];
+  });
 }
 
 void AnchoredSurface::Impl::fitAnchors(const Progress& progress) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <iterator>
 #include <stdexcept>
+#include <utility>
 
 namespace stampscan::registration {
 
@@ -83,8 +84,24 @@ void ScanTraceBuilder::metadata(const std::string& name, const std::map<std::str
   if (name == trace::kSessionMetadataName) out_.session = trace::decodeSession(values);
 }
 
-ScanTrace ScanTraceBuilder::finish(bool cut) {
-  ScanTrace t = out_;
+TraceBulk ScanTraceBuilder::takeBulk() {
+  TraceBulk bulk;
+  bulk.profiles = std::exchange(out_.profiles, {});
+  bulk.plate_left = std::exchange(out_.plate_left, {});
+  bulk.plate_right = std::exchange(out_.plate_right, {});
+  bulk.part_left = std::exchange(out_.part_left, {});
+  bulk.part_right = std::exchange(out_.part_right, {});
+  return bulk;
+}
+
+ScanTrace ScanTraceBuilder::finish(bool cut) const& {
+  ScanTraceBuilder copy = *this;
+  return std::move(copy).finish(cut);
+}
+
+ScanTrace ScanTraceBuilder::finish(bool cut) && {
+  ScanTrace t = std::move(out_);
+  out_ = {};
   if (decode_errors_ > 0)
     t.health.damage.push_back({0, trace::DamageKind::BadRecord,
                                std::to_string(decode_errors_) + " messages did not decode; the first: " + first_decode_error_});
@@ -104,9 +121,9 @@ void LiveScanTrace::metadata(const std::string& name, const std::map<std::string
   builder_.metadata(name, values);
 }
 
-ScanTrace LiveScanTrace::finish() {
+TraceBulk LiveScanTrace::takeBulk() {
   std::lock_guard lock(mutex_);
-  return builder_.finish(false);
+  return builder_.takeBulk();
 }
 
 ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& progress, bool keep_part_frames) {
@@ -127,7 +144,7 @@ ScanTrace loadScanTrace(const std::filesystem::path& file, const LoadProgress& p
       throw std::runtime_error(file.string() + ": " + e.what());
     }
   }
-  ScanTrace out = builder.finish(health.truncated.has_value());
+  ScanTrace out = std::move(builder).finish(health.truncated.has_value());
   const auto damage = std::move(out.health.damage);
   out.health = std::move(health);
   out.health.damage.insert(out.health.damage.end(), damage.begin(), damage.end());

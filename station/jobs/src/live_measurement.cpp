@@ -1,6 +1,7 @@
 #include "live_measurement.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <string>
 
 namespace stampscan::station {
@@ -15,9 +16,15 @@ void appendFrom(std::vector<T>& to, const std::vector<T>& from, std::size_t& tak
   for (; taken < from.size(); ++taken) to.push_back(from[taken]);
 }
 
+template <typename T>
+void moveAppend(std::vector<T>& to, std::vector<T>& from) {
+  if (to.empty()) to = std::move(from);
+  else std::move(from.begin(), from.end(), std::back_inserter(to));
+}
+
 }  // namespace
 
-LiveMeasurement::LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
+LiveMeasurement::LiveMeasurement(registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
                                  const registration::MeasureParams& params, registration::MeasureObserver* observer)
     : live_(live),
       plan_(plan),
@@ -103,16 +110,17 @@ void LiveMeasurement::pull() {
     if (!mine_.session && t.session) mine_.session = t.session;
     // Whole: a late position report goes in before later ones (ScanTraceBuilder).
     if (mine_.head.size() != t.head.size()) mine_.head = t.head;
-    appendFrom(mine_.profiles, t.profiles, taken_profiles_);
     mine_.sweeps = t.sweeps;  // few; and a sweep run again replaces its discarded first run
     for (const auto& [device, pairs] : t.clock_pairs) appendFrom(mine_.clock_pairs[device], pairs, taken_pairs_[device]);
-    std::size_t plate = taken_plate_, part = taken_part_;
-    appendFrom(mine_.plate_left, t.plate_left, plate);
-    appendFrom(mine_.plate_right, t.plate_right, taken_plate_);
-    appendFrom(mine_.part_left, t.part_left, part);
-    appendFrom(mine_.part_right, t.part_right, taken_part_);
     return 0;
   });
+  // The profiles and frames are moved, not copied: a session's are hundreds of megabytes.
+  registration::TraceBulk bulk = live_.takeBulk();
+  moveAppend(mine_.profiles, bulk.profiles);
+  moveAppend(mine_.plate_left, bulk.plate_left);
+  moveAppend(mine_.plate_right, bulk.plate_right);
+  moveAppend(mine_.part_left, bulk.part_left);
+  moveAppend(mine_.part_right, bulk.part_right);
 }
 
 void LiveMeasurement::advance(std::size_t step) {

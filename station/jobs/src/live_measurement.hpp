@@ -8,7 +8,8 @@
 // the strain of all the elements goes on it when they are in (fitting/shape_and_strain.hpp).
 //
 // The thread keeps its own copy of what it still needs (new messages are copied once, under the
-// live trace's lock, and dropped once measured), so the devices' threads never wait for it.
+// live trace's lock, and dropped once measured; the laser profiles, the bulk, are moved out of the
+// live trace rather than copied), so the devices' threads never wait for it.
 #pragma once
 
 #include "stampscan/acquisition/scan_plan.hpp"
@@ -26,7 +27,7 @@ namespace stampscan::station {
 
 class LiveMeasurement {
  public:
-  LiveMeasurement(const registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
+  LiveMeasurement(registration::LiveScanTrace& live, const acquisition::ScanPlan& plan,
                   const registration::MeasureParams& params, registration::MeasureObserver* observer);
   // Stops the threads (what they measured is dropped unless finish() and shape() were called); a
   // surface fit under way stops at its next stage.
@@ -53,14 +54,13 @@ class LiveMeasurement {
   void measureReadyViews();
   void startShapeFit();  // on the laser returns the measurer holds
 
-  const registration::LiveScanTrace& live_;
+  registration::LiveScanTrace& live_;  // its profiles are taken, not copied
   const acquisition::ScanPlan& plan_;
   registration::MeasureParams params_;
   registration::ScanMeasurer measurer_;
 
   // The thread's copy of the trace and how far into the live one it has copied.
   registration::ScanTrace mine_;
-  std::size_t taken_profiles_ = 0, taken_plate_ = 0, taken_part_ = 0;
   std::map<std::string, std::size_t> taken_pairs_;
   std::size_t part_sweeps_measured_ = 0, part_views_measured_ = 0;
   std::size_t sphere_done_ = 0, plate_done_ = 0, part_sweeps_done_ = 0, part_views_done_ = 0;

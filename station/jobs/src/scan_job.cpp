@@ -575,12 +575,13 @@ ScanJobResult ScanJob::run(const ScanJobOptions& o) {
   stopped("after its motion, while measuring");
   // The surface: its shape from the laser's returns (fitted since the last part sweep), the
   // elements' strain on it.
-  const std::unique_ptr<fitting::ShapeSurface> shape = measuring->shape();
+  std::unique_ptr<fitting::ShapeSurface> shape = measuring->shape();
   stopped("while its surface was fitted");
   forget_measuring();
   measuring.reset();
   const std::optional<run_folder::SurfaceFigures> surface =
       writeSurface(shape.get(), o.truth ? &*o.truth : nullptr, plyOptions(o.part_id), cloud, result, observer);
+  shape.reset();  // the fit's every return and its trees: the report needs none of it
   result.measure_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   completeRecord(o, m, cloud, surface, measure, result, observer, record);

@@ -136,7 +136,12 @@ class ScanMeasurer {
   bool camerasCalibrated() const { return out_.rig.has_value(); }
   // The part sweeps' returns so far (MeasureParams::keep_surface_points), handed over: a scan fits
   // the surface to them once its last part sweep is measured; finish() then has only later ones.
-  std::vector<Vec3> takeSurfacePoints() { return std::exchange(surface_points_, {}); }
+  // Trimmed to their size first: the fit holds them to its end, and growing by sweeps can leave
+  // half as much again unused.
+  std::vector<Vec3> takeSurfacePoints() {
+    surface_points_.shrink_to_fit();
+    return std::exchange(surface_points_, {});
+  }
   // The laser's elements, then the views'. Throws std::runtime_error when no element was found.
   ScanMeasurement finish();
 

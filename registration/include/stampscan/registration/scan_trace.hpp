@@ -21,6 +21,7 @@
 #include <string_view>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace stampscan::registration {
@@ -52,6 +53,13 @@ struct ScanTrace {
   trace::TraceHealth health;
 };
 
+// What makes a trace large, added since a consumer last took it: the laser profiles and the paired
+// camera frames (plate and part views; `left[i]` with `right[i]`).
+struct TraceBulk {
+  std::vector<Profile> profiles;
+  std::vector<CameraImage> plate_left, plate_right, part_left, part_right;
+};
+
 // Decodes a trace's messages one at a time into a ScanTrace: loadScanTrace() feeds it from a file,
 // LiveScanTrace from a scan as its messages arrive. Not thread-safe.
 class ScanTraceBuilder {
@@ -63,8 +71,12 @@ class ScanTraceBuilder {
   void metadata(const std::string& name, const std::map<std::string, std::string>& values);
   const ScanTrace& trace() const { return out_; }
   // The trace as it stands. A sweep still open is kept up to the last position when `cut` (the
-  // trace ended mid-sweep: a crash or a power cut).
-  ScanTrace finish(bool cut);
+  // trace ended mid-sweep: a crash or a power cut). On an rvalue the trace is moved out, not copied
+  // (a session's profiles are hundreds of megabytes): std::move(builder).finish(cut).
+  ScanTrace finish(bool cut) const&;
+  ScanTrace finish(bool cut) &&;
+  // The bulk added since the last call (laser profiles, paired frames), moved out of the trace.
+  TraceBulk takeBulk();
   std::size_t decodeErrors() const { return decode_errors_; }
   const std::string& firstDecodeError() const { return first_decode_error_; }
 
@@ -92,7 +104,10 @@ class LiveScanTrace final : public trace::TraceSink {
     std::lock_guard lock(mutex_);
     return f(builder_.trace());
   }
-  ScanTrace finish();
+  // The profiles and frames that arrived since the last call, moved out: the measuring thread owns
+  // them from there and the live trace keeps no copy of a session's hundreds of megabytes (the
+  // trace's profiles and frames then hold only those not taken yet).
+  TraceBulk takeBulk();
 
  private:
   mutable std::mutex mutex_;
