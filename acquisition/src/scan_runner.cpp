@@ -580,8 +580,10 @@ struct ScanRunner::Impl {
     try {
       move(r.safety, sweep.end, sweep.speed);
     } catch (...) {
-      dev.digitizer.stop();
+      // The shutter first: stop() now waits for the profiles the head made, which a loaded host
+      // may take seconds to collect, and an interrupted sweep must not keep the laser open.
       shutter(false);
+      dev.digitizer.stop();
       throw;
     }
     event(msg::CmmEventKind::SweepEnd, label);
