@@ -1,5 +1,7 @@
 #include "laser_raster.hpp"
 
+#include "sheet_arcs.hpp"
+
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
@@ -234,6 +236,89 @@ double surfaceOffset(const Interior& interior, const Vec3& centre, double radius
     }
   }
   return count > 0 ? offset / count : 0.0;
+}
+
+namespace {
+
+// w = c0 + c1 u + c2 v + c3 u^2 + c4 uv + c5 v^2 + c6 u^3 + c7 u^2 v + c8 u v^2 + c9 v^3, with (u, v)
+// the plane coordinates over `scale`.
+struct CubicHeight {
+  Eigen::Matrix<double, 10, 1> c = Eigen::Matrix<double, 10, 1>::Zero();
+  double scale = 1;
+  static Eigen::Matrix<double, 10, 1> row(double u, double v) {
+    Eigen::Matrix<double, 10, 1> r;
+    r << 1, u, v, u * u, u * v, v * v, u * u * u, u * u * v, u * v * v, v * v * v;
+    return r;
+  }
+  Eigen::Vector2d slope(const Eigen::Vector2d& q) const {  // dw/du, dw/dv in mm/mm
+    const double u = q.x() / scale, v = q.y() / scale;
+    return Eigen::Vector2d(c(1) + 2 * c(3) * u + c(4) * v + 3 * c(6) * u * u + 2 * c(7) * u * v + c(8) * v * v,
+                           c(2) + c(4) * u + 2 * c(5) * v + c(7) * u * u + 2 * c(8) * u * v + 3 * c(9) * v * v) /
+           scale;
+  }
+  Eigen::Matrix2d hessian(const Eigen::Vector2d& q) const {  // 1/mm
+    const double u = q.x() / scale, v = q.y() / scale;
+    Eigen::Matrix2d h;
+    h(0, 0) = 2 * c(3) + 6 * c(6) * u + 2 * c(7) * v;
+    h(0, 1) = h(1, 0) = c(4) + 2 * c(7) * u + 2 * c(8) * v;
+    h(1, 1) = 2 * c(5) + 2 * c(8) * u + 6 * c(9) * v;
+    return h / (scale * scale);
+  }
+};
+
+std::optional<CubicHeight> sheetUnder(const Interior& in) {
+  double reach = 0;
+  for (const Eigen::Vector2d& q : in.plane) reach = std::max(reach, q.norm());
+  if (!(reach > 0) || in.edge.size() + in.pixels.size() < 30) return std::nullopt;
+  CubicHeight h;
+  h.scale = reach;
+  Eigen::Matrix<double, 10, 10> ata = Eigen::Matrix<double, 10, 10>::Zero();
+  Eigen::Matrix<double, 10, 1> atb = Eigen::Matrix<double, 10, 1>::Zero();
+  const auto add = [&](const Vec3& p) {
+    const Vec3 d = in.frame.transpose() * (p - in.mean);
+    const Eigen::Matrix<double, 10, 1> r = CubicHeight::row(d.x() / reach, d.y() / reach);
+    ata.selfadjointView<Eigen::Lower>().rankUpdate(r);
+    atb += r * d.z();
+  };
+  for (const Vec3& p : in.edge) add(p);
+  for (const Vec3& p : in.pixels) add(p);
+  const Eigen::LDLT<Eigen::Matrix<double, 10, 10>> solve(ata.selfadjointView<Eigen::Lower>());
+  if (solve.info() != Eigen::Success) return std::nullopt;
+  h.c = solve.solve(atb);
+  if (!h.c.allFinite()) return std::nullopt;
+  return h;
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector2d> unrolledOutline(const Interior& interior, const std::vector<Eigen::Vector2d>& outline,
+                                             const Eigen::Vector2d& centre) {
+  const std::optional<CubicHeight> sheet = sheetUnder(interior);
+  if (!sheet) return outline;
+  // Five-point Gauss-Legendre on [0, 1]: the path's length along the sheet over the straight line in
+  // the plane, exact for the cubic's slope to well below a micrometre over a ring.
+  static constexpr double kNodes[5] = {0.046910077030668, 0.230765344947158, 0.5, 0.769234655052842,
+                                       0.953089922969332};
+  static constexpr double kWeights[5] = {0.118463442528095, 0.239314335249683, 0.284444444444444,
+                                         0.239314335249683, 0.118463442528095};
+  const Eigen::Matrix2d K = sheet->hessian(centre);
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(outline.size());
+  for (const Eigen::Vector2d& q : outline) {
+    const Eigen::Vector2d d = q - centre;
+    const double chord = d.norm();
+    if (!(chord > 0)) {
+      out.push_back(q);
+      continue;
+    }
+    double length = 0;
+    for (int i = 0; i < 5; ++i) {
+      const double rise = sheet->slope(centre + kNodes[i] * d).dot(d) / chord;
+      length += kWeights[i] * std::sqrt(1 + rise * rise);
+    }
+    out.push_back(centre + chord * length * chordToArc(d, K).normalized());
+  }
+  return out;
 }
 
 double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q) {

@@ -75,6 +75,14 @@ InteriorSearch commonSearch(const Params& params) {
   return s;
 }
 
+// The interior's outline (`outline`, in its plane) taken from the plane onto the sheet under it, about
+// `centre`: each point at its distance along the sheet from the centre, in the direction the sheet's
+// shortest path to it leaves the centre (see sheet_arcs.hpp). The sheet is a cubic height field
+// through the interior's edge and its own points, so a ring that straddles the start of a radius
+// has its flat side flat and its bent side bent. The outline as it is when they do not determine one.
+std::vector<Eigen::Vector2d> unrolledOutline(const Interior& interior, const std::vector<Eigen::Vector2d>& outline,
+                                             const Eigen::Vector2d& centre);
+
 // The edge plane is a chord: the surface at a centre bulges off it. The distance along the normal
 // to the interior's own points near `centre` (within `radius` of it, across the normal).
 double surfaceOffset(const Interior& interior, const Vec3& centre, double radius);

@@ -55,7 +55,10 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
   search.nominal_area_mm2 = side * side;
   search.inner_reach_mm = side / std::sqrt(2.0);  // to a corner
   for (const detail::Interior& in : detail::findInteriors(R, search, st)) {
-    const PolygonMoments m = momentsOf(in.plane);
+    // The cell's sides are lengths on the sheet: where it bends the outline is taken onto the sheet
+    // about the cell's centre, not left in the plane's shorter chords (see laser_rings.cpp).
+    const PolygonMoments m =
+        momentsOf(detail::unrolledOutline(in, in.plane, momentsOf(in.plane).centroid));
     if (m.area <= 0) {
       ++st.rejected_fit;
       continue;
@@ -75,6 +78,9 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
     g.edge_points = in.plane.size();
     g.source = Source::Laser;
     g.view = sweep_id;
+    // The interior's second moments: a quadratic strain along a side of half-length a enters as
+    // a^2 / 10, across it as a^2 / 6; their mean, (2 / 15) a^2, for a cell however it is turned.
+    g.gauge_mm2 = side * side / 30;
     out.push_back(g);
     ++st.found;
   }

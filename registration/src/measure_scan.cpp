@@ -355,14 +355,16 @@ ScanMeasurement ScanMeasurer::finish() {
   // Measurements of one printed element stand a few hundredths of a millimetre apart; neighbouring
   // elements a pitch, stretched or compressed by a few tens of percent at most.
   out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
-  const auto path_sigma = [&](Source s, auto member) {
-    const PathNoise& own = s == Source::Laser ? out_.merged.laser : out_.merged.stereo;
-    const PathNoise& other = s == Source::Laser ? out_.merged.stereo : out_.merged.laser;
-    return (own.*member).value_or((other.*member).value_or(std::numeric_limits<double>::quiet_NaN()));
-  };
-  for (GridElement& g : out_.elements) {
-    g.strain_sigma = path_sigma(g.source, &PathNoise::strain);
-    g.position_sigma_mm = path_sigma(g.source, &PathNoise::position_mm);
+  // The strains at the elements' centres, not the means over their outlines; then merged again, so
+  // that the paths' noise is that of measurements of the same thing.
+  const std::vector<GridElement> outline_means = std::move(out_.elements);
+  for (int pass = 0; pass < 3; ++pass) {
+    out_.elements = strainsAtCentres(outline_means, out_.merged, squares_.pitch);
+    out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
+  }
+  for (std::size_t i = 0; i < out_.elements.size(); ++i) {
+    out_.elements[i].strain_sigma = out_.merged.strain_sigma_of[i];
+    out_.elements[i].position_sigma_mm = out_.merged.position_sigma_mm_of[i];
   }
   const auto noise = [](const PathNoise& p) {
     if (!p.strain) return std::string("not known (too few twins)");

@@ -31,13 +31,6 @@ Eigen::Vector2d projectPoint(const Vec3& camera_point, const CameraModel& cam) {
   return {out[0].x, out[0].y};
 }
 
-Eigen::Vector2d chordToArc(const Eigen::Vector2d& u, const Eigen::Matrix2d& curvature) {
-  const double s2 = u.squaredNorm();
-  if (s2 <= 0) return u;
-  const double k = u.dot(curvature * u) / s2;  // the normal curvature along u
-  return u * (1 + k * k * s2 / 6);
-}
-
 // Closest point between two rays (origin, unit direction): the triangulated point, and the gap.
 Vec3 midpoint(const Vec3& o1, const Vec3& d1, const Vec3& o2, const Vec3& d2, double* gap) {
   const Vec3 w = o1 - o2;

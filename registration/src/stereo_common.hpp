@@ -6,6 +6,7 @@
 #include "stampscan/registration/camera_calibration.hpp"
 #include "stampscan/registration/grid_element.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
+#include "sheet_arcs.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
@@ -23,12 +24,6 @@ Eigen::Vector2d projectPoint(const Vec3& camera_point, const CameraModel& cam);
 
 // Closest point between two rays (origin, unit direction): the triangulated point, and the gap.
 Vec3 midpoint(const Vec3& o1, const Vec3& d1, const Vec3& o2, const Vec3& d2, double* gap);
-
-// A point on a curved sheet, given by its tangent-plane offset `u` from a centre where the sheet's
-// second derivatives are `curvature` (1/mm), in the sheet's own coordinates: `u` stretched by the arc
-// over the chord. A normal section w = k s^2 / 2 is s (1 + k^2 s^2 / 6) long, so distances on the
-// sheet, and with them the strains, do not come out short where it bends.
-Eigen::Vector2d chordToArc(const Eigen::Vector2d& u, const Eigen::Matrix2d& curvature);
 
 // The two cameras' poses for one pair, and the prior's typical depth in front of the left camera
 // (0 when the prior is empty or behind it).

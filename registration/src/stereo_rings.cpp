@@ -337,6 +337,7 @@ std::vector<GridElement> measureStereoPair(const StereoView& input, const RingDe
     if (!detail::elementFromEllipse(e, 1.0, surface->frame, surface->origin, params, g)) return;
     g.source = Source::Stereo;
     g.view = view;
+    g.gauge_mm2 = r0 * r0 / 8;
     measured[k] = g;
   });
   std::vector<GridElement> out;

@@ -275,6 +275,9 @@ std::vector<GridElement> measureStereoSquares(const StereoView& input, const Squ
     g->edge_points = 8;  // two images' four nodes
     g->source = Source::Stereo;
     g->view = input.index;
+    // F from four corners half a pitch out on each axis: a quadratic strain along a side enters as
+    // (pitch / 2)^2 / 6, across it as (pitch / 2)^2 / 2; their mean for a cell however it is turned.
+    g->gauge_mm2 = params.pitch * params.pitch / 12;
     out.push_back(*g);
     corners.push_back(q);
     all_nodes.insert(all_nodes.end(), nodes->begin(), nodes->end());

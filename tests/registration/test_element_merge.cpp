@@ -157,3 +157,136 @@ TEST(ElementMerge, WithoutTwinsTheNoiseIsNotKnownAndNothingIsClaimed) {
 }
 
 }  // namespace
+
+namespace {
+
+// A flat sheet stretched by 12 % along x and compressed by 1 % along y, its printed grid at
+// `pitch`, with major and minor strains that bend over it as quadratics of the printed coordinates
+// (X, Y), measured as the means over outlines of `gauge` mm^2 (the centre's strain plus gauge times
+// the material Laplacian).
+struct BentStrain {
+  static double major(double X, double Y) { return 0.12 + 0.002 * X - 0.0002 * X * X + 0.0001 * X * Y; }
+  static double minor(double X, double Y) { return -0.01 + 0.0002 * Y * Y - 0.0001 * X * X; }
+  static constexpr double kMajorLaplacian = 2 * -0.0002, kMinorLaplacian = 2 * 0.0002 + 2 * -0.0001;
+};
+
+std::vector<GridElement> outlineMeans(int n, double pitch, double gauge) {
+  std::vector<GridElement> out;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double X = pitch * (i - n / 2), Y = pitch * (j - n / 2);
+      GridElement g;
+      g.position = Vec3(std::exp(0.12) * X, std::exp(-0.01) * Y, 0);
+      g.normal = Vec3::UnitZ();
+      g.major_direction = Vec3::UnitX();
+      g.major_strain = BentStrain::major(X, Y) + gauge * BentStrain::kMajorLaplacian;
+      g.minor_strain = BentStrain::minor(X, Y) + gauge * BentStrain::kMinorLaplacian;
+      g.thickness_strain = -(g.major_strain + g.minor_strain);
+      g.gauge_mm2 = gauge;
+      g.view = static_cast<std::uint32_t>(i * n + j);
+      out.push_back(g);
+    }
+  return out;
+}
+
+}  // namespace
+
+TEST(ElementMerge, StrainsAtCentresUndoTheOutlinesAveraging) {
+  // A ring fitted at 1.2 mm averages as 1.2^2 / 8 = 0.18 mm^2: here 0.00007 of major strain.
+  const double pitch = 2.54, gauge = 1.2 * 1.2 / 8;
+  const std::vector<GridElement> means = outlineMeans(9, pitch, gauge);
+  const registration::MergedElements merged = registration::mergeMeasurements(means, 0.25 * pitch);
+  ASSERT_EQ(merged.elements.size(), means.size());
+  const std::vector<GridElement> centred = registration::strainsAtCentres(means, merged, pitch);
+  ASSERT_EQ(centred.size(), means.size());
+  std::size_t moved = 0, kept = 0;
+  for (std::size_t k = 0; k < centred.size(); ++k) {
+    const int i = static_cast<int>(k) / 9, j = static_cast<int>(k) % 9;
+    const double X = pitch * (i - 4), Y = pitch * (j - 4);
+    const bool inside = i > 0 && i < 8 && j > 0 && j < 8;
+    if (inside) {
+      // The centre's strains. The printed distances to the neighbours come from each element's own
+      // stretches, which here differ from the grid's uniform ones by up to 2 %: the Laplacian is
+      // twice that off, and a tenth of the correction is what is asked.
+      const double major_shift = gauge * BentStrain::kMajorLaplacian, minor_shift = gauge * BentStrain::kMinorLaplacian;
+      EXPECT_NEAR(centred[k].major_strain, BentStrain::major(X, Y), 0.1 * std::abs(major_shift))
+          << "element " << i << ", " << j;
+      EXPECT_NEAR(centred[k].minor_strain, BentStrain::minor(X, Y), 0.1 * std::abs(minor_shift))
+          << "element " << i << ", " << j;
+      EXPECT_NEAR(centred[k].thickness_strain, -(centred[k].major_strain + centred[k].minor_strain), 1e-12);
+      ++moved;
+    } else {
+      // At the grid's edge nothing surrounds the element: its mean stands.
+      EXPECT_EQ(centred[k].major_strain, means[k].major_strain) << "element " << i << ", " << j;
+      ++kept;
+    }
+  }
+  EXPECT_EQ(moved, 49u);
+  EXPECT_EQ(kept, 32u);
+}
+
+TEST(ElementMerge, StrainsAtCentresLeaveAFlatFieldAndAnUnknownGaugeAlone) {
+  const double pitch = 2.54;
+  std::vector<GridElement> means = outlineMeans(7, pitch, 0.0);  // no gauge: nothing to undo
+  const registration::MergedElements merged = registration::mergeMeasurements(means, 0.25 * pitch);
+  const std::vector<GridElement> centred = registration::strainsAtCentres(means, merged, pitch);
+  for (std::size_t k = 0; k < centred.size(); ++k) EXPECT_EQ(centred[k].major_strain, means[k].major_strain);
+  EXPECT_THROW(registration::strainsAtCentres(std::vector<GridElement>(3), merged, pitch), std::invalid_argument);
+}
+
+TEST(ElementMerge, AViewsQualityWeighsItsStrainAndStatesItsUncertainty) {
+  // Stereo views of one element differ in how squarely they see it: a view's quality (its corners'
+  // misfit, 0.001 to 0.02 mm) scales its own strain noise as sqrt(a + b q^2), from 0.0006 to 0.006.
+  const std::vector<Truth> truth = grid(30);
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<double> u;
+  constexpr double kA = 0.0006 * 0.0006, kB = 0.3 * 0.3;  // strain^2, strain^2 / mm^2
+  const auto sigma_at = [&](double q) { return std::sqrt(kA + kB * q * q); };
+  std::vector<GridElement> m;
+  std::vector<double> true_sigma;
+  for (const Truth& t : truth) {
+    for (std::uint32_t sweep = 0; sweep < 2; ++sweep) {
+      m.push_back(measured(t, Source::Laser, sweep, kLaserStrain, kLaserMm, rng));
+      true_sigma.push_back(kLaserStrain);
+    }
+    for (std::uint32_t v = 0; v < 3; ++v) {
+      const double q = 0.001 + 0.019 * u(rng) * u(rng);
+      GridElement g = measured(t, Source::Stereo, 1000 + v, sigma_at(q), kStereoMm, rng);
+      g.fit_rms = q;
+      m.push_back(g);
+      true_sigma.push_back(sigma_at(q));
+    }
+  }
+  const auto merged = registration::mergeMeasurements(m, 0.25 * 2.54);
+  ASSERT_EQ(merged.strain_sigma_of.size(), m.size());
+  // Each stereo view's stated uncertainty follows its quality (within a fifth).
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    if (m[i].source != Source::Stereo || m[i].fit_rms < 0.01) continue;
+    EXPECT_NEAR(merged.strain_sigma_of[i], true_sigma[i], 0.2 * true_sigma[i]) << "q " << m[i].fit_rms;
+  }
+  // The merged elements as good as weights by the true noise would make them (within a tenth), and
+  // their stated uncertainty honest.
+  std::vector<double> ideal_sum(merged.elements.size(), 0.0), ideal_weight(merged.elements.size(), 0.0);
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    const double w = 1 / (true_sigma[i] * true_sigma[i]);
+    ideal_sum[merged.element_of[i]] += w * m[i].thickness_strain;
+    ideal_weight[merged.element_of[i]] += w;
+  }
+  const std::vector<Vec3> true_positions = positionsOf(truth);
+  const fitting::KdTree tree(true_positions);
+  std::vector<fitting::Neighbor> nn;
+  double sq = 0, ideal_sq = 0;
+  std::size_t within = 0;
+  for (std::size_t k = 0; k < merged.elements.size(); ++k) {
+    const GridElement& g = merged.elements[k];
+    tree.knn(g.position, 1, nn);
+    const double e = g.thickness_strain - truth[nn[0].index].strain;
+    sq += e * e;
+    ideal_sq += std::pow(ideal_sum[k] / ideal_weight[k] - truth[nn[0].index].strain, 2);
+    within += std::abs(e) <= 2 * g.strain_sigma;
+  }
+  const double n = static_cast<double>(merged.elements.size());
+  EXPECT_LT(std::sqrt(sq / n), 1.1 * std::sqrt(ideal_sq / n));
+  EXPECT_GT(static_cast<double>(within) / n, 0.92);
+  EXPECT_LT(static_cast<double>(within) / n, 0.985);
+}

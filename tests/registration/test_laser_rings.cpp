@@ -142,7 +142,8 @@ TEST(LaserRings, PanElementsMatchTheGroundTruth) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.005);
+  // 0.0023: the rings over the walls' radii read on the sheet, not in their chord plane (0.0027 so).
+  EXPECT_LE(m.strain_rms, 0.0026);
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 
@@ -151,7 +152,7 @@ TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_LE(m.strain_rms, 0.0019);  // 0.0017 measured
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 
@@ -160,7 +161,7 @@ TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_LE(m.strain_rms, 0.0036);  // 0.0033 measured on the sheet, 0.0041 in the chord plane
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 

@@ -5,7 +5,9 @@
 //
 // Each sensor path's uncertainty is estimated from the scan itself, in two parts. Measurements of
 // the same element by the same path (two overlapping sweeps, two stereo views) differ by the part
-// of their error each has of its own; the pooled spread of such twins gives its variance. Part of a
+// of their error each has of its own; the spread of such twins gives its variance, as a function
+// of the measurement's quality (GridElement::fit_rms): a + b q^2, for a ring seen obliquely or a
+// cell whose corners stray from their affine image reads its strain worse. Part of a
 // path's error is shared by all its measurements of one element (the same printed shape read the
 // same way, the same calibration): twins cannot see it, but the laser and the stereo views measure
 // each element in wholly different ways, so their disagreement shows the two paths' whole errors;
@@ -22,9 +24,10 @@
 
 namespace stampscan::registration {
 
-// The standard (k = 1) uncertainty of one measurement by a sensor path, and of it the part shared by
-// all that path's measurements of one element (which repeating them does not reduce; not known
-// when no element was measured by both paths, and then not in the uncertainty).
+// The standard (k = 1) uncertainty of one measurement by a sensor path of the path's median quality,
+// and of it the part shared by all that path's measurements of one element (which repeating them
+// does not reduce; not known when no element was measured by both paths, and then not in the
+// uncertainty).
 struct PathNoise {
   std::optional<double> strain, strain_shared;            // thickness true strain
   std::optional<double> position_mm, position_shared_mm;  // along each axis
@@ -34,6 +37,8 @@ struct PathNoise {
 struct MergedElements {
   std::vector<GridElement> elements;      // one per printed element, with strain_sigma and position_sigma_mm
   std::vector<std::uint32_t> element_of;  // for each measurement, the index of its element
+  // For each measurement, its standard uncertainties (NaN while its path's noise is not known).
+  std::vector<double> strain_sigma_of, position_sigma_mm_of;
   PathNoise laser, stereo;
   std::size_t measurements = 0;
 };
@@ -42,5 +47,16 @@ struct MergedElements {
 // elements stand a pitch apart, stretched or compressed by at most a few tens of percent) are one
 // element. The result does not depend on the order of the measurements.
 MergedElements mergeMeasurements(const std::vector<GridElement>& measurements, double twin_radius_mm);
+
+// Every measurement's strains moved from the mean over its outline to its element's centre: less
+// its gauge_mm2 times the strain's Laplacian over the printed grid (grid_element.hpp), taken from a
+// quadratic through the merged element and its neighbours (those within 1.6 pitches on the printed
+// grid, `pitch_mm`). Where the strain bends, over a die radius or at a peak, the mean is lower than
+// the peak and higher than the valley by up to a few thousandths of strain; the laser's rings and
+// the stereo views' cells average over different outlines and so disagree there too. An element
+// without neighbours on both sides along both axes (at the grid's edge) keeps its mean. Merge the
+// measurements again afterwards. Returns how many measurements were moved.
+std::vector<GridElement> strainsAtCentres(const std::vector<GridElement>& measurements, const MergedElements& merged,
+                                          double pitch_mm);
 
 }  // namespace stampscan::registration

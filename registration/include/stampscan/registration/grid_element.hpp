@@ -29,6 +29,12 @@ struct GridElement {
   double strain_sigma = std::numeric_limits<double>::quiet_NaN();
   double position_sigma_mm = std::numeric_limits<double>::quiet_NaN();
   std::uint32_t measurements = 1;  // how many measurements this element merges (element_merge.hpp)
+  // A printed element shows the mean of the sheet's strain over its outline, not the strain at its
+  // centre: to second order a measured strain is the centre's plus gauge_mm2 times the strain's
+  // Laplacian over the printed (unformed) grid. It depends on how the path reads the outline: a ring
+  // fitted at radius r averages as r^2 / 8, a cell's interior of side s as about s^2 / 30, a cell
+  // from its four corners a pitch apart as about pitch^2 / 12. 0 where not known.
+  double gauge_mm2 = 0;
 };
 
 // As a Cloud4D: x y z, nx ny nz, strain (thickness), major_strain, minor_strain, major_dir_x/y/z,
