@@ -347,11 +347,18 @@ MergedElements mergeMeasurements(const std::vector<GridElement>& m, double twin_
 
 namespace {
 
-// The material Laplacians of the major and the minor strain at one merged element, from a quadratic
-// over its tangent plane through it and its neighbours; nothing where they do not surround it.
-std::optional<Eigen::Vector2d> strainLaplacians(const std::vector<GridElement>& elements, std::size_t e,
-                                                const fitting::KdTree& tree, double pitch,
-                                                std::vector<fitting::Neighbor>& near) {
+// The strain field around one merged element: a quadratic in the printed grid's coordinates over
+// its tangent plane, through it and its neighbours.
+struct LocalField {
+  Eigen::Vector2d laplacian = Eigen::Vector2d::Zero();  // of the major and the minor strain (1/mm^2)
+  // How far the thickness strains stray from the quadratic beyond their own stated noise: what a
+  // smooth field around the element does not explain (variance; 0 where the noise is not known).
+  double misfit_beyond_noise = 0;
+};
+
+// Nothing where the neighbours do not surround the element.
+std::optional<LocalField> localField(const std::vector<GridElement>& elements, std::size_t e, const fitting::KdTree& tree,
+                                     double pitch, std::vector<fitting::Neighbor>& near) {
   const GridElement& g = elements[e];
   const Vec3 d1 = g.major_direction;
   const Vec3 d2 = g.normal.cross(d1).normalized();
@@ -361,7 +368,8 @@ std::optional<Eigen::Vector2d> strainLaplacians(const std::vector<GridElement>& 
   tree.radius(g.position, kReach * pitch * std::max(l1, l2), near);
   Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 2> atb = Eigen::Matrix<double, 6, 2>::Zero();
-  int count = 0, sides = 0;
+  std::vector<std::pair<Eigen::Matrix<double, 6, 1>, std::uint32_t>> rows;
+  int sides = 0;
   for (const fitting::Neighbor& n : near) {
     const Vec3 q = elements[n.index].position - g.position;
     const double x = d1.dot(q) / (l1 * pitch), y = d2.dot(q) / (l2 * pitch);  // printed pitches
@@ -371,16 +379,41 @@ std::optional<Eigen::Vector2d> strainLaplacians(const std::vector<GridElement>& 
     ata += row * row.transpose();
     atb += row * Eigen::RowVector2d(elements[n.index].major_strain, elements[n.index].minor_strain);
     sides |= (x > 0.5 ? 1 : 0) | (x < -0.5 ? 2 : 0) | (y > 0.5 ? 4 : 0) | (y < -0.5 ? 8 : 0);
-    ++count;
+    rows.emplace_back(row, n.index);
   }
-  if (count < 8 || sides != 15) return std::nullopt;
+  if (rows.size() < 8 || sides != 15) return std::nullopt;
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> solve(ata);
   if (solve.info() != Eigen::Success || !(solve.vectorD().minCoeff() > 1e-6 * solve.vectorD().maxCoeff()))
     return std::nullopt;
   const Eigen::Matrix<double, 6, 2> c = solve.solve(atb);
   if (!c.allFinite()) return std::nullopt;
+  LocalField field;
   // f = ... + c3 x^2 + c5 y^2 in pitches: the Laplacian over the printed grid is 2 (c3 + c5) / pitch^2.
-  return Eigen::Vector2d(2 * (c(3, 0) + c(5, 0)), 2 * (c(3, 1) + c(5, 1))) / (pitch * pitch);
+  field.laplacian = Eigen::Vector2d(2 * (c(3, 0) + c(5, 0)), 2 * (c(3, 1) + c(5, 1))) / (pitch * pitch);
+  double residual_sq = 0, noise_sq = 0;
+  bool noise_known = true;
+  for (const auto& [row, index] : rows) {
+    const GridElement& n = elements[index];
+    const Eigen::RowVector2d fitted = row.transpose() * c;
+    residual_sq += std::pow(n.thickness_strain + fitted.sum(), 2);  // thickness = -(major + minor)
+    noise_sq += n.strain_sigma * n.strain_sigma;
+    noise_known = noise_known && std::isfinite(n.strain_sigma);
+  }
+  const double count = static_cast<double>(rows.size());
+  if (noise_known) field.misfit_beyond_noise = std::max(0.0, residual_sq / (count - 6) - noise_sq / count);
+  return field;
+}
+
+// Every merged element's local field.
+std::vector<std::optional<LocalField>> localFields(const std::vector<GridElement>& elements, double pitch) {
+  std::vector<std::optional<LocalField>> fields(elements.size());
+  if (elements.empty()) return fields;
+  std::vector<Vec3> positions(elements.size());
+  for (std::size_t i = 0; i < elements.size(); ++i) positions[i] = elements[i].position;
+  const fitting::KdTree tree(positions);
+  std::vector<fitting::Neighbor> near;
+  for (std::size_t e = 0; e < elements.size(); ++e) fields[e] = localField(elements, e, tree, pitch, near);
+  return fields;
 }
 
 }  // namespace
@@ -390,26 +423,31 @@ std::vector<GridElement> strainsAtCentres(const std::vector<GridElement>& measur
   if (!(pitch_mm > 0)) throw std::invalid_argument("strainsAtCentres: the pitch must be positive");
   if (merged.element_of.size() != measurements.size())
     throw std::invalid_argument("strainsAtCentres: the merged elements are not those of these measurements");
-  const std::vector<GridElement>& elements = merged.elements;
   std::vector<GridElement> out = measurements;
-  if (elements.empty()) return out;
-  std::vector<Vec3> positions(elements.size());
-  for (std::size_t i = 0; i < elements.size(); ++i) positions[i] = elements[i].position;
-  const fitting::KdTree tree(positions);
-  std::vector<std::optional<Eigen::Vector2d>> laplacians(elements.size());
-  std::vector<fitting::Neighbor> near;
-  for (std::size_t e = 0; e < elements.size(); ++e) laplacians[e] = strainLaplacians(elements, e, tree, pitch_mm, near);
+  const std::vector<std::optional<LocalField>> fields = localFields(merged.elements, pitch_mm);
   for (std::size_t i = 0; i < out.size(); ++i) {
-    const std::optional<Eigen::Vector2d>& lap = laplacians[merged.element_of[i]];
+    const std::optional<LocalField>& field = fields[merged.element_of[i]];
     GridElement& g = out[i];
-    if (!lap || !(g.gauge_mm2 > 0)) continue;
-    g.major_strain -= g.gauge_mm2 * lap->x();
-    g.minor_strain -= g.gauge_mm2 * lap->y();
+    if (!field || !(g.gauge_mm2 > 0)) continue;
+    const Eigen::Vector2d& lap = field->laplacian;
+    g.major_strain -= g.gauge_mm2 * lap.x();
+    g.minor_strain -= g.gauge_mm2 * lap.y();
     g.thickness_strain = -(g.major_strain + g.minor_strain);
-    g.semi_major *= std::exp(-g.gauge_mm2 * lap->x());
-    g.semi_minor *= std::exp(-g.gauge_mm2 * lap->y());
+    g.semi_major *= std::exp(-g.gauge_mm2 * lap.x());
+    g.semi_minor *= std::exp(-g.gauge_mm2 * lap.y());
   }
   return out;
+}
+
+void addFieldUncertainty(MergedElements& merged, double pitch_mm) {
+  if (!(pitch_mm > 0)) throw std::invalid_argument("addFieldUncertainty: the pitch must be positive");
+  const std::vector<std::optional<LocalField>> fields = localFields(merged.elements, pitch_mm);
+  for (std::size_t e = 0; e < merged.elements.size(); ++e) {
+    GridElement& g = merged.elements[e];
+    if (!fields[e] || !std::isfinite(g.strain_sigma)) continue;
+    const double centre_shift = g.gauge_mm2 * (fields[e]->laplacian.x() + fields[e]->laplacian.y());
+    g.strain_sigma = std::sqrt(g.strain_sigma * g.strain_sigma + fields[e]->misfit_beyond_noise + centre_shift * centre_shift);
+  }
 }
 
 }  // namespace stampscan::registration

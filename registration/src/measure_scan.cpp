@@ -362,6 +362,7 @@ ScanMeasurement ScanMeasurer::finish() {
     out_.elements = strainsAtCentres(outline_means, out_.merged, squares_.pitch);
     out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
   }
+  addFieldUncertainty(out_.merged, squares_.pitch);
   for (std::size_t i = 0; i < out_.elements.size(); ++i) {
     out_.elements[i].strain_sigma = out_.merged.strain_sigma_of[i];
     out_.elements[i].position_sigma_mm = out_.merged.position_sigma_mm_of[i];

@@ -290,3 +290,31 @@ TEST(ElementMerge, AViewsQualityWeighsItsStrainAndStatesItsUncertainty) {
   EXPECT_GT(static_cast<double>(within) / n, 0.92);
   EXPECT_LT(static_cast<double>(within) / n, 0.985);
 }
+
+TEST(ElementMerge, TheFieldAroundAnElementWidensItsUncertaintyWhereItIsNotSmooth) {
+  const double pitch = 2.54;
+  // A smooth quadratic field measured with a stated noise: the uncertainty grows only by the shift
+  // to the centre (gauge times the Laplacian).
+  std::vector<GridElement> means = outlineMeans(9, pitch, 0.18);
+  for (GridElement& g : means) g.strain_sigma = 0.0005;
+  registration::MergedElements smooth;
+  smooth.elements = means;
+  registration::addFieldUncertainty(smooth, pitch);
+  const double shift = 0.18 * (BentStrain::kMajorLaplacian + BentStrain::kMinorLaplacian);
+  const std::size_t centre = 4 * 9 + 4, corner = 0;
+  EXPECT_NEAR(smooth.elements[centre].strain_sigma, std::hypot(0.0005, shift), 0.05 * std::abs(shift));
+  EXPECT_EQ(smooth.elements[corner].strain_sigma, 0.0005) << "at the grid's edge the element keeps its own";
+  // The same with every other element's strain off by 0.004 (a chequerboard no quadratic follows):
+  // the uncertainty grows to about that.
+  registration::MergedElements rough;
+  rough.elements = means;
+  for (std::size_t k = 0; k < rough.elements.size(); ++k) {
+    GridElement& g = rough.elements[k];
+    const double off = ((k / 9 + k % 9) % 2 ? 0.002 : -0.002);
+    g.major_strain += off / 2, g.minor_strain += off / 2, g.thickness_strain -= off;
+  }
+  registration::addFieldUncertainty(rough, pitch);
+  EXPECT_GT(rough.elements[centre].strain_sigma, 0.0015);
+  EXPECT_LT(rough.elements[centre].strain_sigma, 0.004);
+  EXPECT_THROW(registration::addFieldUncertainty(rough, 0.0), std::invalid_argument);
+}

@@ -59,4 +59,12 @@ MergedElements mergeMeasurements(const std::vector<GridElement>& measurements, d
 std::vector<GridElement> strainsAtCentres(const std::vector<GridElement>& measurements, const MergedElements& merged,
                                           double pitch_mm);
 
+// What the measurements' noise leaves out of the merged elements' strain uncertainty, from the field
+// around each (the same quadratic): how far its neighbours' strains stray from a smooth field beyond
+// their own noise (a sheet that bends within a pitch, a reading error neighbours share), and the
+// shift to the centre, known to no better than its own size (the Laplacian from neighbours a pitch
+// apart). Each element's strain_sigma grows by both, in quadrature; an element at the grid's edge
+// keeps its own.
+void addFieldUncertainty(MergedElements& merged, double pitch_mm);
+
 }  // namespace stampscan::registration
