@@ -150,15 +150,17 @@ class CarrierStrain {
  private:
   std::size_t n() const { return positions_.size(); }
 
-  // Each carrier's weight relative to a typical one: the inverse variance of its strain when the
-  // carriers state it (a merged element measured by several sweeps and views counts for more than
-  // one seen once, a laser element more than a noisier stereo one), scaled so that the median carrier
+  // Each carrier's weight relative to a typical one: the inverse variance of its strain's noise when
+  // the carriers state it (a merged element measured by several sweeps and views counts for more than
+  // one seen once, a laser element more than a noisier stereo one; what its neighbours leave
+  // unexplained is for the field to find, not a reason to trust it less), scaled so that the median carrier
   // weighs one (the Gaussian's scale stays that of the bandwidth). Returns the stated variances
   // (NaN where none is stated).
   std::vector<double> statedVariances(const Cloud& carriers) {
     certainty_.assign(n(), 1.0);
     std::vector<double> variance(n(), std::numeric_limits<double>::quiet_NaN());
-    const auto u = carriers.scalars.find(kStrainUncertainty);
+    auto u = carriers.scalars.find(kStrainNoise);
+    if (u == carriers.scalars.end() || u->second.size() != n()) u = carriers.scalars.find(kStrainUncertainty);
     if (u == carriers.scalars.end() || u->second.size() != n()) return variance;
     std::vector<double> finite;
     for (double s : u->second)

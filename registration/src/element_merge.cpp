@@ -254,7 +254,7 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
   g.view = leader->view;
   g.measurements = static_cast<std::uint32_t>(members.size());
   if (known) {
-    g.strain_sigma = 1 / std::sqrt(ws);
+    g.strain_sigma = g.strain_noise = 1 / std::sqrt(ws);
     g.position_sigma_mm = 1 / std::sqrt(wp);
   }
   return g;
@@ -396,8 +396,8 @@ std::optional<LocalField> localField(const std::vector<GridElement>& elements, s
     const GridElement& n = elements[index];
     const Eigen::RowVector2d fitted = row.transpose() * c;
     residual_sq += std::pow(n.thickness_strain + fitted.sum(), 2);  // thickness = -(major + minor)
-    noise_sq += n.strain_sigma * n.strain_sigma;
-    noise_known = noise_known && std::isfinite(n.strain_sigma);
+    noise_sq += n.strain_noise * n.strain_noise;
+    noise_known = noise_known && std::isfinite(n.strain_noise);
   }
   const double count = static_cast<double>(rows.size());
   if (noise_known) field.misfit_beyond_noise = std::max(0.0, residual_sq / (count - 6) - noise_sq / count);

@@ -47,6 +47,10 @@ fitting::Cloud toCloud(const std::vector<GridElement>& elements) {
       position_u.push_back(g.position_sigma_mm);
     }
   }
+  if (known(&GridElement::strain_noise)) {
+    auto& noise = c.scalars[fitting::kStrainNoise];
+    for (const GridElement& g : elements) noise.push_back(g.strain_noise);
+  }
   return c;
 }
 

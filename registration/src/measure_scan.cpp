@@ -364,7 +364,7 @@ ScanMeasurement ScanMeasurer::finish() {
   }
   addFieldUncertainty(out_.merged, squares_.pitch);
   for (std::size_t i = 0; i < out_.elements.size(); ++i) {
-    out_.elements[i].strain_sigma = out_.merged.strain_sigma_of[i];
+    out_.elements[i].strain_sigma = out_.elements[i].strain_noise = out_.merged.strain_sigma_of[i];
     out_.elements[i].position_sigma_mm = out_.merged.position_sigma_mm_of[i];
   }
   const auto noise = [](const PathNoise& p) {

@@ -296,7 +296,7 @@ TEST(ElementMerge, TheFieldAroundAnElementWidensItsUncertaintyWhereItIsNotSmooth
   // A smooth quadratic field measured with a stated noise: the uncertainty grows only by the shift
   // to the centre (gauge times the Laplacian).
   std::vector<GridElement> means = outlineMeans(9, pitch, 0.18);
-  for (GridElement& g : means) g.strain_sigma = 0.0005;
+  for (GridElement& g : means) g.strain_sigma = g.strain_noise = 0.0005;
   registration::MergedElements smooth;
   smooth.elements = means;
   registration::addFieldUncertainty(smooth, pitch);

@@ -52,9 +52,12 @@ inline constexpr char kView[] = "view";
 inline constexpr char kFitQuality[] = "quality";
 inline constexpr char kMeasurementCount[] = "measurements";
 // Cloud4D scalars with a meaning downstream stages rely on: the standard (k = 1) uncertainty of a
-// point's strain, and of its position along each axis (mm) (a strain field weights its samples by
-// the first when a cloud has it); the fitted surface's strain there.
+// point's strain, and of its position along each axis (mm); of the strain's, the part that is the
+// measurements' noise (what repeating them shrinks, against what the field around it leaves
+// unexplained: a strain field weights its samples by it, or by the whole when a cloud has only
+// that); the fitted surface's strain there.
 inline constexpr char kStrainUncertainty[] = "strain_uncertainty";
+inline constexpr char kStrainNoise[] = "strain_noise";
 inline constexpr char kPositionUncertainty[] = "position_uncertainty";
 // The fitted surface's strain at a grid element (fitShapeAndStrain), beside the element's own.
 inline constexpr char kFittedStrain[] = "fitted_strain";

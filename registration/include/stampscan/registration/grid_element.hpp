@@ -28,6 +28,8 @@ struct GridElement {
   // (element_merge.hpp: from the scan's own repeated measurements); NaN while not known.
   double strain_sigma = std::numeric_limits<double>::quiet_NaN();
   double position_sigma_mm = std::numeric_limits<double>::quiet_NaN();
+  // Of strain_sigma, the measurements' noise alone (element_merge.hpp, addFieldUncertainty).
+  double strain_noise = std::numeric_limits<double>::quiet_NaN();
   std::uint32_t measurements = 1;  // how many measurements this element merges (element_merge.hpp)
   // A printed element shows the mean of the sheet's strain over its outline, not the strain at its
   // centre: to second order a measured strain is the centre's plus gauge_mm2 times the strain's
@@ -39,7 +41,7 @@ struct GridElement {
 
 // As a Cloud4D: x y z, nx ny nz, strain (thickness), major_strain, minor_strain, major_dir_x/y/z,
 // source, view, quality (fit_rms), measurements (how many it merges: 1 for a single measurement);
-// and strain_uncertainty, position_uncertainty (standard, k = 1) when every element's is known. A
+// and strain_uncertainty, position_uncertainty, strain_noise (standard, k = 1) when every element's is known. A
 // merged element's source and view are those of its most certain measurement.
 fitting::Cloud toCloud(const std::vector<GridElement>& elements);
 
