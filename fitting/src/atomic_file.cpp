@@ -140,6 +140,24 @@ class CommitWindow {
   sigset_t previous_{};
 };
 
+// The finished temporary's bytes written into a target that is not a regular file.
+void copyInto(const fs::path& temporary, const fs::path& target) {
+  std::ifstream in(temporary, std::ios::binary);
+  std::ofstream out(target, std::ios::binary);
+  if (!in || !out) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw std::runtime_error(target.string() + ": cannot be written (" + std::generic_category().message(errno) + ")");
+  }
+  if (in.peek() != std::ifstream::traits_type::eof()) out << in.rdbuf();
+  out.flush();
+  if (!out) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    throw std::runtime_error(target.string() + ": cannot be written (writing into it failed)");
+  }
+}
+
 }  // namespace
 
 AtomicFile::AtomicFile(fs::path target) : target_(std::move(target)), temporary_(temporaryPathFor(target_)) {
@@ -158,6 +176,18 @@ AtomicFile::~AtomicFile() {
 void AtomicFile::commit() {
   if (committed_) return;
   std::error_code error;
+  // A device or a pipe named as the output (/dev/null, /dev/stdout, a FIFO) is written to, never
+  // replaced: renaming over it would put a plain file where the device was.
+  if (const fs::file_status target = fs::status(target_, error);
+      !error && fs::exists(target) && !fs::is_regular_file(target) && !fs::is_directory(target)) {
+    copyInto(temporary_, target_);
+    fs::remove(temporary_, error);
+    committed_ = true;
+    releaseSlot(slot_);
+    slot_ = -1;
+    return;
+  }
+  error.clear();
   // Atomic on POSIX file systems: readers see the old file or the complete new one, never a part.
   fs::rename(temporary_, target_, error);
   if (error) {

@@ -439,6 +439,51 @@ std::vector<GridElement> strainsAtCentres(const std::vector<GridElement>& measur
   return out;
 }
 
+namespace {
+
+// Whether `p` lies within g's outline: the ellipse of its semi-axes in its tangent plane.
+bool outlineHolds(const GridElement& g, const Vec3& p) {
+  if (!(g.semi_major > 0) || !(g.semi_minor > 0)) return false;
+  const Vec3 d = p - g.position;
+  const double x = d.dot(g.major_direction), y = d.dot(g.normal.cross(g.major_direction));
+  return std::pow(x / g.semi_major, 2) + std::pow(y / g.semi_minor, 2) < 1;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> overlappingElements(const MergedElements& merged) {
+  const std::vector<GridElement>& elements = merged.elements;
+  std::vector<std::uint32_t> out;
+  if (elements.size() < 2) return out;
+  std::vector<Vec3> positions(elements.size());
+  double widest = 0;
+  for (std::size_t i = 0; i < elements.size(); ++i) {
+    positions[i] = elements[i].position;
+    if (std::isfinite(elements[i].semi_major)) widest = std::max(widest, elements[i].semi_major);
+  }
+  const fitting::KdTree tree(positions);
+  const auto weaker = [&](std::size_t a, std::size_t b) {  // a has less support than b
+    if (elements[a].measurements != elements[b].measurements) return elements[a].measurements < elements[b].measurements;
+    const double na = elements[a].strain_noise, nb = elements[b].strain_noise;
+    if (std::isfinite(na) && std::isfinite(nb) && na != nb) return na > nb;
+    return a > b;  // a tie: the later one, so that the result does not depend on which is asked first
+  };
+  std::vector<fitting::Neighbor> near;
+  for (std::size_t a = 0; a < elements.size(); ++a) {
+    tree.radius(positions[a], widest, near);
+    for (const fitting::Neighbor& n : near) {
+      const std::size_t b = n.index;
+      if (b == a) continue;
+      const bool overlap = outlineHolds(elements[a], positions[b]) || outlineHolds(elements[b], positions[a]);
+      if (overlap && weaker(a, b)) {
+        out.push_back(static_cast<std::uint32_t>(a));
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 void addFieldUncertainty(MergedElements& merged, double pitch_mm) {
   if (!(pitch_mm > 0)) throw std::invalid_argument("addFieldUncertainty: the pitch must be positive");
   const std::vector<std::optional<LocalField>> fields = localFields(merged.elements, pitch_mm);

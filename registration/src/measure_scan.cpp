@@ -355,6 +355,18 @@ ScanMeasurement ScanMeasurer::finish() {
   // Measurements of one printed element stand a few hundredths of a millimetre apart; neighbouring
   // elements a pitch, stretched or compressed by a few tens of percent at most.
   out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
+  // An element that overlaps a better-supported one is a wrong match: its measurements go.
+  if (const std::vector<std::uint32_t> overlapping = overlappingElements(out_.merged); !overlapping.empty()) {
+    std::vector<bool> wrong(out_.merged.elements.size(), false);
+    for (std::uint32_t e : overlapping) wrong[e] = true;
+    std::vector<GridElement> kept;
+    for (std::size_t i = 0; i < out_.elements.size(); ++i)
+      if (!wrong[out_.merged.element_of[i]]) kept.push_back(out_.elements[i]);
+    tell("elements", format("%zu elements left out: each overlaps a neighbour measured more often (%zu measurements)",
+                            overlapping.size(), out_.elements.size() - kept.size()));
+    out_.elements = std::move(kept);
+    out_.merged = mergeMeasurements(out_.elements, 0.25 * squares_.pitch);
+  }
   // The strains at the elements' centres, not the means over their outlines; then merged again, so
   // that the paths' noise is that of measurements of the same thing.
   const std::vector<GridElement> outline_means = std::move(out_.elements);

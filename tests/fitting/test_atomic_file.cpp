@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -47,6 +48,26 @@ void writeText(const fs::path& file, const std::string& text) {
 }
 
 }  // namespace
+
+// A pipe or a device named as the output (a FIFO, /dev/null, /dev/stdout) is written into, never
+// replaced by a plain file.
+TEST(AtomicFile, APipeNamedAsTheTargetIsWrittenIntoAndStaysAPipe) {
+  const fs::path dir = freshDir("fifo");
+  const fs::path fifo = dir / "out.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string received;
+  std::thread reader([&] {
+    std::ifstream in(fifo, std::ios::binary);
+    std::ostringstream all;
+    all << in.rdbuf();
+    received = all.str();
+  });
+  stampscan::fitting::writeFileAtomically(fifo, "whole contents\n");
+  reader.join();
+  EXPECT_EQ(received, "whole contents\n");
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_EQ(entries(dir).size(), 1u) << "the temporary is removed";
+}
 
 TEST(AtomicFile, TemporaryNamesAreUniqueAndBesideTheTarget) {
   const fs::path dir = freshDir("names");

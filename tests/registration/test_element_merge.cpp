@@ -318,3 +318,36 @@ TEST(ElementMerge, TheFieldAroundAnElementWidensItsUncertaintyWhereItIsNotSmooth
   EXPECT_LT(rough.elements[centre].strain_sigma, 0.004);
   EXPECT_THROW(registration::addFieldUncertainty(rough, 0.0), std::invalid_argument);
 }
+
+TEST(ElementMerge, AnElementOverlappingABetterSupportedOneIsFound) {
+  // A grid measured twice each, and one stereo match across two cells: a cell twice the size,
+  // measured once, halfway between two true ones.
+  const double pitch = 2.54;
+  std::vector<GridElement> m;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      for (std::uint32_t sweep = 0; sweep < 2; ++sweep) {
+        GridElement g;
+        g.position = Vec3(pitch * i, pitch * j, 0) + 0.003 * Vec3(sweep, 0, 0);
+        g.semi_major = g.semi_minor = 0.5 * pitch;
+        g.normal = Vec3::UnitZ();
+        g.major_direction = Vec3::UnitX();
+        g.view = sweep;
+        m.push_back(g);
+      }
+  GridElement wrong;
+  wrong.position = Vec3(pitch * 2.5, pitch * 3, 0);
+  wrong.semi_major = 1.6 * pitch;  // twice the area, stretched along x
+  wrong.semi_minor = 0.6 * pitch;
+  wrong.source = Source::Stereo;
+  wrong.view = 1000;
+  m.push_back(wrong);
+  const auto merged = registration::mergeMeasurements(m, 0.25 * pitch);
+  ASSERT_EQ(merged.elements.size(), 37u);
+  const std::vector<std::uint32_t> overlapping = registration::overlappingElements(merged);
+  ASSERT_EQ(overlapping.size(), 1u);
+  EXPECT_EQ(overlapping[0], merged.element_of.back());
+  // True neighbours a pitch apart do not overlap, nor does a lone element.
+  m.pop_back();
+  EXPECT_TRUE(registration::overlappingElements(registration::mergeMeasurements(m, 0.25 * pitch)).empty());
+}

@@ -97,9 +97,10 @@ const char* toString(Verdict verdict) {
 }
 
 ElementStrain analyseElement(const fitting::Vec3& position, double major_true, double minor_true, double thickness_true,
-                             const Material& material, const AnalysisParams& params) {
+                             const Material& material, const AnalysisParams& params, double thickness_uncertainty) {
   ElementStrain e;
   e.position = position;
+  e.thickness_uncertainty = thickness_uncertainty;
   // The measurement names the larger in-plane strain major; keep that convention whatever the input.
   if (minor_true > major_true) std::swap(minor_true, major_true);
   e.major_true = major_true;
@@ -114,9 +115,12 @@ ElementStrain analyseElement(const fitting::Vec3& position, double major_true, d
   const double threshold = params.stretch_threshold_percent;
   const bool thickened = major_true + minor_true < 0;
   const bool compressed = e.minor_percent < -threshold;
+  // The expanded uncertainty of the major engineering strain, % (d e1 = 100 exp(eps1) d eps1).
+  const double expanded_percent =
+      std::isfinite(thickness_uncertainty) ? 2 * thickness_uncertainty * 100 * std::exp(major_true) : 0.0;
   if (e.margin_percent <= 0)
     e.zone = Zone::Failure;
-  else if (e.margin_percent < material.safety_margin_percent)
+  else if (e.margin_percent < material.safety_margin_percent || e.margin_percent <= expanded_percent)
     e.zone = Zone::Marginal;
   else if (thickened && compressed)
     e.zone = major_true <= -minor_true / 2 ? Zone::Wrinkling : Zone::WrinklingTendency;
@@ -316,9 +320,9 @@ StrainAnalysis analyseStrains(const fitting::Cloud& cloud, const Material& mater
   a.elements.resize(valid.kept.size());
   tbb::parallel_for(std::size_t{0}, valid.kept.size(), [&](std::size_t k) {
     const std::uint32_t i = valid.kept[k];
-    a.elements[k] = analyseElement(cloud.positions[i], major[i], minor[i], cloud.strain[i], material, params);
+    const double u = uncertainty != cloud.scalars.end() ? uncertainty->second[i] : std::numeric_limits<double>::quiet_NaN();
+    a.elements[k] = analyseElement(cloud.positions[i], major[i], minor[i], cloud.strain[i], material, params, u);
     a.elements[k].index = i;
-    if (uncertainty != cloud.scalars.end()) a.elements[k].thickness_uncertainty = uncertainty->second[i];
   });
 
   std::vector<fitting::Vec3> positions(a.elements.size());

@@ -48,6 +48,23 @@ TEST(StrainAnalysis, ZonesOfHandMadeStrainStates) {
   EXPECT_EQ(byTrue(0.05, -0.04).zone, Zone::Safe);                  // thinned: drawn, not wrinkling
 }
 
+TEST(StrainAnalysis, AnElementWhoseMarginIsWithinItsUncertaintyIsMarginal) {
+  // A material with no safety band: only the measurement's own uncertainty keeps an element near the
+  // curve from being called safe.
+  Material m = steel();
+  m.safety_margin_percent = 0;
+  const double e1 = trueStrain(36.5), e2 = 0;  // 0.9 % below FLC0 (37.43 %)
+  EXPECT_EQ(analyseElement(Vec3::Zero(), e1, e2, -(e1 + e2), m).zone, Zone::Safe);
+  // Expanded uncertainty 2 x 0.004 x 136.5 = 1.1 % of major strain: it could be on the curve.
+  const ElementStrain unsure = analyseElement(Vec3::Zero(), e1, e2, -(e1 + e2), m, {}, 0.004);
+  EXPECT_EQ(unsure.zone, Zone::Marginal);
+  EXPECT_EQ(unsure.thickness_uncertainty, 0.004);
+  // 0.0015 (0.4 %) does not reach the curve; above the curve it fails whatever the uncertainty.
+  EXPECT_EQ(analyseElement(Vec3::Zero(), e1, e2, -(e1 + e2), m, {}, 0.0015).zone, Zone::Safe);
+  const double over = trueStrain(38);
+  EXPECT_EQ(analyseElement(Vec3::Zero(), over, e2, -over, m, {}, 0.004).zone, Zone::Failure);
+}
+
 TEST(StrainAnalysis, ElementMeasures) {
   const ElementStrain e = analyseElement(Vec3(1, 2, 3), std::log(1.3), std::log(1.1), std::log(0.7), steel());
   EXPECT_NEAR(e.major_percent, 30, 1e-9);

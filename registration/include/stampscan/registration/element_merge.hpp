@@ -59,6 +59,12 @@ MergedElements mergeMeasurements(const std::vector<GridElement>& measurements, d
 std::vector<GridElement> strainsAtCentres(const std::vector<GridElement>& measurements, const MergedElements& merged,
                                           double pitch_mm);
 
+// The merged elements that cannot be printed elements: one whose outline (the ellipse of its
+// semi-axes in its tangent plane) holds another element's centre, or whose centre lies within
+// another's outline, and which has fewer measurements than that other (the same: the noisier one). A stereo match across
+// two cells measures a cell twice the size halfway between two true ones. Sorted indices.
+std::vector<std::uint32_t> overlappingElements(const MergedElements& merged);
+
 // What the measurements' noise leaves out of the merged elements' strain uncertainty, from the field
 // around each (the same quadratic): how far its neighbours' strains stray from a smooth field beyond
 // their own noise (a sheet that bends within a pitch, a reading error neighbours share), and the

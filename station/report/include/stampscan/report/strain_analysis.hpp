@@ -97,9 +97,13 @@ struct StrainAnalysis {
 };
 
 // One element's strains and zone from its true strains. eps3 is taken as given (the measured
-// thickness strain), not recomputed from eps1 and eps2.
+// thickness strain), not recomputed from eps1 and eps2. With its standard uncertainty (k = 1; NaN:
+// not stated), an element whose margin to the FLC is within its expanded uncertainty (k = 2, the
+// strain's taken for the major's, in engineering %) is marginal even beyond the safety band: the
+// measurement cannot tell it from one on the curve.
 ElementStrain analyseElement(const fitting::Vec3& position, double major_true, double minor_true, double thickness_true,
-                             const Material& material, const AnalysisParams& params = {});
+                             const Material& material, const AnalysisParams& params = {},
+                             double thickness_uncertainty = std::numeric_limits<double>::quiet_NaN());
 
 // The whole part. The cloud needs `strain` (eps3) and the scalars major_strain and minor_strain
 // (true strains); throws std::invalid_argument naming what is missing, and naming the invalid
