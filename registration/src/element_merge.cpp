@@ -229,7 +229,6 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
     semi_minor += w * m[i].semi_minor;
     fit_rms += w * m[i].fit_rms;
     gauge += w * m[i].gauge_mm2;  // the mean strain's averaging is the same mean of the members'
-
     edge_points += m[i].edge_points;
   }
   // The major direction is an axis (its sign means nothing): each is turned towards the leader's.
