@@ -2,13 +2,13 @@
 // per sensor the parameters with their uncertainty, the residuals against the acceptance limits, the
 // change against the calibration in use, and whether the new one is put in use. Exit 0 when every
 // calibration asked for is in use, 2 when one failed its limits (and was not accepted), 1 on error.
-#include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
+#include "cell_choice.hpp"
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
-#include "virtual_digitizer_host.hpp"
-#include "virtual_world_options.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -82,15 +82,16 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
   opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
-    const bool virtual_cell = opt->cell.hosted();
-    acquisition::CellConfig config = opt->cell.load();
+    CommandCell command_cell = opt->cell.open();
+    const acquisition::CellConfig& config = command_cell.config;
     const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
     // The cell's calibration scenes ([calibration] plate_views, sphere_sweeps, planned for its
     // artefacts); a virtual cell's cameras at their full resolution (or the quick session's quarter,
     // to match the default scan).
-    sim::ScanParams world =
-        worldOnCell(opt->quarter_resolution ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
-    opt->world.applyTo(world);
+    VirtualWorld world;
+    world.quick = opt->quarter_resolution;
+    world.options = opt->world;
+    const VirtualCellHost* host = command_cell.simulate(world);
     CalibrateJobOptions job;
     const acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
     job.plan = calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
@@ -104,17 +105,13 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     job.results_database = calibrationResultsDatabase(config.results_database, job.calibration_dir);
     if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
 
-    std::unique_ptr<HostedVirtualCell> hosted;
-    if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, cameras);
-      config = hosted->config();
-    }
+    command_cell.serve(cameras);
     acquisition::Cell cell(config);
     job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "calibration";
 
     std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
-                hosted ? " (hosted in this process)" : "");
+                command_cell.hostedNote());
     std::printf("  folder      %s\n", job.calibration_dir.c_str());
     TerminalRunObserver observer(opt->quiet);
     CalibrateJob calibrate(cell, &observer);
@@ -132,21 +129,21 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
       printSensor("cameras", *r.cameras);
       all_in_use = all_in_use && r.cameras->in_use;
     }
-    if (hosted && r.digitizer_file) {
-      const auto& truth = hosted->cell().truth();
+    if (host && r.digitizer_file) {
+      const VirtualSensorTruth truth = host->sensorTruth();
       const Eigen::Vector3d off = r.digitizer_file->calibration.head_from_digitizer.translation() -
                                   truth.head_from_digitizer.translation();
       std::printf("\n  truth       the virtual cell's digitizer mount is recovered to %.4f mm; latency %.3f ms (true %.3f)\n",
                   off.norm(), static_cast<double>(r.digitizer_file->calibration.latency_ns) * 1e-6,
                   static_cast<double>(truth.digitizer_latency_ns) * 1e-6);
     }
-    if (hosted && r.cameras_file) {
-      const auto& truth = hosted->cell().truth();
+    if (host && r.cameras_file) {
+      const VirtualSensorTruth truth = host->sensorTruth();
       const registration::StereoCalibration& s = r.cameras_file->stereo;
       const Eigen::Vector3d off = r.cameras_file->head_from_left.head_from_camera.translation() - truth.head_from_left.translation();
       const double true_baseline = (truth.head_from_right.translation() - truth.head_from_left.translation()).norm();
       std::printf("  truth       the cameras: left fx %.2f px (true %.2f), baseline %.4f mm (true %.4f), left mount "
-                  "recovered to %.4f mm\n", s.left.model.matrix(0, 0), truth.left.fx, s.baseline_mm, true_baseline,
+                  "recovered to %.4f mm\n", s.left.model.matrix(0, 0), truth.left_fx_px, s.baseline_mm, true_baseline,
                   off.norm());
     }
     if (r.history_error.empty())

@@ -2,7 +2,7 @@
 // prints a table of identity, address, firmware, state and faults. Exit 0 when every required
 // device answered and reports no fault; 1 otherwise. With --virtual the cell file's virtual twin is
 // hosted in this process first; otherwise a cell whose digitizer is virtual has that hosted
-// (virtual_digitizer_host.hpp). Hosting may re-execute the program under umockdev.
+// (virtual_cell/virtual_digitizer_host.hpp). Hosting may re-execute the program under umockdev.
 #include "stampscan/drivers/camera/gige_camera.hpp"
 #include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/drivers/digitizer/usb_digitizer.hpp"
@@ -10,8 +10,8 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/station/commands.hpp"
-#include "virtual_digitizer_host.hpp"
-#include "virtual_world_options.hpp"
+#include "cell_choice.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -62,19 +62,19 @@ CommandRunner addDevicesCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("devices", "Find and check every device of the cell; a table of their identity and state");
   choice->addTo(cmd, false);
   return [choice]() {
-    CellConfig cell = choice->load();
-    // First of all: hosting may re-execute this program, and the device must be on the bus before
-    // any libusb context exists (the cameras' Aravis makes one too).
-    std::unique_ptr<HostedVirtualCell> hosted;
-    std::unique_ptr<sim::VirtualDigitizer> virtual_digitizer;
     // Unlike the commands that run the cell, the built-in virtual cell is not hosted unless asked
     // for: `station devices` checks the cell that `station sim serve` serves.
-    if (choice->host_virtual) {
-      hosted = std::make_unique<HostedVirtualCell>(worldOnCell(sim::ScanParams::quick(), cell, true), cell);
-      cell = hosted->config();
-    } else {
-      virtual_digitizer = hostVirtualDigitizer(cell);
-    }
+    CommandCell command_cell = choice->open();
+    command_cell.virtual_cell = choice->host_virtual;
+    const CellConfig& cell = command_cell.config;
+    // First of all: hosting may re-execute this program, and the device must be on the bus before
+    // any libusb context exists (the cameras' Aravis makes one too).
+    VirtualWorld world;
+    world.quick = true;
+    command_cell.simulate(world);
+    command_cell.serve(true);
+    std::shared_ptr<void> virtual_digitizer;
+    if (!command_cell.host) virtual_digitizer = hostVirtualDigitizerOf(cell);
     std::printf("station devices: %s (%s)\n", cell.name.c_str(), cell.source.c_str());
     std::vector<Row> rows;
     // The same drivers a scan uses, built for a check (acquisition::CellUse::Check).
@@ -103,7 +103,7 @@ CommandRunner addDevicesCommand(CLI::App& app) {
                   r.required || r.ok ? "" : " (optional in this cell)");
       if (r.required && !r.ok) all_ok = false;
     }
-    if (hosted) std::printf("  the cell is the virtual one, hosted in this process\n");
+    if (command_cell.host) std::printf("  the cell is the virtual one, hosted in this process\n");
     if (virtual_digitizer) std::printf("  the digitizer is the virtual one, hosted in this process under umockdev\n");
     std::printf("  %s\n", all_ok ? "all required devices answered" : "a required device is missing or faulty");
     return all_ok ? 0 : 1;

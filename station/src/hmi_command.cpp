@@ -1,35 +1,25 @@
 // `station hmi`: the operator's panel in the browser. A thin caller of station/hmi (the server, the
 // API and the page): it reads the options, hosts the virtual cell when no --cell is given (as
 // `station scan` does), prepares the scan and the verification the panel may start, and serves.
-#include "stampscan/acquisition/part_planner.hpp"
-#include "stampscan/acquisition/trace/rigid_pose.hpp"
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/hmi_server.hpp"
 #include "stampscan/hmi/panel_log.hpp"
 #include "stampscan/hmi/tls_front.hpp"
-#include "stampscan/sim/grid.hpp"
-#include "stampscan/sim/part_model.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/verify_job.hpp"
+#include "cell_choice.hpp"
+#include "panel_programs.hpp"
 #include "program_library.hpp"
 #include "stop_signals.hpp"
-#include "virtual_digitizer_host.hpp"
-#include "virtual_world_options.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
-#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
-#include <functional>
 #include <iostream>
-#include <map>
-#include <mutex>
-#include <set>
-#include <sstream>
 #include <thread>
 
 namespace stampscan::station {
@@ -38,176 +28,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The cell's part programs for the panel: its library's, and on a virtual cell its own simulated
-// parts (written on first use). A scan of a program puts its simulated part on the virtual fixture
-// (`hosted`, when the cell is hosted; its truth scores the scan); a scan of the panel's own plan puts
-// the world's part back.
-// What the program's plan is predicted to see of its model (as `station plan` prints it, at 2 mm
-// samples: a few thousand points to draw), the samples carried onto the fixture like the model's STL.
-hmi::ProgramCoverage predictedCoverage(const acquisition::PartProgram& program, const acquisition::CellConfig& config) {
-  acquisition::CoverageOptions options;
-  options.sample_spacing_mm = 2;
-  const acquisition::Coverage c =
-      acquisition::predictCoverage(program.model, program.plan, config.geometry, config.limits, options);
-  hmi::ProgramCoverage out;
-  out.grid_area_mm2 = c.grid_area;
-  out.spacing_mm = options.sample_spacing_mm;
-  out.laser = c.share(c.laser_area);
-  out.stereo = c.share(c.stereo_area);
-  out.either = c.share(c.either_area);
-  out.sweeps = program.plan.sweepCount(acquisition::Scene::Part);
-  out.views = program.plan.stereoCount(acquisition::Scene::Part);
-  const Eigen::Isometry3d machine_from_datum = trace::toIsometry(acquisition::toRigidPose(config.geometry.fixture.datum));
-  for (std::size_t i = 0; i < c.points.size(); ++i) {
-    const Eigen::Vector3d q = machine_from_datum * Eigen::Vector3d(c.points[i][0], c.points[i][1], c.points[i][2]);
-    for (int k = 0; k < 3; ++k) out.xyz.push_back(static_cast<float>(q[k]));
-    out.seen.push_back(static_cast<std::uint8_t>((c.laser_passes[i] > 0 ? 1 : 0) | (c.stereo[i] ? 2 : 0)));
-  }
-  return out;
-}
-
-// Something of each program computed once and kept while the panel serves (a STEP model is
-// tessellated on reading; a prediction casts a ray per sample and sensor), until the program's folder
-// changes (a plan written from the command line, a new model).
-template <typename T>
-class PerProgram {
- public:
-  // `stamp` tells the program folder's state; taken again after `make`, which may write the folder
-  // (a virtual cell's own program on first use).
-  T get(const std::string& name, const std::function<std::string()>& stamp, const std::function<T()>& make) {
-    {
-      std::lock_guard lock(mutex_);
-      if (const auto it = kept_.find(name); it != kept_.end() && it->second.first == stamp()) return it->second.second;
-    }
-    T value = make();
-    return put(name, stamp(), std::move(value));
-  }
-  T put(const std::string& name, const std::string& stamp, T value) {
-    std::lock_guard lock(mutex_);
-    return kept_.insert_or_assign(name, std::pair(stamp, std::move(value))).first->second.second;
-  }
-
- private:
-  std::mutex mutex_;
-  std::map<std::string, std::pair<std::string, T>> kept_;
-};
-
-// The program folder's files as they stand (names, sizes, times written); empty when the program
-// is not written yet.
-std::string programStamp(const std::string& name, const acquisition::CellConfig& config, bool virtual_cell,
-                         const fs::path& runs) {
-  std::string stamp;
-  try {
-    const fs::path folder = acquisition::findProgram(programLibrary(config, virtual_cell, runs), name);
-    std::error_code ec;
-    for (const fs::directory_entry& e : fs::directory_iterator(folder, ec)) {
-      if (!e.is_regular_file(ec)) continue;
-      stamp += e.path().filename().string() + ':' + std::to_string(e.file_size(ec)) + ':' +
-               std::to_string(e.last_write_time(ec).time_since_epoch().count()) + ';';
-    }
-  } catch (const std::exception&) {
-    return {};  // not written yet (a virtual cell writes its own on first use) or not there: its reader says
-  }
-  return stamp;
-}
-
-// The 3D view's program model, what its plan is predicted to see, and planning it on request.
-void addProgramViews(hmi::CellPrograms& p, const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs) {
-  const auto stamp = [=](const std::string& name) {
-    return std::function<std::string()>([=] { return programStamp(name, config, virtual_cell, runs); });
-  };
-  auto models = std::make_shared<PerProgram<std::string>>();
-  p.model_stl = [=](const std::string& name) {
-    return models->get(name, stamp(name), [&] {
-      // Where the fixture holds the part: in the frame of the scan's cloud and surface.
-      return acquisition::binaryStl(
-          acquisition::placeOnFixture(programFromLibrary(name, config, virtual_cell, runs).model, config.geometry));
-    });
-  };
-  auto predicted = std::make_shared<PerProgram<hmi::ProgramCoverage>>();
-  p.coverage = [=](const std::string& name) {
-    return predicted->get(name, stamp(name), [&] {
-      const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
-      if (!program.hasPlan()) throw std::runtime_error(name + " has no scan plan yet: Plan makes one from its model");
-      return predictedCoverage(program, config);
-    });
-  };
-  p.plan = [=](const std::string& name) {
-    acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
-    program.plan = generatedPlan(program, config);
-    adoptPlan(program, program.plan);
-    hmi::ProgramCoverage coverage = predictedCoverage(program, config);
-    return predicted->put(name, stamp(name)(), std::move(coverage));
-  };
-}
-
-hmi::CellPrograms panelPrograms(const acquisition::CellConfig& config, bool virtual_cell, const fs::path& runs,
-                                const sim::ScanParams& world, const std::unique_ptr<HostedVirtualCell>* hosted) {
-  hmi::CellPrograms p;
-  p.list = [=] {
-    std::vector<hmi::ProgramSummary> out;
-    std::set<std::string> names;
-    fs::path library;
-    try {
-      library = programLibrary(config, virtual_cell, runs);
-    } catch (const std::exception&) {
-      return out;  // the cell has no library
-    }
-    std::error_code ec;
-    const std::vector<fs::path> dirs = fs::is_directory(library, ec) ? acquisition::listPrograms(library)
-                                                                      : std::vector<fs::path>{};  // none written yet
-    for (const fs::path& dir : dirs) {
-      std::ifstream in(dir / acquisition::kProgramFile, std::ios::binary);
-      std::ostringstream text;
-      text << in.rdbuf();
-      try {
-        const acquisition::PartProgram program = acquisition::parseProgramFile(text.str(), (dir / acquisition::kProgramFile).string());
-        names.insert(program.name);
-        out.push_back({program.name, program.description, program.grid.kind, program.material, program.grid.pitch_mm,
-                       program.sheet_thickness_mm, program.hasPlan() ? "" : "not planned yet",
-                       lineNumberOf(program, virtual_cell), program.hasPlan()});
-      } catch (const std::exception& e) {
-        out.push_back({dir.filename().string(), "", "", "", 0, 0, std::string("unreadable: ") + e.what(), std::nullopt, false});
-      }
-    }
-    if (virtual_cell)
-      for (const SimulatedProgramName& simulated : simulatedProgramNames())
-        if (names.count(simulated.name) == 0)
-          out.push_back({simulated.name,
-                         "the virtual cell's simulated " + simulated.part + " (" + simulated.grid + " grid)" +
-                             (simulated.sample_region ? ", its sample region" : ""),
-                         simulated.grid, "DC04", 2.54, 0.8, "written into the library on first use",
-                         simulated.line_number, true});
-    return out;
-  };
-  p.prepare = [=](const std::string& name) {
-    const acquisition::PartProgram program = programFromLibrary(name, config, virtual_cell, runs);
-    hmi::ProgramScan scan;
-    // The panel's sessions are quick ones (the virtual cameras at a quarter of their resolution):
-    // half the cell's calibration scenes.
-    scan.plan = programPlan(program, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
-    scan.plan.name = program.name + ", laser and stereo, with calibration scenes";
-    scan.material = program.material;
-    scan.press_program = program.press_program;
-    scan.program = {program.name, program.folder.string()};
-    if (hosted != nullptr && *hosted) {
-      const sim::ScanParams part_world = sim::worldForProgram(world, program);
-      HostedVirtualCell& cell = **hosted;
-      cell.cell().loadPart(part_world);
-      scan.truth = cell.truthOfScan(part_world, scan.plan);
-    }
-    return scan;
-  };
-  addProgramViews(p, config, virtual_cell, runs);
-  p.by_line_number = [=](std::uint16_t line_number) {
-    return programByLineNumber(line_number, config, virtual_cell, runs);
-  };
-  if (hosted != nullptr)
-    p.restore = [=] {
-      if (*hosted) (*hosted)->cell().loadPart(world);
-    };
-  return p;
-}
+// The virtual cell's own part on the panel, when no program puts another there: the sample pan.
+constexpr const char* kPanelPart = "pan";
+constexpr const char* kPanelGrid = "circle";
 
 struct HmiCommandOptions {
   CellChoice cell;
@@ -265,13 +88,13 @@ int printFrontConfig(const acquisition::CellConfig& config, const hmi::HmiOption
 
 // The scan the panel starts without a program: on the virtual cell, its sample pan's region (the
 // program sim-pan-circle-sample), as `station scan`; a real cell scans only programs.
-ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cell, const sim::ScanParams& world,
-                         const HmiCommandOptions& opt, const fs::path& calibration_dir) {
+ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cell, const HmiCommandOptions& opt,
+                         const fs::path& calibration_dir) {
   ScanJobOptions scan;
   if (virtual_cell) {
     const acquisition::PartProgram sample =
-        programFromLibrary(sim::simulatedProgramName(world.part, world.grid.kind, true), config, true, opt.runs);
-    scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, world.seed), true);
+        programFromLibrary(simulatedProgramName(kPanelPart, kPanelGrid, true), config, true, opt.runs);
+    scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, opt.seed), true);
     scan.plan.name = sample.name + ", laser and stereo, with calibration scenes";
     scan.part_program = PartProgramRef{sample.name, sample.folder.string()};
   }
@@ -340,7 +163,7 @@ void printServing(const acquisition::CellConfig& config, const hmi::HmiServer& s
 // Serves until SIGINT or SIGTERM (stop_signals.hpp, as the commands on the cell). Beside the server
 // a watcher thread logs the cell's health (first once the devices have had time to connect, then
 // every minute) and, on the virtual cell, opens and closes its door on SIGUSR1 and SIGUSR2.
-void serveUntilStopped(hmi::HmiServer& server, HostedVirtualCell* hosted) {
+void serveUntilStopped(hmi::HmiServer& server, VirtualCellHost* hosted) {
   const StopSignalGuard stop([&server](const std::string&) { server.stop(); });
   std::atomic<bool> done{false};
   if (hosted) {
@@ -360,8 +183,8 @@ void serveUntilStopped(hmi::HmiServer& server, HostedVirtualCell* hosted) {
         next_health = std::chrono::steady_clock::now() + std::chrono::seconds(60);
       }
       if (const int door = g_virtual_door.exchange(0); door != 0 && hosted) {
-        if (door == SIGUSR1) hosted->cell().plc().openDoor();
-        else hosted->cell().plc().closeDoor();
+        if (door == SIGUSR1) hosted->openDoor();
+        else hosted->closeDoor();
         std::printf("station hmi: the virtual cell's door is %s\n", door == SIGUSR1 ? "open" : "closed");
         std::fflush(stdout);
       }
@@ -375,31 +198,31 @@ void serveUntilStopped(hmi::HmiServer& server, HostedVirtualCell* hosted) {
 
 int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   if (opt.hash_password) return hashPasswordFromStdin();
-  const bool virtual_cell = opt.cell.hosted();
-  acquisition::CellConfig config = opt.cell.load();
+  CommandCell command_cell = opt.cell.open();
+  const acquisition::CellConfig& config = command_cell.config;
+  const bool virtual_cell = command_cell.virtual_cell;
   const hmi::HmiOptions options = panelOptions(opt, listen_given, config);
   if (opt.front_config) return printFrontConfig(config, options);
   // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
   hmi::HmiServer::checkOptions(options);
 
-  sim::ScanParams world = worldOnCell(sim::ScanParams::quick(), config, virtual_cell);
-  world.part = sim::PartKind::Pan;
-  world.seed = opt.seed;
+  // The panel's sessions are quick ones: the virtual cameras at a quarter of their resolution.
+  VirtualWorld world;
+  world.quick = true;
+  world.part = kPanelPart;
+  world.grid = kPanelGrid;
+  world.options.seed = opt.seed;
+  VirtualCellHost* hosted = command_cell.simulate(world);
   hmi::CellSetup setup;
   setup.calibration_dir = calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
-  setup.scan = panelScan(config, virtual_cell, world, opt, setup.calibration_dir);
-  setup.verify = panelVerify(config, setup.calibration_dir, world.seed);
-  setup.calibrate = panelCalibrate(config, setup.calibration_dir, setup.verify->results_database, world.seed);
+  setup.scan = panelScan(config, virtual_cell, opt, setup.calibration_dir);
+  setup.verify = panelVerify(config, setup.calibration_dir, opt.seed);
+  setup.calibrate = panelCalibrate(config, setup.calibration_dir, setup.verify->results_database, opt.seed);
 
   // The embedded virtual cell first: hosting may re-execute this program (umockdev).
-  std::unique_ptr<HostedVirtualCell> hosted;
-  if (virtual_cell) {
-    hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, true);
-    config = hosted->config();
-    setup.scan.truth = SimulationTruth{sim::groundTruth(hosted->cell().part(), world.grid, sim::machineFromDatum(world)),
-                                       hosted->cell().truth().digitizer_latency_ns};
-  }
-  setup.programs = panelPrograms(config, virtual_cell, opt.runs, world, virtual_cell ? &hosted : nullptr);
+  command_cell.serve(true);
+  if (hosted) setup.scan.truth = hosted->truthOfPart();
+  setup.programs = panelPrograms(config, virtual_cell, opt.runs, opt.seed, hosted);
   setup.line_start = config.plc_line_start;
   acquisition::Cell cell(config);
   setup.cell = &cell;
@@ -407,7 +230,7 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   server.bind();
   printServing(config, server, options, hosted != nullptr);
   if (!opt.ready_file.empty()) std::ofstream(opt.ready_file) << server.url() << '\n';
-  serveUntilStopped(server, hosted.get());
+  serveUntilStopped(server, hosted);
   std::printf("station hmi: stopped\n");
   return 0;
 }

@@ -3,7 +3,7 @@
 // bound, and the same figures for the program's own plan beside it. Writes the plan file with -o, or
 // into the program with --into-program (the program's plan file replaced, the old one kept as .bak).
 #include "program_library.hpp"
-#include "virtual_world_options.hpp"
+#include "cell_choice.hpp"
 
 #include "stampscan/acquisition/part_planner.hpp"
 #include "stampscan/acquisition/plan_collisions.hpp"

@@ -2,8 +2,7 @@
 
 #include "stampscan/fitting/atomic_file.hpp"
 
-#include "stampscan/sim/grid.hpp"
-#include "stampscan/sim/part_model.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <cstdio>
 #include <fstream>
@@ -19,16 +18,6 @@ fs::path programLibrary(const acquisition::CellConfig& cell, bool virtual_cell, 
   if (virtual_cell) return runs / "programs";
   throw std::runtime_error(cell.source + ": the cell has no program library ([programs] library): give the "
                            "program's folder, or name the library in the cell file");
-}
-
-std::vector<SimulatedProgramName> simulatedProgramNames() {
-  std::vector<SimulatedProgramName> names;
-  for (const bool sample : {false, true})
-    for (const sim::PartKind part : {sim::PartKind::Dome, sim::PartKind::Pan})
-      for (const sim::GridKind grid : {sim::GridKind::Circle, sim::GridKind::Square})
-        names.push_back({sim::simulatedProgramName(part, grid, sample), part == sim::PartKind::Dome ? "dome" : "pan",
-                         sim::toString(grid), sample, static_cast<std::uint16_t>(names.size() + 1)});
-  return names;
 }
 
 acquisition::PartProgram programToScan(const std::string& name_or_dir, const acquisition::CellConfig& cell,
@@ -50,15 +39,10 @@ acquisition::PartProgram programFromLibrary(const std::string& name, const acqui
   if (virtual_cell && !fs::exists(library / name_or_dir / acquisition::kProgramFile, ec)) {
     for (const SimulatedProgramName& simulated : simulatedProgramNames())
       if (name_or_dir == simulated.name) {
-        sim::SimulatedProgramOptions options;
-        options.cell = &cell;
-        options.sample_region = simulated.sample_region;
-        options.line_number = simulated.line_number;
         const fs::path dir = library / name_or_dir;
         std::printf("  program     writing the virtual cell's %s with a %s grid%s into %s\n", simulated.part.c_str(),
                     simulated.grid.c_str(), simulated.sample_region ? " (its sample region)" : "", dir.c_str());
-        sim::writeSimulatedProgram(simulated.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
-                                   sim::gridKindFromString(simulated.grid), dir, options);
+        writeSimulatedProgram(simulated, cell, dir);
       }
   }
   const fs::path dir = library / name;

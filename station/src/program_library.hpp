@@ -7,6 +7,7 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_planner.hpp"
 #include "stampscan/acquisition/part_program.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -40,14 +41,6 @@ std::optional<std::string> programByLineNumber(std::uint16_t line_number, const 
 // The number the line's PLC starts the program by: its own line_number; on a virtual cell, its own
 // simulated parts' number (simulatedProgramNames) when their program was written without one.
 std::optional<std::uint16_t> lineNumberOf(const acquisition::PartProgram& program, bool virtual_cell);
-
-// The virtual cell's own simulated parts' programs (sim-dome-circle, ..., sim-pan-square-sample).
-struct SimulatedProgramName {
-  std::string name, part, grid;  // e.g. sim-pan-circle-sample, pan, circle
-  bool sample_region = false;
-  std::uint16_t line_number = 0;  // the number the line starts it by: 1, 2, ... in this list's order
-};
-std::vector<SimulatedProgramName> simulatedProgramNames();
 
 // The plan a scan of the program runs: its own, carried from the part's datum frame onto the cell's
 // fixture (acquisition::placeOnFixture), after the cell's calibration scenes (the reference sphere's

@@ -5,18 +5,15 @@
 // loopback, as to a real cell.
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/acquisition/plan_collisions.hpp"
-#include "stampscan/sim/cell_replay.hpp"
-#include "stampscan/sim/grid.hpp"
-#include "stampscan/sim/part_model.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
+#include "cell_choice.hpp"
 #include "program_library.hpp"
 #include "scan_terminal.hpp"
 #include "stop_signals.hpp"
-#include "virtual_digitizer_host.hpp"
-#include "virtual_world_options.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <cstdio>
 #include <optional>
@@ -84,8 +81,7 @@ std::optional<acquisition::PartProgram> programOf(ScanOptions& opt, const acquis
     if (!virtual_cell)
       throw std::runtime_error(config.source + ": which part? Give its program (--program NAME or FOLDER) or a scan "
                                "plan (--plan FILE); a real cell has no built-in part");
-    opt.part_program = sim::simulatedProgramName(opt.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan,
-                                                 sim::gridKindFromString(opt.grid), quick);
+    opt.part_program = simulatedProgramName(opt.part, opt.grid, quick);
   }
   if (opt.part_program.empty()) return std::nullopt;
   acquisition::PartProgram program = programToScan(opt.part_program, config, virtual_cell, opt.runs);
@@ -95,24 +91,22 @@ std::optional<acquisition::PartProgram> programOf(ScanOptions& opt, const acquis
   return program;
 }
 
-// The plan: a recording's (a replay plays it on a cell that serves the recording), the program's,
-// or a plan file's, the last two placed on the cell's fixture.
-std::shared_ptr<sim::CellReplay> choosePlan(ScanOptions& opt, const acquisition::CellConfig& config,
-                                            const std::optional<acquisition::PartProgram>& program, bool quick,
-                                            sim::ScanParams& world, ScanJobOptions& job) {
-  std::shared_ptr<sim::CellReplay> replay;
-  if (!opt.replay.empty()) {
-    if (!opt.cell.hosted()) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
+// The plan: a recording's (a replay plays it on a virtual cell, `host`, that serves the recording),
+// the program's, or a plan file's, the last two placed on the cell's fixture.
+void choosePlan(ScanOptions& opt, const acquisition::CellConfig& config, const std::optional<acquisition::PartProgram>& program,
+                bool quick, VirtualCellHost* host, ScanJobOptions& job) {
+  const bool replay = !opt.replay.empty();
+  if (replay) {
+    if (!host) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
     if (!opt.dry_run) requireUmockdevPreload();  // may run this program again: before the recording is read
-    sim::PreparedReplay prepared = sim::prepareReplay(opt.replay, opt.accept_damaged, opt.plan);
-    job.plan = std::move(prepared.plan);
-    job.run.session = prepared.session;
-    world.part = prepared.session.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-    if (opt.part_id == "sample" && !prepared.session.part_id.empty()) opt.part_id = prepared.session.part_id;
-    replay = std::move(prepared.replay);
+    RecordedSession recorded = host->replay(opt.replay, opt.accept_damaged, opt.plan);
+    job.plan = std::move(recorded.plan);
+    job.run.session = std::move(recorded.session);
+    if (opt.part_id == "sample" && !job.run.session.part_id.empty()) opt.part_id = job.run.session.part_id;
     job.replayed_trace = opt.replay;
   } else if (program && opt.plan.empty()) {
-    job.plan = programPlan(*program, config, acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, world.seed),
+    job.plan = programPlan(*program, config,
+                           acquisition::calibrationScenes(config.calibration, quick ? 0.5 : 1.0, opt.world.seed),
                            !opt.calibrated);
   } else {
     // A plan file, like a program's plan, gives the part's steps in its datum frame.
@@ -124,10 +118,10 @@ std::shared_ptr<sim::CellReplay> choosePlan(ScanOptions& opt, const acquisition:
     job.plan.name = (program ? program->name : job.plan.part.kind) + (opt.laser_only ? ", laser" : ", laser and stereo") +
                     (opt.calibrated ? ", on the calibration in use" : ", with calibration scenes");
   }
-  return replay;
 }
 
-void printResult(const ScanJobResult& r, const ScanJobOptions& job, bool hosted, const sim::CellReplay* replay) {
+void printResult(const ScanJobResult& r, const ScanJobOptions& job, const VirtualCellHost* host) {
+  const bool hosted = host != nullptr;
   std::printf("  measured    %zu grid elements (%zu measurements); cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply "
               "%.2f s after it\n",
               r.elements, r.measurements, r.cloud4d_seconds, r.measure_seconds);
@@ -153,7 +147,7 @@ void printResult(const ScanJobResult& r, const ScanJobOptions& job, bool hosted,
                 f->at_elements_rms, static_cast<long long>(f->elements), f->elements_own_rms, f->between_rms,
                 static_cast<long long>(f->between_points), static_cast<long long>(f->within_grid_without_strain),
                 static_cast<long long>(f->within_grid_points));
-  if (replay) printReplay(*replay, r);
+  if (host) host->printReplay(r);
   if (r.report) {
     std::printf("  verdict     %s: %s (material %s); report.pdf, report.html, fld.png, strain maps (%.1f s)\n",
                 report::toString(r.report->verdict), r.report->verdict_reason.c_str(), r.report->material.c_str(),
@@ -183,52 +177,57 @@ int exitStatus(const ScanJobResult& r, bool accept_damaged) {
   return 0;
 }
 
+// --dry-run: the plan checked against the cell's limits and, with a program, its model: what the
+// plan is predicted to see and the head's clearance along it. 0 when it can run.
+int dryRun(const ScanJobOptions& job, const acquisition::CellConfig& config,
+           const std::optional<acquisition::PartProgram>& program) {
+  auto problems = acquisition::checkPlan(job.plan, job.run.limits);
+  std::optional<acquisition::Coverage> coverage;
+  if (program) {
+    const acquisition::NominalModel placed = acquisition::placeOnFixture(program->model, config.geometry);
+    coverage = acquisition::predictCoverage(placed, job.plan, config.geometry, job.run.limits);
+    const acquisition::CollisionOptions clearance;
+    for (const acquisition::PlanCollision& c :
+         acquisition::checkCollisions(placed, config.geometry.fixture.body, acquisition::toRigidPose(config.geometry.fixture.datum),
+                                      job.plan, config.geometry.head, clearance))
+      problems.push_back(acquisition::describe(c, job.plan, clearance.clearance_mm));
+  }
+  printDryRun(job.plan, config, job.run.limits, problems, coverage ? &*coverage : nullptr);
+  return problems.empty() ? 0 : 1;
+}
+
+// The virtual twin's world for the scan: the program's part (or --part's, for a plan file).
+VirtualWorld scanWorld(const ScanOptions& opt, bool quick) {
+  VirtualWorld world;
+  world.quick = quick;
+  world.part = opt.part;
+  world.grid = opt.grid;
+  world.calibration_artefacts = !opt.calibrated;
+  world.options = opt.world;
+  return world;
+}
+
 int runScan(ScanOptions& opt) {
-  const bool virtual_cell = opt.cell.hosted();
-  acquisition::CellConfig config = opt.cell.load();
+  CommandCell cell = opt.cell.open();
   // An unknown material is refused before anything moves (the report at the end would fail).
-  const report::MaterialLibrary materials = report::materialsWith(config.materials_file);
+  const report::MaterialLibrary materials = report::materialsWith(cell.config.materials_file);
   if (!opt.material.empty()) (void)materials.find(opt.material);
   const bool quick = !opt.whole_part && opt.part_program.empty();
-  const std::optional<acquisition::PartProgram> program = programOf(opt, config, quick, materials);
+  const std::optional<acquisition::PartProgram> program = programOf(opt, cell.config, quick, materials);
+  if (VirtualCellHost* host = cell.simulate(scanWorld(opt, quick)); host && program) host->useProgram(*program);
 
-  // The virtual world: the program's part (or --part's, for a plan file) on the cell.
-  sim::ScanParams world = worldOnCell(quick ? sim::ScanParams::quick() : sim::ScanParams{}, config, virtual_cell);
-  world.part = opt.part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-  world.grid.kind = sim::gridKindFromString(opt.grid);
-  if (program && virtual_cell) world = sim::worldForProgram(world, *program);
-  opt.world.applyTo(world);
-  world.calibration = !opt.calibrated;
   ScanJobOptions job;
-  job.calibration_policy = config.calibration;
-  job.calibration_dir = calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
-  job.run.limits = config.limits;
-  const std::shared_ptr<sim::CellReplay> replay = choosePlan(opt, config, program, quick, world, job);
-  if (opt.dry_run) {
-    auto problems = acquisition::checkPlan(job.plan, job.run.limits);
-    std::optional<acquisition::Coverage> coverage;
-    if (program) {
-      const acquisition::NominalModel placed = acquisition::placeOnFixture(program->model, config.geometry);
-      coverage = acquisition::predictCoverage(placed, job.plan, config.geometry, job.run.limits);
-      const acquisition::CollisionOptions clearance;
-      for (const acquisition::PlanCollision& c :
-           acquisition::checkCollisions(placed, config.geometry.fixture.body, acquisition::toRigidPose(config.geometry.fixture.datum),
-                                        job.plan, config.geometry.head, clearance))
-        problems.push_back(acquisition::describe(c, job.plan, clearance.clearance_mm));
-    }
-    printDryRun(job.plan, config, job.run.limits, problems, coverage ? &*coverage : nullptr);
-    return problems.empty() ? 0 : 1;
-  }
+  job.calibration_policy = cell.config.calibration;
+  job.calibration_dir = calibrationFolder(opt.calibration_dir, cell.config.calibration, opt.runs);
+  job.run.limits = cell.config.limits;
+  choosePlan(opt, cell.config, program, quick, cell.host.get(), job);
+  if (opt.dry_run) return dryRun(job, cell.config, program);
 
-  // The embedded virtual cell first: hosting may re-execute this program (umockdev).
-  std::unique_ptr<HostedVirtualCell> hosted;
-  if (virtual_cell) {
-    hosted = std::make_unique<HostedVirtualCell>(world, config, replay, job.plan.stereoCount() > 0);
-    config = hosted->config();
-    // The planner's prediction of what each sweep sees, against which the scan is checked, too.
-    if (!replay) job.truth = hosted->truthOfScan(world, job.plan);
-  }
-  acquisition::Cell cell(config);
+  cell.serve(job.plan.stereoCount() > 0);
+  // The planner's prediction of what each sweep sees, against which the scan is checked, too.
+  if (cell.host && !cell.host->replaying()) job.truth = cell.host->truthOfScan(job.plan);
+  const acquisition::CellConfig& config = cell.config;
+  acquisition::Cell devices(config);
   job.part_id = opt.part_id;
   job.runs_dir = opt.runs;
   job.results_database = config.results_database;
@@ -238,23 +237,22 @@ int runScan(ScanOptions& opt) {
   if (program) job.part_program = PartProgramRef{program->name, program->folder.string()};
   // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
   // recording's).
-  if (!replay) job.run.session = acquisition::describeSession(config.geometry, job.plan);
+  if (opt.replay.empty()) job.run.session = acquisition::describeSession(config.geometry, job.plan);
   job.run.session.part_id = opt.part_id;
 
-  std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
-              hosted ? " (hosted in this process)" : "");
+  std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(), cell.hostedNote());
   if (program)
     std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
                 program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),
                 program->sheet_thickness_mm, program->model.triangles.size());
   TerminalObserver observer(opt.quiet);
-  ScanJob scan(cell, &observer);
+  ScanJob scan(devices, &observer);
   ScanJobResult r;
   {
     const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
     r = scan.run(job);
   }
-  printResult(r, job, hosted != nullptr, replay.get());
+  printResult(r, job, cell.host.get());
   return exitStatus(r, opt.accept_damaged);
 }
 

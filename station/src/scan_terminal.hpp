@@ -5,7 +5,6 @@
 
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_planner.hpp"
-#include "stampscan/sim/cell_replay.hpp"
 #include "stampscan/station/progress.hpp"
 #include "stampscan/station/scan_job.hpp"
 
@@ -74,19 +73,6 @@ inline void printDryRun(const acquisition::ScanPlan& plan, const acquisition::Ce
     std::printf("  coverage    not predicted: no part program, so no nominal model\n");
   for (const std::string& p : problems) std::printf("  problem     %s\n", p.c_str());
   std::printf("  %s\n", problems.empty() ? "the plan can run on this cell" : "the plan cannot run on this cell");
-}
-
-// What the replay served, and its result against `station process` on the recording (ScanJob
-// measured both).
-inline void printReplay(const sim::CellReplay& replay, const ScanJobResult& r) {
-  const sim::ReplayStats s = replay.stats();
-  std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "
-              "(%zu ticks without one), %zu frames\n",
-              s.moves_followed, s.moves_not_recorded, s.profiles_served, s.profiles_missing, s.frames_served);
-  if (const auto& a = r.against_recording)
-    std::printf("  against     station process on the recording (%zu measurements): %zu of %zu matched, position RMS "
-                "%.4f mm, thickness strain RMS %.5f\n",
-                r.recording_measurements, a->matched, r.measurements, a->position_rms_mm, a->strain_rms);
 }
 
 }  // namespace stampscan::station

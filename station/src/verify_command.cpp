@@ -2,14 +2,14 @@
 // with the calibration in use; pass or fail one line per check, and a record in the calibration
 // history. Exit 0 when every check passes, 2 when one fails, 1 on an error.
 #include "stampscan/registration/calibration_store.hpp"
-#include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/calibrate_job.hpp"
 #include "stampscan/station/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "stampscan/station/verify_job.hpp"
+#include "cell_choice.hpp"
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
-#include "virtual_digitizer_host.hpp"
-#include "virtual_world_options.hpp"
+#include "virtual_cell/virtual_cell_host.hpp"
 
 #include <cstdio>
 #include <optional>
@@ -66,14 +66,11 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   opt->world.addTo(cmd);
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
-    const bool virtual_cell = opt->cell.hosted();
-    acquisition::CellConfig config = opt->cell.load();
+    CommandCell command_cell = opt->cell.open();
+    const acquisition::CellConfig& config = command_cell.config;
     // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
     // and direction of them, so that the check sees what calibration saw (and the first plate views).
     acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
-    sim::ScanParams world = sim::ScanParams::quick();
-    world.image_scale = 1;  // a virtual cell's cameras at the resolution they were calibrated at (below)
-    opt->world.applyTo(world);
     VerifyJobOptions job;
     job.run.limits = config.limits;
     job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
@@ -88,33 +85,30 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
     if (!opt->calibration.empty() || fs::exists(stored)) verifyWithCalibration(job, stored);
 
-    // The stereo pair too when its calibration is in use: three views of the plate, the virtual
-    // cameras at the resolution they were calibrated at.
+    // The stereo pair too when its calibration is in use: three views of the plate. A virtual
+    // cell's world is a quick session's, its cameras at the resolution they were calibrated at.
+    VirtualWorld world;
+    world.quick = true;
+    world.image_scale = 1;
+    world.options = opt->world;
     if (const fs::path cameras = dir / "cameras.json"; fs::exists(cameras) && !opt->no_stereo) {
       job.cameras = registration::loadCameraCalibration(cameras);
       job.stereo = {config.calibration.stereo_form_mpe_mm, config.calibration.stereo_length_mpe_mm};
-      if (virtual_cell)
-        config.geometry.cameras = acquisition::atResolution(
-            config.geometry.cameras,
-            static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width);
+      world.image_scale = static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width;
     }
-    world = worldOnCell(world, config, virtual_cell);
+    command_cell.simulate(world);
     job.plan = verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
                                                    : acquisition::loadScanPlan(opt->plan),
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
-    std::unique_ptr<HostedVirtualCell> hosted;
-    if (virtual_cell) {
-      hosted = std::make_unique<HostedVirtualCell>(world, config, nullptr, job.plan.stereoCount() > 0);
-      config = hosted->config();
-    }
+    command_cell.serve(job.plan.stereoCount() > 0);
     acquisition::Cell cell(config);
     // The cell's geometry as drawn, the sphere's certified diameter with it.
     job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "reference sphere";
 
     std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
-                hosted ? " (hosted in this process)" : "");
+                command_cell.hostedNote());
     std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
                                                       : "none in use: the sweeps calibrate the digitizer themselves");
     TerminalRunObserver observer(opt->quiet);

@@ -80,7 +80,7 @@ struct CellConfig {
   std::string digitizer_serial;
   // The virtual digitizer is a USB device under umockdev (sim/virtual_digitizer): it exists only
   // inside the process that hosts it, so no server can offer it to others. A cell that marks its
-  // digitizer virtual has `station devices` host it in its own process (virtual_digitizer_host.hpp).
+  // digitizer virtual has `station devices` host it in its own process (station/src/virtual_cell/virtual_digitizer_host.hpp).
   bool digitizer_virtual = false;
   bool digitizer_required = true;
   CalibrationPolicy calibration;

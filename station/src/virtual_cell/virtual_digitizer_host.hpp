@@ -9,6 +9,7 @@
 #include "stampscan/sim/virtual_digitizer.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/scan_job.hpp"
+#include "virtual_cell_host.hpp"
 
 #include <memory>
 
@@ -21,13 +22,11 @@ using acquisition::virtualCell;
 // The library umockdev-wrapper preloads; found by the dynamic loader's usual search.
 inline constexpr const char* kUmockdevPreload = "libumockdev-preload.so.0";
 
-// Returns when umockdev's preload library is active in this process. Otherwise re-executes this
-// program (/proc/self/exe, the same arguments) with the library added to LD_PRELOAD and does not
-// return; a marker in the environment keeps the new process from trying again. Under
-// AddressSanitizer the ASan runtime stays first in LD_PRELOAD, as it insists on coming first.
-// Call it before printing anything and before starting threads. Throws std::runtime_error, naming
-// the library and how to install it, when it cannot be loaded or did not load after the re-exec.
-void requireUmockdevPreload();
+// requireUmockdevPreload() (virtual_cell_host.hpp) re-executes this program (/proc/self/exe, the
+// same arguments) with the library added to LD_PRELOAD; a marker in the environment keeps the new
+// process from trying again. Under AddressSanitizer the ASan runtime stays first in LD_PRELOAD, as it
+// insists on coming first. It throws std::runtime_error, naming the library and how to install it,
+// when it cannot be loaded or did not load after the re-exec.
 
 // When the cell marks its digitizer virtual: requires the preload (above), then builds the virtual
 // digitizer (with the cell's serial when it names one) and returns it; it lives as long as the
