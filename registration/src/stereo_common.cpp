@@ -59,7 +59,12 @@ PairPoses pairPoses(const StereoRig& rig, const Eigen::Isometry3d& machine_from_
 
 std::vector<ImageInterior> findImageInteriors(const cv::Mat& I, double nominal_area, double line_px, double ink_ratio,
                                               double min_convexity) {
-  const int k = 2 * std::max(1, static_cast<int>(std::ceil(1.5 * line_px))) + 1;
+  // The closing must bridge the darkest band: where two elements touch, their lines run side by
+  // side, and the optics blur each edge by a pixel or so whatever the resolution. Where it does
+  // not (lines 1.3 px wide on a coarse camera), the sheet level sinks between touching rings, the
+  // lines pass as interior and whole areas of rings join into one region.
+  const int half = std::max({1, static_cast<int>(std::ceil(1.5 * line_px)), static_cast<int>(std::ceil(line_px + 1.5))});
+  const int k = 2 * half + 1;
   cv::Mat sheet;
   cv::morphologyEx(I, sheet, cv::MORPH_CLOSE, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
   const cv::Mat interior = I >= ink_ratio * sheet;

@@ -34,7 +34,8 @@ struct PairPoses {
 PairPoses pairPoses(const StereoRig& rig, const Eigen::Isometry3d& machine_from_head, const std::vector<Vec3>& prior);
 
 // A bright region enclosed by ink: a ring's or a square cell's interior. Found as pixels brighter
-// than `ink_ratio` of the local sheet level (a grey closing wider than the line), of an area within a
+// than `ink_ratio` of the local sheet level (a grey closing wider than where two touching elements'
+// lines run side by side, blurred), of an area within a
 // wide window around `nominal_area` (distance and tilt change it), convex to `min_convexity` (area
 // over hull area), not touching the image border.
 struct ImageInterior {

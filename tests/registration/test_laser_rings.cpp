@@ -152,7 +152,10 @@ TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.0019);  // 0.0017 measured
+  EXPECT_LE(m.strain_rms, 0.0019);  // 0.0016 measured
+  // The cell's stretch from its sides, not its outline's blur-rounded corners: those took 0.0007
+  // from the in-plane strains (thickness strain high by as much).
+  EXPECT_LE(std::abs(m.major_bias + m.minor_bias), 0.0003);
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 
@@ -161,7 +164,7 @@ TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.0036);  // 0.0033 measured on the sheet, 0.0041 in the chord plane
+  EXPECT_LE(m.strain_rms, 0.0035);  // 0.0032 measured on the sheet (0.0033 from the rounded outline), 0.0041 in the chord plane
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 
