@@ -78,23 +78,20 @@ std::vector<Key> cellsAround(const std::vector<Key>& cells, int from, int to) {
 // The signed distance at the corners of the cells near data (one ring beyond the cells holding a
 // fitted point, so that every edge the surface crosses near the data has all its corners); NaN marks
 // a corner in a hole.
-SortedMap<double> cornerField(const MeshGrid& grid, const std::vector<Key>& cells, const FittedSurface& fitted,
-                              const MeshParams& params) {
-  const ImplicitSurface& surface = fitted.surface();
+SortedMap<double> cornerField(const MeshGrid& grid, const std::vector<Key>& cells, const ImplicitSurface& surface,
+                              const DataLocator& data, const MeshParams& params) {
   SortedMap<double> field;
   field.keys = cellsAround(cells, -1, 2);
   field.values.assign(field.keys.size(), std::numeric_limits<double>::quiet_NaN());
-  const KdTree& tree = fitted.tree();
   detail::LoopProgress field_ticks(params.progress, "mesh field", field.keys.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, field.keys.size(), 256), [&](const auto& range) {
     field_ticks.add(range.size());
-    std::vector<Neighbor> near;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const Vec3 x = grid.cornerPosition(field.keys[i]);
-      tree.knn(x, 1, near);
-      if (near.empty()) continue;
+      const auto near = data.nearest(x);
+      if (!near) continue;
       const double reach = std::max(params.gap_factor * surface.bandwidthAt(x), 2.5 * grid.cell);
-      if (near[0].distance_sq > reach * reach) continue;
+      if (near->second > reach * reach) continue;
       field.values[i] = surface.signedDistance(x);
     }
   });
@@ -110,10 +107,10 @@ struct CellVertex {
 
 // The vertex of one cell with a sign change: the mean of its edge crossings, projected on the
 // surface; none where a corner is in a hole, the projection jumps away, or there are no data.
-CellVertex cellVertex(const MeshGrid& grid, Key key, const SortedMap<double>& field, const FittedSurface& fitted) {
+CellVertex cellVertex(const MeshGrid& grid, Key key, const SortedMap<double>& field, const ImplicitSurface& surface,
+                      const DataLocator& data) {
   static constexpr int kEdges[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
                                         {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
-  const ImplicitSurface& surface = fitted.surface();
   const auto c = unpack(key);
   std::array<double, 8> f;
   std::array<Vec3, 8> x;
@@ -142,15 +139,12 @@ CellVertex cellVertex(const MeshGrid& grid, Key key, const SortedMap<double>& fi
   // surface; vertices stay where there are data (no extrapolation past edges and holes). Where the
   // data are sparse (a stereo grid, dropouts on a steep wall) the reach grows with their spacing:
   // half the distance from the nearest point to its 16th neighbour.
-  thread_local std::vector<Neighbor> nearest, spacing;
-  const KdTree& tree = fitted.tree();
-  tree.knn(p.point, 1, nearest);
-  if (nearest.empty()) return {};
-  const double gap_sq = nearest[0].distance_sq;
+  const auto nearest = data.nearest(p.point);
+  if (!nearest) return {};
+  const double gap_sq = nearest->second;
   double vertex_reach = std::max(0.5 * surface.bandwidthAt(p.point), grid.cell);
   if (gap_sq > vertex_reach * vertex_reach) {
-    tree.knn(fitted.input().positions[nearest[0].index], 17, spacing);
-    vertex_reach = std::max(vertex_reach, 0.5 * std::sqrt(spacing.back().distance_sq));
+    vertex_reach = std::max(vertex_reach, 0.5 * data.spacingAt(nearest->first));
     if (gap_sq > vertex_reach * vertex_reach) return {};
   }
   return {true, p.point, p.normal, p.scalar};
@@ -204,8 +198,27 @@ void addFaces(const SortedMap<double>& field, const SortedMap<std::uint32_t>& ve
 
 }  // namespace
 
+std::optional<std::pair<Vec3, double>> TreeLocator::nearest(const Vec3& x) const {
+  thread_local std::vector<Neighbor> near;
+  tree_.knn(x, 1, near);
+  if (near.empty()) return std::nullopt;
+  return std::pair{points_[near[0].index], near[0].distance_sq};
+}
+
+double TreeLocator::spacingAt(const Vec3& data_point) const {
+  thread_local std::vector<Neighbor> near;
+  tree_.knn(data_point, 17, near);
+  return near.empty() ? 0.0 : std::sqrt(near.back().distance_sq);
+}
+
 Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params, MeshStats* stats) {
   const double cell = params.cell_size.value_or(0.5 * fitted.preparationStats().data_bandwidth.median);
+  return meshSurface(fitted.surface(), TreeLocator(fitted.tree(), fitted.input().positions), projected, cell, params,
+                     stats);
+}
+
+Mesh meshSurface(const ImplicitSurface& surface, const DataLocator& data, const Cloud& projected, double cell,
+                 const MeshParams& params, MeshStats* stats) {
   if (!(cell > 0)) throw std::invalid_argument("mesh cell size must be positive");
   const Bounds bounds = boundsOf(projected.positions);
   const double span = bounds.extent().maxCoeff() / cell;
@@ -221,7 +234,7 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
     cells.push_back(pack(c[0], c[1], c[2]));
   }
   sortUnique(cells);
-  const SortedMap<double> field = cornerField(grid, cells, fitted, params);
+  const SortedMap<double> field = cornerField(grid, cells, surface, data, params);
 
   // One vertex per cell with a sign change (surface nets), those cells and their neighbours tried.
   const std::vector<Key> surface_cells = cellsAround(cells, -1, 1);
@@ -230,11 +243,11 @@ Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const Mesh
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface_cells.size(), 256), [&](const auto& range) {
     vertex_ticks.add(range.size());
     for (std::size_t i = range.begin(); i != range.end(); ++i)
-      cell_vertices[i] = cellVertex(grid, surface_cells[i], field, fitted);
+      cell_vertices[i] = cellVertex(grid, surface_cells[i], field, surface, data);
   });
 
   Mesh mesh;
-  const bool has_strain = fitted.surface().hasScalar();
+  const bool has_strain = surface.hasScalar();
   SortedMap<std::uint32_t> vertex_of_cell;  // the cells that have a vertex, in key order
   for (std::size_t i = 0; i < surface_cells.size(); ++i) {
     if (!cell_vertices[i].present) continue;

@@ -4,6 +4,7 @@
 #include "stampscan/fitting/local_fit.hpp"
 #include "stampscan/fitting/scalar_field.hpp"
 
+#include "joined_surface.hpp"
 #include "loop_progress.hpp"
 #include "robust_patch_fit.hpp"
 
@@ -42,14 +43,17 @@ std::uint64_t cubeKey(const Vec3& p, const Vec3& origin, double size) {
 // the surface to within its curvature over half a cube, which one projection removes. Summed by
 // cube in one pass over the points, in their order (a table of the cubes, not a sorted key per
 // point: a session's ten million returns would need 160 MB more for that at the end of the fit).
-std::vector<Vec3> cubeMeans(const std::vector<Vec3>& points, double size) {
-  const Vec3 origin = boundsOf(points).min;
+// Pieces are taken in their order, as one cloud would be.
+std::vector<Vec3> cubeMeans(const std::vector<const std::vector<Vec3>*>& pieces, double size) {
+  Vec3 origin = Vec3::Constant(std::numeric_limits<double>::infinity());
+  for (const auto* points : pieces) origin = origin.cwiseMin(boundsOf(*points).min);
   std::unordered_map<std::uint64_t, std::pair<Vec3, std::uint32_t>> cubes;
-  for (const Vec3& p : points) {
-    auto& [sum, count] = cubes.try_emplace(cubeKey(p, origin, size), Vec3::Zero(), 0u).first->second;
-    sum += p;
-    ++count;
-  }
+  for (const auto* points : pieces)
+    for (const Vec3& p : *points) {
+      auto& [sum, count] = cubes.try_emplace(cubeKey(p, origin, size), Vec3::Zero(), 0u).first->second;
+      sum += p;
+      ++count;
+    }
   std::vector<std::pair<std::uint64_t, Vec3>> keyed;
   keyed.reserve(cubes.size());
   for (const auto& [key, cube] : cubes) keyed.emplace_back(key, cube.first / static_cast<double>(cube.second));
@@ -393,29 +397,100 @@ class CarrierStrain {
 // How far a carrier may lie from its foot on the shape, in carrier spacings, to be on the surface.
 constexpr double kMostCarrierOffset = 0.1;
 
-ShapeSurface::ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams& params) {
+ShapePiece::ShapePiece(std::vector<Vec3> points, const FitParams& params) {
   if (points.empty()) throw std::invalid_argument("shape and strain: no shape points");
-  if (!(params.output_spacing_mm > 0)) throw std::invalid_argument("shape and strain: the output spacing must be positive");
   if (points.size() > std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument("shape and strain: more than 4 billion shape points");
   const auto t0 = Clock::now();
-  const auto& progress = params.shape.progress;
   points_.positions = std::move(points);
-  fit_ = std::make_unique<FittedSurface>(points_, params.shape);
-  stats_ = fit_->preparationStats();
+  points_.positions.shrink_to_fit();  // held to the end of the scan's fit: no slack from growing
+  fit_ = std::make_unique<FittedSurface>(points_, params);
+  seconds_ = secondsSince(t0);
+}
+
+ShapePiece::~ShapePiece() = default;
+
+namespace {
+// The pieces' preparation figures as one fit's: counts and times add up, the bandwidths span all
+// pieces (the median: the points-weighted mean of the pieces' medians).
+FitStats combinedStats(const std::vector<std::unique_ptr<ShapePiece>>& pieces) {
+  if (pieces.size() == 1) return pieces.front()->stats();
+  FitStats out;
+  double weighted_median = 0, weighted_data_median = 0;
+  out.bandwidth.min = out.data_bandwidth.min = std::numeric_limits<double>::infinity();
+  for (const auto& piece : pieces) {
+    const FitStats& s = piece->stats();
+    const double w = static_cast<double>(s.points);
+    out.points += s.points;
+    out.bandwidth.min = std::min(out.bandwidth.min, s.bandwidth.min);
+    out.bandwidth.max = std::max(out.bandwidth.max, s.bandwidth.max);
+    out.data_bandwidth.min = std::min(out.data_bandwidth.min, s.data_bandwidth.min);
+    out.data_bandwidth.max = std::max(out.data_bandwidth.max, s.data_bandwidth.max);
+    weighted_median += w * s.bandwidth.median;
+    weighted_data_median += w * s.data_bandwidth.median;
+    out.widened = out.widened || s.widened;
+    out.not_converged += s.not_converged;
+    out.invalid += s.invalid;
+    out.orientation_components += s.orientation_components;
+    out.anchors += s.anchors;
+    out.probes += s.probes;
+    for (const auto& [stage, seconds] : s.stage_seconds) out.stage_seconds[stage] += seconds;
+    out.seconds += s.seconds;
+  }
+  out.bandwidth.median = weighted_median / static_cast<double>(out.points);
+  out.data_bandwidth.median = weighted_data_median / static_cast<double>(out.points);
+  return out;
+}
+}  // namespace
+
+ShapeSurface::ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams& params) {
+  if (!(params.output_spacing_mm > 0)) throw std::invalid_argument("shape and strain: the output spacing must be positive");
+  pieces_.push_back(std::make_unique<ShapePiece>(std::move(points), params.shape));
+  join(params);
+}
+
+ShapeSurface::ShapeSurface(std::vector<std::unique_ptr<ShapePiece>> pieces, const ShapeAndStrainParams& params)
+    : pieces_(std::move(pieces)) {
+  if (pieces_.empty()) throw std::invalid_argument("shape and strain: no shape pieces");
+  for (const auto& piece : pieces_)
+    if (!piece) throw std::invalid_argument("shape and strain: a shape piece is missing");
+  if (!(params.output_spacing_mm > 0)) throw std::invalid_argument("shape and strain: the output spacing must be positive");
+  join(params);
+}
+
+void ShapeSurface::join(const ShapeAndStrainParams& params) {
+  const auto t0 = Clock::now();
+  const auto& progress = params.shape.progress;
+  stats_ = combinedStats(pieces_);
+  std::vector<const std::vector<Vec3>*> piece_points;
+  std::vector<const FittedSurface*> fits;
+  for (const auto& piece : pieces_) {
+    points_ += piece->points();
+    piece_points.push_back(&piece->points_.positions);
+    fits.push_back(piece->fit_.get());
+    seconds_ += piece->seconds();
+  }
+  if (fits.size() == 1) {
+    surface_ = &fits.front()->surface();
+    data_ = std::make_unique<TreeLocator>(fits.front()->tree(), fits.front()->input().positions);
+  } else {
+    auto joined = std::make_unique<detail::JoinedSurface>(fits);
+    surface_ = joined.get();
+    data_ = std::move(joined);
+  }
 
   auto t = Clock::now();
-  const std::vector<Vec3> starts = cubeMeans(points_.positions, params.output_spacing_mm);
+  const std::vector<Vec3> starts = cubeMeans(piece_points, params.output_spacing_mm);
   std::vector<Projection> feet(starts.size());
   detail::LoopProgress ticks(progress, "surface points", starts.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size(), 256), [&](const auto& range) {
     ticks.add(range.size());
-    for (std::size_t k = range.begin(); k != range.end(); ++k) feet[k] = fit_->surface().project(starts[k]);
+    for (std::size_t k = range.begin(); k != range.end(); ++k) feet[k] = surface_->project(starts[k]);
   });
   for (const Projection& foot : feet) {
     if (!foot.valid) continue;
-    surface_.positions.push_back(foot.point);
-    surface_.normals.push_back(foot.normal);
+    surface_points_.positions.push_back(foot.point);
+    surface_points_.normals.push_back(foot.normal);
     not_converged_ += !foot.converged;
   }
   stats_.stage_seconds["surface points"] = secondsSince(t);
@@ -424,13 +499,13 @@ ShapeSurface::ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams&
   if (params.with_mesh) {
     t = Clock::now();
     MeshParams mesh_params;
-    mesh_params.cell_size = params.output_spacing_mm;
     mesh_params.progress = progress;
-    mesh_ = meshSurface(*fit_, surface_, mesh_params, &mesh_stats_);
+    mesh_ = meshSurface(*surface_, *data_, surface_points_, params.output_spacing_mm, mesh_params, &mesh_stats_);
     mesh_.vertices.strain.clear();
     stats_.stage_seconds["mesh"] = secondsSince(t);
   }
-  seconds_ = secondsSince(t0);
+  join_seconds_ = secondsSince(t0);
+  seconds_ += join_seconds_;
 }
 
 ShapeSurface::~ShapeSurface() = default;

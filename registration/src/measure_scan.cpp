@@ -208,8 +208,8 @@ void ScanMeasurer::measureSweep(const ScanTrace& trace, const SweepWindow& sweep
     depth_prior_.insert(depth_prior_.end(), prior.begin(), prior.end());
   }
   if (params_.keep_surface_points) {
-    const std::vector<Vec3> returns = surfacePointsOf(profiles, track, out_.digitizer);
-    surface_points_.insert(surface_points_.end(), returns.begin(), returns.end());
+    std::vector<Vec3> returns = surfacePointsOf(profiles, track, out_.digitizer);
+    if (!returns.empty()) surface_points_.push_back(std::move(returns));
   }
   if (observer_) observer_->elementsMeasured("laser", found);
   out_.laser_stats.candidates += stats.candidates;
@@ -242,8 +242,7 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
   });
   for (std::size_t k = 0; k < part.size(); ++k) {
     depth_prior_.insert(depth_prior_.end(), priors[k].begin(), priors[k].end());
-    surface_points_.insert(surface_points_.end(), returns[k].begin(), returns[k].end());
-    std::vector<Vec3>().swap(returns[k]);
+    if (!returns[k].empty()) surface_points_.push_back(std::move(returns[k]));
     laser_.insert(laser_.end(), per_sweep[k].begin(), per_sweep[k].end());
     if (observer_) observer_->elementsMeasured("laser", per_sweep[k]);
     out_.laser_stats.candidates += stats[k].candidates;

@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
+#include <stdexcept>
 #include <mutex>
 #include <random>
 #include <string>
@@ -128,6 +130,68 @@ TEST(ShapeAndStrain, DenseShapeCarriesTheElementsStrainAndStopsBeyondThem) {
               fit.strain_bandwidth.median);
   EXPECT_LT(test::rmsOf(mesh_shape), noise / 4);
   EXPECT_LT(test::rmsOf(mesh_strain), 0.0015);
+}
+
+// A scan fits each sweep's returns as it is measured and joins the pieces (joined_surface.hpp).
+// Three strips that overlap, each with its own points of the overlaps (two sweeps see the same
+// sheet, each with its own returns): the joined surface is as true as one fit of all the points,
+// along the strips' edges too (no seam), with the same output points, normals and mesh.
+TEST(ShapeAndStrain, StripsFittedApartAndJoinedAreAsTrueAsOneFitOfAllThePoints) {
+  const double noise = 0.03;
+  const Cloud shape = test::sampleSphereCap(150000, kRadius, 0.35, noise, 11);
+  std::mt19937_64 rng(12);
+  std::bernoulli_distribution coin(0.5);
+  std::vector<std::vector<Vec3>> strips(3);
+  for (const Vec3& p : shape.positions) {
+    const double x = p.x();
+    if (x < -4) strips[0].push_back(p);
+    else if (x < 4) strips[coin(rng) ? 0 : 1].push_back(p);  // overlap of strips 0 and 1
+    else if (x < 8) strips[1].push_back(p);
+    else if (x < 14) strips[coin(rng) ? 1 : 2].push_back(p);  // overlap of strips 1 and 2
+    else strips[2].push_back(p);
+  }
+  const ShapeAndStrainParams params;
+  const ShapeSurface whole(shape.positions, params);
+  std::vector<std::unique_ptr<ShapePiece>> pieces;
+  for (auto& strip : strips) pieces.push_back(std::make_unique<ShapePiece>(std::move(strip), params.shape));
+  const ShapeSurface joined(std::move(pieces), params);
+  EXPECT_EQ(joined.pieces(), 3u);
+  EXPECT_EQ(joined.points(), shape.size());
+
+  const auto errors = [](const Cloud& c, double x_lo, double x_hi) {
+    std::vector<double> e;
+    for (const Vec3& p : c.positions)
+      if (p.x() >= x_lo && p.x() < x_hi) e.push_back(p.norm() - kRadius);
+    return e;
+  };
+  const double whole_rms = test::rmsOf(errors(whole.surface(), -1e9, 1e9));
+  const double joined_rms = test::rmsOf(errors(joined.surface(), -1e9, 1e9));
+  std::printf("shape RMS: whole %.5f mm, joined %.5f mm\n", whole_rms, joined_rms);
+  EXPECT_LT(joined_rms, noise / 4);
+  EXPECT_LT(joined_rms, 1.15 * whole_rms + 0.0002);
+  // Along each strip's edge, where one piece's data end inside another's: no seam.
+  for (const double edge : {-4.0, 4.0, 8.0, 14.0}) {
+    const std::vector<double> near_edge = errors(joined.surface(), edge - 1.5, edge + 1.5);
+    ASSERT_GT(near_edge.size(), 100u);
+    double worst = 0;
+    for (double e : near_edge) worst = std::max(worst, std::abs(e));
+    std::printf("edge at x = %.0f: RMS %.5f, worst %.5f mm\n", edge, test::rmsOf(near_edge), worst);
+    EXPECT_LT(test::rmsOf(near_edge), 1.5 * whole_rms + 0.0002);
+    EXPECT_LT(worst, noise / 2);
+  }
+  // The same output points (one per cube of the union), every normal outward.
+  EXPECT_NEAR(static_cast<double>(joined.surface().size()), static_cast<double>(whole.surface().size()),
+              0.002 * static_cast<double>(whole.surface().size()));
+  for (std::size_t i = 0; i < joined.surface().size(); ++i)
+    ASSERT_GT(joined.surface().normals[i].dot(joined.surface().positions[i].normalized()), 0.99) << "point " << i;
+  // The mesh is whole across the strips and on the sphere.
+  EXPECT_NEAR(static_cast<double>(joined.mesh().triangles.size()), static_cast<double>(whole.mesh().triangles.size()),
+              0.01 * static_cast<double>(whole.mesh().triangles.size()));
+  std::vector<double> mesh_error;
+  for (const Vec3& p : joined.mesh().vertices.positions) mesh_error.push_back(p.norm() - kRadius);
+  EXPECT_LT(test::rmsOf(mesh_error), noise / 4);
+  // The joined surface projects by position only.
+  EXPECT_THROW(joined.implicitSurface().projectPoint(0), std::logic_error);
 }
 
 // A strain band narrower than the pitch allows a plane to follow (a die radius: a Gaussian ridge of

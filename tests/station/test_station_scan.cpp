@@ -157,6 +157,22 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
     }
     EXPECT_LE(std::sqrt(sq / static_cast<double>(elements.size())), 0.05);
   }
+  // `station process` gives the same surface from the same trace: each sweep fitted as a piece (the
+  // scan fits them while it runs) and the pieces joined.
+  {
+    const fs::path again = work() / "again.ply", again_fitted = work() / "again-fitted.ply";
+    const RunResult p = run("process " + quote(dir / "trace.mcap") + " -o " + quote(again) + " --fit " +
+                            quote(again_fitted) + " -q");
+    ASSERT_EQ(p.exit_code, 0) << p.out << p.err;
+    const Cloud processed = fitting::readPly(again_fitted);
+    ASSERT_EQ(processed.size(), fitted.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < fitted.size(); ++i) {
+      worst = std::max(worst, (processed.positions[i] - fitted.positions[i]).norm());
+      EXPECT_GT(processed.normals[i].dot(fitted.normals[i]), 0.999999) << "point " << i;
+    }
+    EXPECT_LT(worst, 1e-5) << "mm";
+  }
   // The latency found on the sphere is the virtual digitizer's own, to within 0.3 ms.
   EXPECT_NEAR(j.at("measurement").at("digitizer_latency_ms").get<double>(),
               j.at("accuracy").at("true_latency_ms").get<double>(), 0.3);

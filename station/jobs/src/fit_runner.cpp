@@ -74,14 +74,20 @@ void printTimes(const char* label, double seconds, const std::map<std::string, d
 }
 }  // namespace
 
-std::unique_ptr<ShapeSurface> runShapeFit(std::vector<Vec3> shape_points, bool show_progress) {
+std::unique_ptr<ShapeSurface> runShapeFit(std::vector<std::vector<Vec3>> sweeps, bool show_progress) {
   std::unique_ptr<ProgressBar> bar;
   ShapeAndStrainParams params;
-  if (show_progress) {
-    bar = std::make_unique<ProgressBar>();
-    params.shape.progress = [&bar](const std::string& stage, double f) { bar->update(stage, f); };
+  if (show_progress) bar = std::make_unique<ProgressBar>();
+  std::vector<std::unique_ptr<ShapePiece>> pieces;
+  for (std::size_t k = 0; k < sweeps.size(); ++k) {
+    if (sweeps[k].empty()) continue;
+    FitParams piece_params = params.shape;
+    const std::string prefix = "sweep " + std::to_string(k + 1) + " of " + std::to_string(sweeps.size()) + ": ";
+    if (bar) piece_params.progress = [&bar, prefix](const std::string& stage, double f) { bar->update(prefix + stage, f); };
+    pieces.push_back(std::make_unique<ShapePiece>(std::exchange(sweeps[k], {}), piece_params));
   }
-  auto shape = std::make_unique<ShapeSurface>(std::move(shape_points), params);
+  if (bar) params.shape.progress = [&bar](const std::string& stage, double f) { bar->update(stage, f); };
+  auto shape = std::make_unique<ShapeSurface>(std::move(pieces), params);
   if (bar) bar->finish();
   return shape;
 }

@@ -40,38 +40,65 @@ LiveMeasurement::~LiveMeasurement() {
   }
   wake_.notify_all();
   if (thread_.joinable()) thread_.join();
-  shape_cancelled_ = true;
+  cancel();
   if (shape_thread_.joinable()) shape_thread_.join();
 }
 
-void LiveMeasurement::startShapeFit() {
-  if (shape_started_) return;
-  shape_started_ = true;
-  std::vector<fitting::Vec3> points = measurer_.takeSurfacePoints();
-  if (points.empty()) return;
-  if (observer_)
-    observer_->stageDone("surface", "fitting the surface to " + std::to_string(points.size()) +
-                                        " laser returns while the views are measured");
-  shape_thread_ = std::thread([this, points = std::move(points)]() mutable {
-    try {
-      fitting::ShapeAndStrainParams params;
-      params.shape.progress = [this](const std::string&, double) {
-        if (shape_cancelled_) throw ShapeFitCancelled{};
-      };
-      shape_ = std::make_unique<fitting::ShapeSurface>(std::move(points), params);
-    } catch (const ShapeFitCancelled&) {
-    } catch (...) {
-      shape_failure_ = std::current_exception();
+void LiveMeasurement::queueShapePieces(bool last) {
+  std::vector<std::vector<fitting::Vec3>> sweeps = measurer_.takeSurfacePoints();
+  {
+    std::lock_guard lock(shape_mutex_);
+    if (shape_closed_) return;
+    for (auto& returns : sweeps) shape_queue_.push_back(std::move(returns));
+    shape_closed_ = last;
+  }
+  shape_wake_.notify_all();
+  if (!shape_thread_.joinable()) shape_thread_ = std::thread([this] { fitShape(); });
+}
+
+void LiveMeasurement::fitShape() {
+  try {
+    fitting::ShapeAndStrainParams params;
+    params.shape.progress = [this](const std::string&, double) {
+      if (shape_cancelled_) throw ShapeFitCancelled{};
+    };
+    std::vector<std::unique_ptr<fitting::ShapePiece>> pieces;
+    std::size_t returns = 0;
+    for (;;) {
+      std::vector<fitting::Vec3> sweep;
+      {
+        std::unique_lock lock(shape_mutex_);
+        shape_wake_.wait(lock, [&] { return shape_cancelled_ || shape_closed_ || !shape_queue_.empty(); });
+        if (shape_cancelled_) return;
+        if (shape_queue_.empty()) break;  // closed, and every sweep fitted
+        sweep = std::move(shape_queue_.front());
+        shape_queue_.pop_front();
+      }
+      returns += sweep.size();
+      pieces.push_back(std::make_unique<fitting::ShapePiece>(std::move(sweep), params.shape));
     }
-  });
+    if (pieces.empty()) return;
+    if (observer_)
+      observer_->stageDone("surface", "joining the surface of " + std::to_string(pieces.size()) + " sweeps (" +
+                                          std::to_string(returns) + " laser returns, each fitted as it was measured)");
+    shape_ = std::make_unique<fitting::ShapeSurface>(std::move(pieces), params);
+  } catch (const ShapeFitCancelled&) {
+  } catch (...) {
+    shape_failure_ = std::current_exception();
+  }
 }
 
 void LiveMeasurement::cancel() {
   views_cancelled_ = true;
-  shape_cancelled_ = true;
+  {
+    std::lock_guard lock(shape_mutex_);
+    shape_cancelled_ = true;
+  }
+  shape_wake_.notify_all();
 }
 
 std::unique_ptr<fitting::ShapeSurface> LiveMeasurement::shape() {
+  queueShapePieces(true);  // (finish() has closed the queue already)
   if (shape_thread_.joinable()) shape_thread_.join();
   if (shape_failure_) std::rethrow_exception(shape_failure_);
   return std::move(shape_);
@@ -178,7 +205,8 @@ void LiveMeasurement::advance(std::size_t step) {
     pending_sweeps_.clear();
     const registration::DigitizerCalibration& d = measurer_.digitizer();
     std::erase_if(mine_.profiles, [&](const registration::Profile& p) { return d.exposureTime(p) <= last_end; });
-    if (part_sweeps_measured_ == plan_.sweepCount(acquisition::Scene::Part)) startShapeFit();
+    // Each sweep's returns are fitted as a piece of the surface while the next sweep is scanned.
+    queueShapePieces(part_sweeps_measured_ >= plan_.sweepCount(acquisition::Scene::Part));
   }
   measureReadyViews();
 }
@@ -217,7 +245,7 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   for (const registration::SweepWindow& w : pending_sweeps_)
     measurer_.measureSweep(mine_, w, static_cast<std::uint32_t>(part_sweeps_measured_++));
   pending_sweeps_.clear();
-  startShapeFit();  // unless the last part sweep started it
+  queueShapePieces(true);  // unless the last part sweep closed the queue
   // Cameras that did not calibrate leave the stereo views out; the laser's elements stand.
   if (params_.with_stereo && !measurer_.camerasCalibrated()) measurer_.calibrateCameras(mine_);
   part_sweeps_measured_ = std::max(part_sweeps_measured_, plan_.sweepCount(acquisition::Scene::Part));

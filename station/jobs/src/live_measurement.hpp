@@ -3,9 +3,10 @@
 // that feed it are done: the digitizer's calibration after the last sphere sweep, the cameras'
 // after the last plate view, each part sweep after it ends, each part view once every part sweep
 // is in (its rings are matched on the laser's surface). So the Cloud4D is ready soon after the last
-// sweep instead of a whole measurement after it. Once the last part sweep is measured, the surface
-// is fitted to the sweeps' laser returns on a second thread, while the stereo views are measured;
-// the strain of all the elements goes on it when they are in (fitting/shape_and_strain.hpp).
+// sweep instead of a whole measurement after it. On a second thread each part sweep's laser returns
+// are fitted as a piece of the surface as soon as the sweep is measured, while the next is scanned;
+// after the last part sweep the pieces are joined, while the stereo views are measured; the strain
+// of all the elements goes on the surface when they are in (fitting/shape_and_strain.hpp).
 //
 // The thread keeps its own copy of what it still needs (new messages are copied once, under the
 // live trace's lock, and dropped once measured; the laser profiles, the bulk, are moved out of the
@@ -18,6 +19,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <deque>
 #include <exception>
 #include <memory>
 #include <mutex>
@@ -52,7 +54,10 @@ class LiveMeasurement {
   void pull();                          // new messages of the live trace into mine_
   void advance(std::size_t step);       // what became measurable with step `step` done
   void measureReadyViews();
-  void startShapeFit();  // on the laser returns the measurer holds
+  // The laser returns of the sweeps the measurer has measured since, queued for the shape thread;
+  // `last`: no more will come (the thread joins the pieces once it has fitted them).
+  void queueShapePieces(bool last);
+  void fitShape();  // the shape thread
 
   registration::LiveScanTrace& live_;  // its profiles are taken, not copied
   const acquisition::ScanPlan& plan_;
@@ -67,10 +72,14 @@ class LiveMeasurement {
   std::vector<registration::SweepWindow> pending_sweeps_;  // ended, not measured yet
   bool plate_step_passed_ = false;  // the cameras' calibration was tried after the last plate view
 
-  // The surface fit, on a thread of its own; the flag stops it at its next stage.
+  // The surface fit, on a thread of its own: a queue of sweeps' returns, each fitted as a piece,
+  // joined once the queue is closed; the flag stops it at its next stage.
   registration::MeasureObserver* observer_;
   std::atomic<bool> shape_cancelled_ = false, views_cancelled_ = false;
-  bool shape_started_ = false;
+  std::mutex shape_mutex_;
+  std::condition_variable shape_wake_;
+  std::deque<std::vector<fitting::Vec3>> shape_queue_;
+  bool shape_closed_ = false;
   std::unique_ptr<fitting::ShapeSurface> shape_;
   std::exception_ptr shape_failure_;
   std::thread shape_thread_;

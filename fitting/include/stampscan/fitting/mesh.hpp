@@ -9,6 +9,7 @@
 #include "stampscan/fitting/surface_fit.hpp"
 
 #include <optional>
+#include <utility>
 
 namespace stampscan::fitting {
 
@@ -28,8 +29,36 @@ struct MeshStats {
   std::size_t triangles = 0;
 };
 
-// `projected` is the fitted cloud from FittedSurface::projectAll (it seeds the grid cells).
+// Where the data behind a surface are: the mesh keeps to them (no face across a hole or past an edge).
+class DataLocator {
+ public:
+  virtual ~DataLocator() = default;
+  // The data point nearest to x and its squared distance; nullopt when there are no data.
+  virtual std::optional<std::pair<Vec3, double>> nearest(const Vec3& x) const = 0;
+  // The data's spacing at one of its points: the distance to its 16th neighbour.
+  virtual double spacingAt(const Vec3& data_point) const = 0;
+};
+
+// `projected` seeds the grid cells: the surface's points where there are data (FittedSurface::projectAll,
+// or the output points of a shape). `cell` > 0 in mm.
+Mesh meshSurface(const ImplicitSurface& surface, const DataLocator& data, const Cloud& projected, double cell,
+                 const MeshParams& params = {}, MeshStats* stats = nullptr);
+
+// The same on one fitted cloud: its kd-tree says where the data are; the cell defaults to half the
+// median data bandwidth.
 Mesh meshSurface(const FittedSurface& fitted, const Cloud& projected, const MeshParams& params = {},
                  MeshStats* stats = nullptr);
+
+// A fitted cloud's data, by its kd-tree.
+class TreeLocator : public DataLocator {
+ public:
+  TreeLocator(const KdTree& tree, const std::vector<Vec3>& data_points) : tree_(tree), points_(data_points) {}
+  std::optional<std::pair<Vec3, double>> nearest(const Vec3& x) const override;
+  double spacingAt(const Vec3& data_point) const override;
+
+ private:
+  const KdTree& tree_;
+  const std::vector<Vec3>& points_;
+};
 
 }  // namespace stampscan::fitting

@@ -55,39 +55,72 @@ struct ShapeAndStrain {
   double seconds = 0;  // the shape's fit and the strain's
 };
 
+// One part of the shape points fitted on its own: a sweep's laser returns, fitted while the next
+// sweep is scanned. A ShapeSurface joins the pieces where they overlap (joined_surface.hpp says
+// how). Owns its points. Throws std::invalid_argument when they are empty or more than four billion.
+class ShapePiece {
+ public:
+  ShapePiece(std::vector<Vec3> points, const FitParams& params = {});
+  ~ShapePiece();
+  ShapePiece(const ShapePiece&) = delete;
+  ShapePiece& operator=(const ShapePiece&) = delete;
+
+  std::size_t points() const { return points_.size(); }
+  const FitStats& stats() const { return fit_->preparationStats(); }
+  double seconds() const { return seconds_; }
+
+ private:
+  friend class ShapeSurface;
+  Cloud points_;
+  std::unique_ptr<FittedSurface> fit_;
+  double seconds_ = 0;
+};
+
 // The shape fitted alone, before the carriers are known: the dense points' surface, sampled once per
-// output cell, and its mesh, without strain. A scan fits it as soon as its last part sweep is
-// measured, while the stereo views are still being measured; the strain follows with them
-// (strainOnShape). Owns its points. Throws std::invalid_argument when they are empty or more than
-// four billion, or the output spacing is not positive.
+// output cell, and its mesh, without strain. A scan fits each sweep as a piece as soon as it is
+// measured and joins them after its last part sweep, while the stereo views are still being
+// measured; the strain follows with them (strainOnShape).
 class ShapeSurface {
  public:
+  // All the points as one piece. Throws std::invalid_argument as ShapePiece does, and when the
+  // output spacing is not positive.
   ShapeSurface(std::vector<Vec3> points, const ShapeAndStrainParams& params = {});
+  // Pieces fitted apart (a scan's sweeps), joined. Their FitParams are their own; the progress
+  // callback of `params.shape` reports the joining. Throws std::invalid_argument when there are no
+  // pieces or the output spacing is not positive.
+  ShapeSurface(std::vector<std::unique_ptr<ShapePiece>> pieces, const ShapeAndStrainParams& params = {});
   ~ShapeSurface();
   ShapeSurface(const ShapeSurface&) = delete;
   ShapeSurface& operator=(const ShapeSurface&) = delete;
 
   // The implicit surface the output points lie on (the progress callback of the parameters is not
-  // called after construction).
-  const ImplicitSurface& implicitSurface() const { return fit_->surface(); }
-  std::size_t points() const { return points_.size(); }
+  // called after construction). With several pieces it projects by position only.
+  const ImplicitSurface& implicitSurface() const { return *surface_; }
+  std::size_t points() const { return points_; }
+  std::size_t pieces() const { return pieces_.size(); }
   // The output points (positions and normals; the strain stays to strainOnShape).
-  const Cloud& surface() const { return surface_; }
+  const Cloud& surface() const { return surface_points_; }
   const Mesh& mesh() const { return mesh_; }  // empty unless ShapeAndStrainParams::with_mesh
   const MeshStats& meshStats() const { return mesh_stats_; }
   const FitStats& stats() const { return stats_; }
   std::size_t notConverged() const { return not_converged_; }
+  // The pieces' fits and the joining; with pieces fitted while scanning, only the joining came after.
   double seconds() const { return seconds_; }
+  double joinSeconds() const { return join_seconds_; }
 
  private:
-  Cloud points_;
-  std::unique_ptr<FittedSurface> fit_;
-  Cloud surface_;
+  void join(const ShapeAndStrainParams& params);
+
+  std::vector<std::unique_ptr<ShapePiece>> pieces_;
+  const ImplicitSurface* surface_ = nullptr;  // the one piece's, or the joined surface (data_)
+  std::unique_ptr<DataLocator> data_;         // where the data are, for the mesh
+  std::size_t points_ = 0;
+  Cloud surface_points_;
   Mesh mesh_;
   MeshStats mesh_stats_;
   FitStats stats_;
   std::size_t not_converged_ = 0;
-  double seconds_ = 0;
+  double seconds_ = 0, join_seconds_ = 0;
 };
 
 // The carriers' strain on a fitted shape: the strain field (shape_and_strain.cpp says how) read at

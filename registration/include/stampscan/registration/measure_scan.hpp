@@ -83,8 +83,9 @@ struct ScanMeasurement {
   // One element per printed element, the measurements of each merged (element_merge.hpp): what the
   // strain field over the surface is fitted to.
   MergedElements merged;
-  // Every return of the part sweeps, machine frame, sweep after sweep (MeasureParams::keep_surface_points).
-  std::vector<Vec3> surface_points;
+  // Every return of the part sweeps, machine frame, one list per sweep in their order
+  // (MeasureParams::keep_surface_points): each sweep is fitted as a piece of the surface.
+  std::vector<std::vector<Vec3>> surface_points;
 
   DigitizerCalibration digitizer;                       // as used (clock offset from the trace)
   std::optional<SphereCalibrationResult> sphere;        // when calibrated from the trace's sphere sweeps
@@ -134,14 +135,10 @@ class ScanMeasurer {
   bool digitizerCalibrated() const { return digitizer_ready_; }
   const DigitizerCalibration& digitizer() const { return out_.digitizer; }
   bool camerasCalibrated() const { return out_.rig.has_value(); }
-  // The part sweeps' returns so far (MeasureParams::keep_surface_points), handed over: a scan fits
-  // the surface to them once its last part sweep is measured; finish() then has only later ones.
-  // Trimmed to their size first: the fit holds them to its end, and growing by sweeps can leave
-  // half as much again unused.
-  std::vector<Vec3> takeSurfacePoints() {
-    surface_points_.shrink_to_fit();
-    return std::exchange(surface_points_, {});
-  }
+  // The returns of the part sweeps measured since the last call (MeasureParams::keep_surface_points),
+  // one list per sweep, handed over: a scan fits each sweep's as it comes; finish() then has only
+  // later ones.
+  std::vector<std::vector<Vec3>> takeSurfacePoints() { return std::exchange(surface_points_, {}); }
   // The laser's elements, then the views'. Throws std::runtime_error when no element was found.
   ScanMeasurement finish();
 
@@ -157,7 +154,7 @@ class ScanMeasurer {
   SquareDetectionParams squares_;
   std::int64_t camera_offset_ = 0;
   std::vector<GridElement> laser_, stereo_;
-  std::vector<Vec3> surface_points_;
+  std::vector<std::vector<Vec3>> surface_points_;  // per part sweep
   // A sparse sample of the laser's returns (about one per square millimetre per sweep): the depth
   // prior of the stereo matching, with the elements. On a steep wall, where the laser finds few
   // elements, the depth then comes from the sheet there, not from a plane through the elements

@@ -31,11 +31,12 @@ struct FitOutcome {
 fitting::FitParams fitParamsFrom(const std::string& method, const std::string& bandwidth, const std::string& kernel,
                                  const std::string& scalar, int sig_r, const std::vector<double>& viewpoint);
 FitOutcome runFit(const fitting::Cloud& input, fitting::FitParams params, const FitRun& run);
-// The shape from dense points (a laser's returns), with a progress bar; then the strain of the grid
-// elements on it (fitting/shape_and_strain.hpp), the surface and mesh coloured by strain. A scan
-// fits the shape while its stereo views are measured; `station process` runs the two in a row, with
-// the same parameters, so both give the same surface.
-std::unique_ptr<fitting::ShapeSurface> runShapeFit(std::vector<fitting::Vec3> shape_points, bool show_progress);
+// The shape from dense points (a laser's returns, one list per sweep: each is fitted as a piece and
+// the pieces joined), with a progress bar; then the strain of the grid elements on it
+// (fitting/shape_and_strain.hpp), the surface and mesh coloured by strain. A scan fits each sweep
+// while the next is scanned; `station process` fits them in a row, with the same parameters, so
+// both give the same surface.
+std::unique_ptr<fitting::ShapeSurface> runShapeFit(std::vector<std::vector<fitting::Vec3>> sweeps, bool show_progress);
 fitting::ShapeAndStrain runStrainOnShape(const fitting::ShapeSurface& shape, const fitting::Cloud& elements);
 void printShapeAndStrainSummary(const fitting::ShapeAndStrain& fit);
 void printFitSummary(const fitting::ReadReport& read, const fitting::FitParams& params, const FitOutcome& outcome,
