@@ -83,6 +83,7 @@ struct AnchoredSurface::Impl {
   // After widening: the narrow field the point fits use (h_field then holds the wide one).
   std::unique_ptr<BandwidthField> narrow_field;
   std::unique_ptr<detail::CellPyramid> pyramid;
+  bool widened = false;  // the anchors were fitted on the pyramid (which a shape alone drops after)
   double step_tolerance = 0;  // mm: a projection has converged when a step is below this
   std::vector<double> noise_floor;        // residual variance floor seen by each probe
   std::vector<std::optional<QuadricPatch>> probe_patches;  // each probe's fit at its chosen h
@@ -121,7 +122,7 @@ struct AnchoredSurface::Impl {
   double cellSize(int tier) const {
     // Wide patches are read closer to their centres: the shape's cubic terms, which cancel at the
     // centre of a symmetric support, grow with the distance from it.
-    const double spacing = pyramid ? params.wide_anchor_spacing
+    const double spacing = widened ? params.wide_anchor_spacing
                                    : tier % 2 ? params.fine_anchor_spacing : params.anchor_spacing;
     return spacing * h0 * std::pow(params.scale_step, tier / 2);
   }
@@ -398,6 +399,7 @@ void AnchoredSurface::Impl::widenBandwidths(AnchoredStats& stats, const Progress
   const double largest = stats.narrow_bandwidth.max * std::pow(params.scale_step, params.wide_scales - 1);
   // The finest cells serve fits from kFinestCellFit times the typical narrow h; narrower fits read
   // the points.
+  widened = true;
   pyramid = std::make_unique<detail::CellPyramid>(
       points, tree, pointWeights(), strain, kFinestCellFit * stats.narrow_bandwidth.median / detail::kCellsPerBandwidth, largest);
   for (int l = 0; l < pyramid->levels(); ++l) stats.pyramid_cells += pyramid->cells(l);
@@ -753,6 +755,9 @@ AnchoredSurface::AnchoredSurface(const std::vector<Vec3>& points, const KdTree& 
   lap("anchor links");
   stats_.orientation_components = impl_->orientAnchors();
   lap("orientation");
+  // Projections read the pyramid only for the strain: a shape alone (a scan's laser returns) frees
+  // it, some hundreds of megabytes on a session's returns, while the other sweeps are fitted.
+  if (!impl_->strain) impl_->pyramid.reset();
   stats_.anchors = impl_->anchors.size();
   stats_.invalid_anchors = static_cast<std::size_t>(
       std::count_if(impl_->anchors.begin(), impl_->anchors.end(), [](const Impl::Anchor& a) { return !a.valid; }));
