@@ -2,8 +2,8 @@
 // per sensor the parameters with their uncertainty, the residuals against the acceptance limits, the
 // change against the calibration in use, and whether the new one is put in use. Exit 0 when every
 // calibration asked for is in use, 2 when one failed its limits (and was not accepted), 1 on error.
-#include "stampscan/station/calibrate_job.hpp"
-#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
+#include "stampscan/jobs/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "cell_choice.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"

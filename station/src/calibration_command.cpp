@@ -4,7 +4,7 @@
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
-#include "stampscan/station/calibration_status.hpp"
+#include "stampscan/jobs/calibration_status.hpp"
 #include "stampscan/results/results_store.hpp"
 #include "stampscan/station/commands.hpp"
 

@@ -4,7 +4,7 @@
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/fitting/text_io.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/fit_runner.hpp"
+#include "stampscan/jobs/fit_runner.hpp"
 
 #include <tbb/global_control.h>
 

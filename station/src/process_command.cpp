@@ -5,8 +5,8 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/fit_runner.hpp"
-#include "stampscan/station/progress.hpp"
+#include "stampscan/jobs/fit_runner.hpp"
+#include "stampscan/jobs/progress.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -5,10 +5,10 @@
 // loopback, as to a real cell.
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/acquisition/plan_collisions.hpp"
-#include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/progress.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/progress.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 #include "cell_choice.hpp"
 #include "program_library.hpp"
 #include "scan_terminal.hpp"

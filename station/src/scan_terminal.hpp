@@ -5,8 +5,8 @@
 
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/part_planner.hpp"
-#include "stampscan/station/progress.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/progress.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 
 #include <string>
 #include <vector>

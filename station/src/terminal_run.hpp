@@ -4,7 +4,7 @@
 #pragma once
 
 #include "stampscan/acquisition/scan_runner.hpp"
-#include "stampscan/station/progress.hpp"
+#include "stampscan/jobs/progress.hpp"
 #include "stop_signals.hpp"
 
 #include <cstdio>

@@ -2,10 +2,10 @@
 // with the calibration in use; pass or fail one line per check, and a record in the calibration
 // history. Exit 0 when every check passes, 2 when one fails, 1 on an error.
 #include "stampscan/registration/calibration_store.hpp"
-#include "stampscan/station/calibrate_job.hpp"
-#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
+#include "stampscan/jobs/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/verify_job.hpp"
+#include "stampscan/jobs/verify_job.hpp"
 #include "cell_choice.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"

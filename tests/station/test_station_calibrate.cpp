@@ -9,7 +9,7 @@
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
-#include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
 
 #include <nlohmann/json.hpp>
 

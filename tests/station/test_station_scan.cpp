@@ -9,7 +9,7 @@
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/sim/part_model.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 
 #include <nlohmann/json.hpp>
 

@@ -2,7 +2,7 @@
 
 #include "json_views.hpp"
 #include "stampscan/results/results_store.hpp"
-#include "stampscan/station/calibration_status.hpp"
+#include "stampscan/jobs/calibration_status.hpp"
 
 #include <algorithm>
 #include <cstdio>

@@ -2,7 +2,7 @@
 
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
-#include "stampscan/station/calibration_status.hpp"
+#include "stampscan/jobs/calibration_status.hpp"
 
 namespace stampscan::hmi {
 

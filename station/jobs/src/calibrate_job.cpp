@@ -1,6 +1,6 @@
-#include "stampscan/station/calibrate_job.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
 
-#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/jobs/calibration_results.hpp"
 
 #include "stampscan/fitting/median.hpp"
 

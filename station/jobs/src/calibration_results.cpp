@@ -1,4 +1,4 @@
-#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/jobs/calibration_results.hpp"
 
 #include "stampscan/results/results_store.hpp"
 

@@ -1,4 +1,4 @@
-#include "stampscan/station/calibration_status.hpp"
+#include "stampscan/jobs/calibration_status.hpp"
 
 #include "stampscan/registration/calibration_store.hpp"
 

@@ -1,4 +1,4 @@
-#include "stampscan/station/colormap.hpp"
+#include "stampscan/jobs/colormap.hpp"
 
 #include "stampscan/report/colour_scale.hpp"
 

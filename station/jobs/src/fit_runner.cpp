@@ -1,9 +1,9 @@
 // The fit as the station's commands and jobs run it (fit_runner.hpp): parameters from command-line
 // words, the fit with a progress bar, the shape-and-strain fit of a scan, the printed summaries.
-#include "stampscan/station/fit_runner.hpp"
+#include "stampscan/jobs/fit_runner.hpp"
 
-#include "stampscan/station/colormap.hpp"
-#include "stampscan/station/progress.hpp"
+#include "stampscan/jobs/colormap.hpp"
+#include "stampscan/jobs/progress.hpp"
 
 #include <chrono>
 #include <cstdio>

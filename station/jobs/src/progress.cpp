@@ -1,4 +1,4 @@
-#include "stampscan/station/progress.hpp"
+#include "stampscan/jobs/progress.hpp"
 
 #include <unistd.h>
 

@@ -1,4 +1,4 @@
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 
 #include "stampscan/acquisition/trace/mcap_writer.hpp"
 #include "stampscan/acquisition/trace/trace_recorder.hpp"
@@ -9,7 +9,7 @@
 #include "stampscan/results/run_recording.hpp"
 #include "stampscan/run_folder/folder_name.hpp"
 #include "stampscan/run_folder/run_record.hpp"
-#include "stampscan/station/fit_runner.hpp"
+#include "stampscan/jobs/fit_runner.hpp"
 #include "live_measurement.hpp"
 
 

@@ -1,4 +1,4 @@
-#include "stampscan/station/traced_run.hpp"
+#include "stampscan/jobs/traced_run.hpp"
 
 #include "stampscan/acquisition/trace/mcap_writer.hpp"
 #include "stampscan/acquisition/trace/trace_recorder.hpp"

@@ -1,6 +1,6 @@
-#include "stampscan/station/verify_job.hpp"
+#include "stampscan/jobs/verify_job.hpp"
 
-#include "stampscan/station/calibration_results.hpp"
+#include "stampscan/jobs/calibration_results.hpp"
 
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/measure_scan.hpp"

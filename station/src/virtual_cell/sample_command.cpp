@@ -5,7 +5,7 @@
 #include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/sim/sample_cloud.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/fit_runner.hpp"
+#include "stampscan/jobs/fit_runner.hpp"
 
 #include <cmath>
 #include <cstdio>

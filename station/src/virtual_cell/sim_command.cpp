@@ -7,7 +7,7 @@
 #include "stampscan/sim/grid.hpp"
 #include "stampscan/sim/scan_scenario.hpp"
 #include "stampscan/station/commands.hpp"
-#include "stampscan/station/progress.hpp"
+#include "stampscan/jobs/progress.hpp"
 
 #include <chrono>
 #include <cstdio>

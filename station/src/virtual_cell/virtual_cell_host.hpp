@@ -9,7 +9,7 @@
 #include "stampscan/acquisition/part_program.hpp"
 #include "stampscan/acquisition/scan_plan.hpp"
 #include "stampscan/acquisition/trace/session_description.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>

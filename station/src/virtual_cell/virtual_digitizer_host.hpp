@@ -8,7 +8,7 @@
 #include "stampscan/sim/virtual_cell.hpp"
 #include "stampscan/sim/virtual_digitizer.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 #include "virtual_cell_host.hpp"
 
 #include <memory>

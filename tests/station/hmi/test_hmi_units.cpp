@@ -3,7 +3,7 @@
 #include "stampscan/hmi/auth.hpp"
 #include "stampscan/hmi/cell_jobs.hpp"
 #include "stampscan/hmi/event_hub.hpp"
-#include "stampscan/station/scan_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
 
 #include <gtest/gtest.h>
 

@@ -11,9 +11,9 @@
 #include "stampscan/acquisition/cell.hpp"
 #include "stampscan/hmi/event_hub.hpp"
 #include "stampscan/hmi/live_cloud.hpp"
-#include "stampscan/station/calibrate_job.hpp"
-#include "stampscan/station/scan_job.hpp"
-#include "stampscan/station/verify_job.hpp"
+#include "stampscan/jobs/calibrate_job.hpp"
+#include "stampscan/jobs/scan_job.hpp"
+#include "stampscan/jobs/verify_job.hpp"
 
 #include <cstdint>
 #include <deque>

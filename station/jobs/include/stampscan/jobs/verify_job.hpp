@@ -28,7 +28,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/sphere_verification.hpp"
 #include "stampscan/registration/stereo_verification.hpp"
-#include "stampscan/station/traced_run.hpp"
+#include "stampscan/jobs/traced_run.hpp"
 
 #include <filesystem>
 #include <optional>

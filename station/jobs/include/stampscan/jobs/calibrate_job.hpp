@@ -33,7 +33,7 @@
 #include "stampscan/acquisition/scan_runner.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/calibration_store.hpp"
-#include "stampscan/station/traced_run.hpp"
+#include "stampscan/jobs/traced_run.hpp"
 
 #include <filesystem>
 #include <optional>
