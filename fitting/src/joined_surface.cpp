@@ -45,14 +45,18 @@ PieceDensity::PieceDensity(const std::vector<Vec3>& points, double cell) : cell_
   }
 }
 
+bool PieceDensity::inBounds(const Vec3& x) const {
+  return (x.array() >= low_.array()).all() && (x.array() <= high_.array()).all();
+}
+
 bool PieceDensity::reaches(const Vec3& x) const {
-  if (!((x.array() >= low_.array()).all() && (x.array() <= high_.array()).all())) return false;
+  if (!inBounds(x)) return false;
   const auto b = cellOf(x, origin_, 2 * cell_);
   return near_blocks_.contains(keyOf(b[0], b[1], b[2]));
 }
 
 double PieceDensity::at(const Vec3& x) const {
-  if (!((x.array() >= low_.array()).all() && (x.array() <= high_.array()).all())) return 0;
+  if (!inBounds(x)) return 0;
   // Every centroid within one cell of x lies in the 27 cells around x's.
   const auto c = cellOf(x, origin_, cell_);
   const double support_sq = cell_ * cell_;

@@ -36,6 +36,8 @@ class PieceDensity {
   bool reaches(const Vec3& x) const;
 
  private:
+  bool inBounds(const Vec3& x) const;  // within the points' bounds grown by one cell
+
   struct CellSums {
     Vec3 sum = Vec3::Zero();
     double count = 0;

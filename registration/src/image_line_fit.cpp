@@ -20,8 +20,9 @@ Eigen::Vector2d ImageEllipse::point(double t) const {
 }
 
 namespace {
-// The signed distance of ImageEllipse::distance with M^-1 given: a pixel loop asks it of the same
-// ellipse thousands of times.
+// The signed distance from an ellipse, with M^-1 given (a pixel loop asks it of the same ellipse
+// thousands of times). rho = |M^-1 (x - c)| is 1 on the curve; dividing rho - 1 by its gradient's
+// length turns it into a distance with unit slope across the curve.
 double ellipseDistance(const ImageEllipse& e, const Eigen::Matrix2d& inverse, const Eigen::Vector2d& x) {
   const Eigen::Vector2d u = inverse * (x - e.centre);
   const double rho = u.norm();
@@ -32,17 +33,7 @@ double ellipseDistance(const ImageEllipse& e, const Eigen::Matrix2d& inverse, co
 }
 }  // namespace
 
-double ImageEllipse::distance(const Eigen::Vector2d& x) const {
-  // rho = |M^-1 (x - c)| is 1 on the curve; dividing rho - 1 by its gradient's length turns it into
-  // a distance with unit slope across the curve.
-  const Eigen::Matrix2d inverse = shape.inverse();
-  const Eigen::Vector2d u = inverse * (x - centre);
-  const double rho = u.norm();
-  if (rho < 1e-9) return -meanRadius();
-  const double slope = (inverse * u).norm() / rho;
-  const double ct = u.x() / rho, st = u.y() / rho;  // of t, u's angle
-  return (rho - 1) / slope - third.x() * ct * (4 * ct * ct - 3) - third.y() * st * (3 - 4 * st * st);
-}
+double ImageEllipse::distance(const Eigen::Vector2d& x) const { return ellipseDistance(*this, shape.inverse(), x); }
 
 double ImageEllipse::meanRadius() const { return std::sqrt(std::max(0.0, shape.determinant())); }
 
@@ -64,12 +55,7 @@ struct RingGeometry {
   static constexpr int N = 7;  // centre x, y; M11, M12, M22; the third harmonic's a, b
   ImageEllipse e;
   Eigen::Matrix2d inverse = e.shape.inverse();
-  // Of the shape, the same for every pixel: its determinant and mean radius, A^2, and for each of
-  // M11, M12, M22 (E_k: the unit change of that entry) A E_k, A^2 E_k and trace(A E_k) / 2.
-  double det = 0, mean = 0;
-  Eigen::Matrix2d A2;
-  std::array<Eigen::Matrix2d, 3> AE, A2E;
-  std::array<double, 3> half_trace_AE{};
+  double det = 0, mean = 0;  // of the shape, the same for every pixel
   explicit RingGeometry(const ImageEllipse& ellipse) : e(ellipse) { prepare(); }
   std::array<double, N> get() const {
     return {e.centre.x(), e.centre.y(), e.shape(0, 0), e.shape(0, 1), e.shape(1, 1), e.third.x(), e.third.y()};
@@ -84,16 +70,6 @@ struct RingGeometry {
     inverse = e.shape.inverse();
     det = e.shape.determinant();
     mean = e.meanRadius();
-    A2 = inverse * inverse;
-    for (int k = 0; k < 3; ++k) {
-      Eigen::Matrix2d E = Eigen::Matrix2d::Zero();
-      if (k == 0) E(0, 0) = 1;
-      else if (k == 1) E(0, 1) = E(1, 0) = 1;
-      else E(1, 1) = 1;
-      AE[static_cast<std::size_t>(k)] = inverse * E;
-      A2E[static_cast<std::size_t>(k)] = A2 * E;
-      half_trace_AE[static_cast<std::size_t>(k)] = 0.5 * AE[static_cast<std::size_t>(k)].trace();
-    }
   }
   // The signed distance d, and how wide the line is there against the ring's mean (an affine image of
   // the printed annulus is widest across the major axis's ends), with their slopes in the
@@ -120,6 +96,7 @@ struct RingGeometry {
     dd[5] = -c3;
     dd[6] = -s3;
     dscale[5] = dscale[6] = 0;
+    const Eigen::Matrix2d A2 = inverse * inverse;
     const auto slopes = [&](const Eigen::Vector2d& du, const Eigen::Vector2d& dv, double dlog_mean, int k) {
       const double drho = u.dot(du) / rho;
       const double dg = (v.dot(dv) / vn - g * drho) / rho;
@@ -129,10 +106,14 @@ struct RingGeometry {
     for (int k = 0; k < 2; ++k) {  // the centre: du = -A e_k, dv = -A^2 e_k
       slopes(-inverse.col(k), -A2.col(k), 0.0, k);
     }
-    for (std::size_t k = 0; k < 3; ++k) {  // M11, M12 (both off-diagonal entries), M22: dA = -A E A
-      const Eigen::Vector2d du = -(AE[k] * u);
-      const Eigen::Vector2d dv = -(AE[k] * v) - A2E[k] * u;
-      slopes(du, dv, half_trace_AE[k], 2 + static_cast<int>(k));
+    for (int k = 0; k < 3; ++k) {  // M11, M12 (both off-diagonal entries), M22: dA = -A E A
+      Eigen::Matrix2d E = Eigen::Matrix2d::Zero();
+      if (k == 0) E(0, 0) = 1;
+      else if (k == 1) E(0, 1) = E(1, 0) = 1;
+      else E(1, 1) = 1;
+      const Eigen::Vector2d du = -inverse * E * u;
+      const Eigen::Vector2d dv = -inverse * E * v - A2 * E * u;
+      slopes(du, dv, 0.5 * (inverse * E).trace(), 2 + k);
     }
   }
   bool plausible() const {

@@ -7,6 +7,7 @@
 // Each device runs in a process of its own under a supervisor (sim/supervised_cell.hpp), which
 // starts again one that stops unexpectedly; this command only sets it up, prints and waits.
 #include "stampscan/sim/supervised_cell.hpp"
+#include "virtual_digitizer_host.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/station/commands.hpp"
 
@@ -52,22 +53,11 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     // The world is the cell file's: its sensors as drawn (the cameras at the file's resolution, so
     // that what a station reads in the same file is what the cameras deliver), its artefacts where
     // the file puts them.
-    sim::VirtualCellOptions world;
+    sim::VirtualCellOptions world = servedDevicesOf(cell);
     world.world = sim::ScanParams::quick();
     world.world.image_scale = 1;
     world.world.setCell(cell);
     world.world.part = opt->part == "dome" ? sim::PartKind::Dome : sim::PartKind::Pan;
-    world.cmm_address = cell.cmm.host;
-    world.cmm_port = static_cast<std::uint16_t>(cell.cmm.port);
-    world.plc_address = cell.plc.host;
-    world.plc_port = cell.plc.port;
-    world.plc_unit_id = static_cast<std::uint8_t>(cell.plc_unit_id);
-    world.plc_registers = cell.plc_registers;
-    world.cameras = true;
-    world.left_address = cell.left_camera.address;
-    world.left_serial = cell.left_camera.serial;
-    world.right_address = cell.right_camera.address;
-    world.right_serial = cell.right_camera.serial;
     sim::SupervisedVirtualCell served(world, opt->replay);
     const int cmm_port = served.cmmPort(), plc_port = served.plcPort();
     std::printf("station sim serve: %s (each device in a process of its own)%s\n", cell.name.c_str(),

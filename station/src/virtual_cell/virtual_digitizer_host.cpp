@@ -136,23 +136,31 @@ std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& ce
 
 namespace stampscan::station {
 
+sim::VirtualCellOptions servedDevicesOf(const CellConfig& cell) {
+  sim::VirtualCellOptions o;
+  o.cmm_address = cell.cmm.host;
+  o.cmm_port = static_cast<std::uint16_t>(cell.cmm.port);
+  o.plc_address = cell.plc.host;
+  o.plc_port = cell.plc.port;
+  o.plc_unit_id = static_cast<std::uint8_t>(cell.plc_unit_id);
+  o.plc_registers = cell.plc_registers;
+  o.cameras = true;
+  o.left_address = cell.left_camera.address;
+  o.left_serial = cell.left_camera.serial;
+  o.right_address = cell.right_camera.address;
+  o.right_serial = cell.right_camera.serial;
+  return o;
+}
+
 HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisition::CellConfig& base,
                                      std::shared_ptr<sim::CellReplay> replay, bool cameras)
     : config_(base) {
-  sim::VirtualCellOptions o;
+  sim::VirtualCellOptions o = servedDevicesOf(base);
   o.world = world;
   o.replay = std::move(replay);
-  o.cmm_address = base.cmm.host;
   o.cmm_port = 0;  // free ports: a served cell or another scan may hold the configured ones
-  o.plc_address = base.plc.host;
   o.plc_port = 0;
-  o.plc_unit_id = static_cast<std::uint8_t>(base.plc_unit_id);
-  o.plc_registers = base.plc_registers;
   o.cameras = cameras;
-  o.left_address = base.left_camera.address;
-  o.left_serial = base.left_camera.serial;
-  o.right_address = base.right_camera.address;
-  o.right_serial = base.right_camera.serial;
   cell_ = std::make_unique<sim::VirtualCell>(o);
   acquisition::CellConfig with_digitizer = base;
   with_digitizer.digitizer_virtual = true;

@@ -35,6 +35,11 @@ inline constexpr const char* kUmockdevPreload = "libumockdev-preload.so.0";
 // the digitizer driver connects and before Aravis looks for cameras (it has a libusb context too).
 std::unique_ptr<sim::VirtualDigitizer> hostVirtualDigitizer(const CellConfig& cell, sim::VirtualDigitizerOptions options = {});
 
+// The virtual cell's devices where the cell file puts them: the CMM's and the PLC's addresses and
+// ports, the PLC's unit and register map, both cameras' addresses and serials (cameras served). The
+// world and the replay are the caller's.
+sim::VirtualCellOptions servedDevicesOf(const CellConfig& cell);
+
 }  // namespace stampscan::station
 
 namespace stampscan::station {
