@@ -255,11 +255,36 @@ void ScanMeasurer::measureSweeps(const ScanTrace& trace) {
   laser_seconds_ += clock.lap();
 }
 
-bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint32_t view_id) {
+void ScanMeasurer::detectView(const ScanTrace& trace, std::size_t v, std::uint32_t view_id) {
   if (!out_.rig) throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views");
-  if (trace.head.size() < 2) return false;
+  StageClock clock;
+  PendingView pending;
+  pending.time_ns = trace.part_left[v].device_time_ns - camera_offset_;
+  pending.id = view_id;
+  // The elements' size in pixels at the pair's working distance, where the views are aimed: from
+  // the calibration alone, so the images are searched as they come, before the laser has measured
+  // the part (the search allows for a wide range of sizes). A pair without vergence has no working
+  // distance of its own: its images wait for the laser's depth.
+  const double f = out_.rig->left.matrix(0, 0);
+  if (const std::optional<double> depth = workingDistance(*out_.rig)) {
+    if (grid_ == "circle")
+      pending.rings = detectStereoRings(trace.part_left[v].image, trace.part_right[v].image, rings_.printed_radius * f / *depth, rings_);
+    else
+      pending.cells = detectStereoCells(trace.part_left[v].image, trace.part_right[v].image, squares_.pitch * f / *depth, squares_);
+  } else {
+    pending.left = trace.part_left[v].image;
+    pending.right = trace.part_right[v].image;
+  }
+  pending_views_.push_back(std::move(pending));
+  stereo_seconds_ += clock.lap();
+}
+
+bool ScanMeasurer::measureDetectedView(const ScanTrace& trace) {
+  if (pending_views_.empty() || trace.head.size() < 2) return false;
+  PendingView& pending = pending_views_.front();
   const HeadTrack track(trace.head);
-  const std::int64_t t = trace.part_left[v].device_time_ns - camera_offset_;
+  const std::int64_t t = pending.time_ns;
+  const std::uint32_t view_id = pending.id;
   if (!track.covers(t)) return false;
   StageClock clock;
   ++out_.stereo_views;
@@ -292,13 +317,15 @@ bool ScanMeasurer::measureView(const ScanTrace& trace, std::size_t v, std::uint3
   const bool circles = grid_ == "circle";
   std::vector<Vec3> prior = laser_positions;
   prior.insert(prior.end(), depth_prior_.begin(), depth_prior_.end());
-  const StereoView input{.left = trace.part_left[v].image,
-                         .right = trace.part_right[v].image,
-                         .rig = rig,
-                         .machine_from_head = track.poseAt(t),
-                         .prior = prior,
-                         .index = view_id};
-  auto view = circles ? measureStereoPair(input, rings_) : measureStereoSquares(input, squares_);
+  std::vector<GridElement> view;
+  if (!pending.left.empty()) {
+    const StereoView input{.left = pending.left, .right = pending.right, .rig = rig, .machine_from_head = track.poseAt(t), .prior = prior, .index = view_id};
+    view = circles ? measureStereoPair(input, rings_) : measureStereoSquares(input, squares_);
+  } else {
+    const StereoViewPose input{.rig = rig, .machine_from_head = track.poseAt(t), .prior = prior, .index = view_id};
+    view = circles ? measureStereoPair(*pending.rings, input, rings_) : measureStereoSquares(*pending.cells, input, squares_);
+  }
+  pending_views_.pop_front();
   if (view.size() >= 10) {
     std::vector<Vec3> source;
     for (const auto& g : view) source.push_back(g.position);
@@ -402,7 +429,9 @@ ScanMeasurement measureScan(const ScanTrace& trace, const MeasureParams& params,
     if (!m.camerasCalibrated())
       throw std::runtime_error("the stereo views need the cameras calibrated: the trace has no plate views and no stored "
                                "camera calibration was given");
-    for (std::size_t v = 0; v < trace.part_left.size(); ++v) m.measureView(trace, v, static_cast<std::uint32_t>(1000 + v));
+    for (std::size_t v = 0; v < trace.part_left.size(); ++v) m.detectView(trace, v, static_cast<std::uint32_t>(1000 + v));
+    while (m.measureDetectedView(trace)) {
+    }
   }
   return m.finish();
 }

@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 #include <tbb/parallel_invoke.h>
 
+#include <utility>
 #include <vector>
 
 namespace stampscan::registration::detail {
@@ -62,27 +63,26 @@ std::vector<StereoMatch> matchAcrossViews(const std::vector<Eigen::Vector2d>& le
                                           const PairPoses& poses, const std::vector<Vec3>& prior, double window_px,
                                           StereoStats& stats);
 
-// Both images' elements (anything with an image `centre`: rings, square cells) found by `detect`,
-// counted in `stats`, and matched with matchAcrossViews.
-template <typename Element>
-struct DetectedPair {
-  std::vector<Element> left, right;
-  std::vector<StereoMatch> matches;
-};
-
+// Both images' elements (anything with an image `centre`: rings, square cells) found by `detect`;
+// the two images at once, as much of a detection runs on one thread.
 template <typename Detect>
-auto detectAndMatch(const cv::Mat& left_image, const cv::Mat& right_image, const Detect& detect, const StereoRig& rig,
-                    const PairPoses& poses, const std::vector<Vec3>& prior, double window_px, StereoStats& stats) {
-  DetectedPair<typename decltype(detect(left_image))::value_type> d;
-  // The two images at once: much of a detection runs on one thread.
-  tbb::parallel_invoke([&] { d.left = detect(left_image); }, [&] { d.right = detect(right_image); });
-  stats.left_rings += d.left.size();
-  stats.right_rings += d.right.size();
+auto detectInBoth(const cv::Mat& left_image, const cv::Mat& right_image, const Detect& detect) {
+  std::pair<decltype(detect(left_image)), decltype(detect(right_image))> found;
+  tbb::parallel_invoke([&] { found.first = detect(left_image); }, [&] { found.second = detect(right_image); });
+  return found;
+}
+
+// Both images' elements counted in `stats` and matched with matchAcrossViews.
+template <typename Element>
+std::vector<StereoMatch> matchFound(const std::vector<Element>& left, const std::vector<Element>& right,
+                                    const StereoRig& rig, const PairPoses& poses, const std::vector<Vec3>& prior,
+                                    double window_px, StereoStats& stats) {
+  stats.left_rings += left.size();
+  stats.right_rings += right.size();
   std::vector<Eigen::Vector2d> left_centres, right_centres;
-  for (const auto& e : d.left) left_centres.push_back(e.centre);
-  for (const auto& e : d.right) right_centres.push_back(e.centre);
-  d.matches = matchAcrossViews(left_centres, right_centres, rig, poses, prior, window_px, stats);
-  return d;
+  for (const auto& e : left) left_centres.push_back(e.centre);
+  for (const auto& e : right) right_centres.push_back(e.centre);
+  return matchAcrossViews(left_centres, right_centres, rig, poses, prior, window_px, stats);
 }
 
 }  // namespace stampscan::registration::detail

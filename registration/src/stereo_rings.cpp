@@ -260,23 +260,52 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
   return out;
 }
 
+std::optional<double> workingDistance(const StereoRig& rig) {
+  // The left axis is the line through the origin along z; the right one, in the left camera's frame,
+  // through the right camera's centre along its z.
+  const Eigen::Isometry3d left_from_right = rig.right_from_left.inverse();
+  const Vec3 axis = Vec3::UnitZ(), right_centre = left_from_right.translation(),
+             right_axis = left_from_right.linear() * Vec3::UnitZ();
+  const double b = axis.dot(right_axis);
+  if (1 - b * b < 1e-6) return std::nullopt;  // within 0.08 degrees of parallel
+  const Vec3 w = -right_centre;
+  const double depth = (b * right_axis.dot(w) - axis.dot(w)) / (1 - b * b);
+  if (!(depth > 0)) return std::nullopt;
+  return depth;
+}
+
+StereoRingImages detectStereoRings(const cv::Mat& left, const cv::Mat& right, double expected_radius_px,
+                                   const RingDetectionParams& params) {
+  auto [l, r] = detail::detectInBoth(
+      left, right, [&](const cv::Mat& image) { return detectImageRings(image, expected_radius_px, params); });
+  return {std::move(l), std::move(r)};
+}
+
 std::vector<GridElement> measureStereoPair(const StereoView& input, const RingDetectionParams& params, StereoStats* stats) {
-  const cv::Mat &left_image = input.left, &right_image = input.right;
+  const detail::PairPoses poses = detail::pairPoses(input.rig, input.machine_from_head, input.prior);
+  if (poses.prior_depth <= 0) return {};
+  const double radius_px = params.printed_radius * input.rig.left.matrix(0, 0) / poses.prior_depth;
+  return measureStereoPair(detectStereoRings(input.left, input.right, radius_px, params),
+                           {.rig = input.rig, .machine_from_head = input.machine_from_head, .prior = input.prior, .index = input.index},
+                           params, stats);
+}
+
+std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const StereoViewPose& input,
+                                           const RingDetectionParams& params, StereoStats* stats) {
   const StereoRig& rig = input.rig;
-  const Eigen::Isometry3d& machine_from_head = input.machine_from_head;
   const std::vector<Vec3>& prior = input.prior;
   const std::uint32_t view = input.index;
   StereoStats local;
   StereoStats& st = stats ? *stats : local;
-  const detail::PairPoses poses = detail::pairPoses(rig, machine_from_head, prior);
+  const detail::PairPoses poses = detail::pairPoses(rig, input.machine_from_head, prior);
   if (poses.prior_depth <= 0) return {};
   // The ring's size in pixels at the prior's typical depth.
   const double radius_px = params.printed_radius * rig.left.matrix(0, 0) / poses.prior_depth;
   // Matched within half a pitch: the next ring along the epipolar line is a whole pitch away, some
   // 6 mm of depth at the nominal standoff.
-  const auto [left, right, matches] = detail::detectAndMatch(
-      left_image, right_image, [&](const cv::Mat& image) { return detectImageRings(image, radius_px, params); }, rig,
-      poses, prior, radius_px, st);
+  const std::vector<ImageRing>& left = found.left;
+  const std::vector<ImageRing>& right = found.right;
+  const std::vector<detail::StereoMatch> matches = detail::matchFound(left, right, rig, poses, prior, radius_px, st);
 
   // Each ring's sheet from both views: a printed circle seen by two cameras lies on the surface
   // where the two images' lines, cast onto it, become the same ellipse. Its depth shows in the

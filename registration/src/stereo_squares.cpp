@@ -248,7 +248,24 @@ bool bendOntoSurface(GridElement& g, const std::array<Eigen::Vector2d, 4>& corne
 
 }  // namespace
 
+StereoCellImages detectStereoCells(const cv::Mat& left, const cv::Mat& right, double expected_pitch_px,
+                                   const SquareDetectionParams& params) {
+  auto [l, r] = detail::detectInBoth(
+      left, right, [&](const cv::Mat& image) { return detectImageCells(image, expected_pitch_px, params); });
+  return {std::move(l), std::move(r)};
+}
+
 std::vector<GridElement> measureStereoSquares(const StereoView& input, const SquareDetectionParams& params, StereoStats* stats) {
+  const detail::PairPoses poses = detail::pairPoses(input.rig, input.machine_from_head, input.prior);
+  if (poses.prior_depth <= 0) return {};
+  const double pitch_px = params.pitch * input.rig.left.matrix(0, 0) / poses.prior_depth;
+  return measureStereoSquares(detectStereoCells(input.left, input.right, pitch_px, params),
+                              {.rig = input.rig, .machine_from_head = input.machine_from_head, .prior = input.prior, .index = input.index},
+                              params, stats);
+}
+
+std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, const StereoViewPose& input,
+                                              const SquareDetectionParams& params, StereoStats* stats) {
   StereoStats local;
   StereoStats& st = stats ? *stats : local;
   const StereoRig& rig = input.rig;
@@ -256,9 +273,9 @@ std::vector<GridElement> measureStereoSquares(const StereoView& input, const Squ
   if (poses.prior_depth <= 0) return {};
   const double pitch_px = params.pitch * rig.left.matrix(0, 0) / poses.prior_depth;
   // Matched within half a pitch, as for rings.
-  const auto [left, right, matches] = detail::detectAndMatch(
-      input.left, input.right, [&](const cv::Mat& image) { return detectImageCells(image, pitch_px, params); }, rig,
-      poses, input.prior, 0.5 * pitch_px, st);
+  const std::vector<ImageCell>& left = found.left;
+  const std::vector<ImageCell>& right = found.right;
+  const std::vector<detail::StereoMatch> matches = detail::matchFound(left, right, rig, poses, input.prior, 0.5 * pitch_px, st);
 
   const Vec3 eyes = 0.5 * (poses.machine_from_left.translation() + poses.machine_from_right.translation());
   std::vector<GridElement> out;

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
 
 namespace {
 
@@ -63,10 +64,16 @@ bool inFullView(const sim::PartScene& scene, const Eigen::Vector3d& position, co
 // corner, its walls and its doubly curved radii.
 enum class Views { Middle, Corner };
 
+// How the images are searched: for elements of the size the prior's depth gives (the whole view in
+// one call), or of the size at the pair's working distance, before any prior is known (as a scan
+// searches each view's images when they arrive), then matched on the prior.
+enum class Search { AtPriorDepth, AtWorkingDistance };
+
 // `hole_radius` > 0 leaves the prior out within that distance (xy) of the views' middle, as where
 // the laser lost a polished spot of the sheet to glare. `image_scale`: the cameras' resolution.
 StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind grid = sim::GridKind::Circle,
-                         Views views = Views::Middle, double hole_radius = 0, double image_scale = 1.0) {
+                         Views views = Views::Middle, double hole_radius = 0, double image_scale = 1.0,
+                         Search search = Search::AtPriorDepth) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
   p.grid.kind = grid;
@@ -108,8 +115,26 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind g
     const cv::Mat left = test_support::DecodedSession::image(pair.left), right = test_support::DecodedSession::image(pair.right);
     const registration::StereoView input{
         .left = left, .right = right, .rig = rig, .machine_from_head = head, .prior = prior, .index = view};
-    const auto g = grid == sim::GridKind::Circle ? registration::measureStereoPair(input, {}, &stats)
-                                                 : registration::measureStereoSquares(input, {}, &stats);
+    std::vector<registration::GridElement> g;
+    if (search == Search::AtPriorDepth) {
+      g = grid == sim::GridKind::Circle ? registration::measureStereoPair(input, {}, &stats)
+                                        : registration::measureStereoSquares(input, {}, &stats);
+    } else {
+      const std::optional<double> depth = registration::workingDistance(rig);
+      EXPECT_TRUE(depth.has_value());
+      if (!depth) return {};
+      const double f = rig.left.matrix(0, 0);
+      const registration::StereoViewPose pose{.rig = rig, .machine_from_head = head, .prior = prior, .index = view};
+      if (grid == sim::GridKind::Circle) {
+        const registration::RingDetectionParams params;
+        g = registration::measureStereoPair(registration::detectStereoRings(left, right, params.printed_radius * f / *depth, params),
+                                            pose, params, &stats);
+      } else {
+        const registration::SquareDetectionParams params;
+        g = registration::measureStereoSquares(registration::detectStereoCells(left, right, params.pitch * f / *depth, params),
+                                               pose, params, &stats);
+      }
+    }
     ++view;
     found.insert(found.end(), g.begin(), g.end());
     const sim::CameraIntrinsics* cams[2] = {&truth.left, &truth.right};
@@ -204,6 +229,39 @@ TEST(StereoRings, ACoarseCameraFindsItsRings) {
   EXPECT_LE(m.position_rms, 0.05);
   EXPECT_LE(m.strain_rms, 0.005);
   EXPECT_GE(static_cast<double>(m.truth_found), 0.8 * static_cast<double>(m.truth_in_view));
+}
+
+// A scan searches each view's images as they arrive, before the laser has measured the part: for
+// elements of the size they have at the pair's working distance. The pan's floor and rim lie
+// 20 mm nearer or further than that; its walls are seen at up to 60 degrees.
+TEST(StereoRings, ImagesSearchedBeforeThePriorIsKnownMeetTheGoals) {
+  expectGoals(runStereo(sim::PartKind::Pan, 42, sim::GridKind::Circle, Views::Middle, 0, 1.0, Search::AtWorkingDistance));
+}
+TEST(StereoSquares, ImagesSearchedBeforeThePriorIsKnownMeetTheGoals) {
+  expectGoals(runStereo(sim::PartKind::Pan, 44, sim::GridKind::Square, Views::Middle, 0, 1.0, Search::AtWorkingDistance));
+}
+
+// The working distance is where the two optical axes cross, along the left one: 60 mm either side
+// of the middle, crossing 300 mm below, sqrt(60^2 + 300^2) from each camera. A pair without
+// vergence has none.
+TEST(StereoRig, TheWorkingDistanceIsWhereTheOpticalAxesCross) {
+  const auto looking_at = [](const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+    const Eigen::Vector3d z = (target - eye).normalized(), x = Eigen::Vector3d::UnitY().cross(z).normalized();
+    Eigen::Isometry3d head_from_camera = Eigen::Isometry3d::Identity();
+    head_from_camera.linear() << x, z.cross(x), z;
+    head_from_camera.translation() = eye;
+    return head_from_camera;
+  };
+  registration::StereoRig rig;
+  const Eigen::Vector3d target(0, 0, 300);
+  rig.head_from_left = looking_at({-60, 0, 0}, target);
+  const Eigen::Isometry3d head_from_right = looking_at({60, 0, 0}, target);
+  rig.right_from_left = head_from_right.inverse() * rig.head_from_left;
+  const std::optional<double> depth = registration::workingDistance(rig);
+  ASSERT_TRUE(depth.has_value());
+  EXPECT_NEAR(*depth, std::hypot(60.0, 300.0), 1e-9);
+  rig.right_from_left = Eigen::Isometry3d(Eigen::Translation3d(-120, 0, 0));
+  EXPECT_FALSE(registration::workingDistance(rig).has_value());
 }
 
 TEST(StereoSquares, DomeCellsMatchTheGroundTruth) {

@@ -212,21 +212,22 @@ void LiveMeasurement::advance(std::size_t step) {
 }
 
 void LiveMeasurement::measureReadyViews() {
-  // A view is matched on the laser's surface and registered to all of its elements: only once every
-  // part sweep of the plan is in.
   // A plan without plate views measures with the stored calibration, once the views' clock pairs are in.
   if (params_.with_stereo && !measurer_.camerasCalibrated() && params_.cameras &&
       plan_.stereoCount(acquisition::Scene::CalibrationPlate) == 0)
     measurer_.calibrateCameras(mine_);
-  if (!params_.with_stereo || !measurer_.camerasCalibrated() ||
-      part_sweeps_measured_ < plan_.sweepCount(acquisition::Scene::Part))
-    return;
-  // (A view waits until the head track reaches past it: the CMM reports only while it moves.)
-  while (!views_cancelled_ && !mine_.part_left.empty() &&
-         measurer_.measureView(mine_, 0, static_cast<std::uint32_t>(1000 + part_views_measured_))) {
-    ++part_views_measured_;
+  if (!params_.with_stereo || !measurer_.camerasCalibrated()) return;
+  // Each view's images are searched as soon as both are in (most of a view's work), and let go.
+  while (!views_cancelled_ && !mine_.part_left.empty() && !mine_.part_right.empty()) {
+    measurer_.detectView(mine_, 0, static_cast<std::uint32_t>(1000 + part_views_detected_++));
     mine_.part_left.erase(mine_.part_left.begin());
     mine_.part_right.erase(mine_.part_right.begin());
+  }
+  // A view is matched on the laser's surface and registered to all of its elements: only once every
+  // part sweep of the plan is in. (A view waits until the head track reaches past it: the CMM
+  // reports only while it moves.)
+  if (part_sweeps_measured_ < plan_.sweepCount(acquisition::Scene::Part)) return;
+  while (!views_cancelled_ && measurer_.measureDetectedView(mine_)) {
   }
 }
 

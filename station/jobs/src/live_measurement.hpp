@@ -67,7 +67,7 @@ class LiveMeasurement {
   // The thread's copy of the trace and how far into the live one it has copied.
   registration::ScanTrace mine_;
   std::map<std::string, std::size_t> taken_pairs_;
-  std::size_t part_sweeps_measured_ = 0, part_views_measured_ = 0;
+  std::size_t part_sweeps_measured_ = 0, part_views_detected_ = 0;
   std::size_t sphere_done_ = 0, plate_done_ = 0, part_sweeps_done_ = 0, part_views_done_ = 0;
   std::vector<registration::SweepWindow> pending_sweeps_;  // ended, not measured yet
   bool plate_step_passed_ = false;  // the cameras' calibration was tried after the last plate view

@@ -17,7 +17,9 @@
 #include "stampscan/registration/laser_rings.hpp"
 #include "stampscan/registration/scan_trace.hpp"
 #include "stampscan/registration/stereo_rings.hpp"
+#include "stampscan/registration/stereo_squares.hpp"
 
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -127,10 +129,15 @@ class ScanMeasurer {
   void measureSweep(const ScanTrace& trace, const SweepWindow& sweep, std::uint32_t sweep_id);
   // Every part sweep of the trace, in parallel.
   void measureSweeps(const ScanTrace& trace);
-  // The stereo view part_left[view] / part_right[view] of the trace (after calibrateCameras and every
-  // part sweep: its rings are matched on the laser's surface and registered to its elements).
-  // False (and nothing done) when the trace's head track does not reach the view's time yet.
-  bool measureView(const ScanTrace& trace, std::size_t view, std::uint32_t view_id);
+  // The stereo view part_left[view] / part_right[view] of the trace searched for the grid's elements
+  // (after calibrateCameras): the bulk of a view's work, which needs neither the laser nor the head's
+  // pose, so a scan runs it as the frames arrive and the images can go. The view then waits for
+  // measureDetectedView.
+  void detectView(const ScanTrace& trace, std::size_t view, std::uint32_t view_id);
+  // The first view detectView left waiting, matched on the laser's surface and registered to its
+  // elements (after every part sweep). False (and nothing done) when none waits or the trace's head
+  // track does not reach its time yet.
+  bool measureDetectedView(const ScanTrace& trace);
 
   bool digitizerCalibrated() const { return digitizer_ready_; }
   const DigitizerCalibration& digitizer() const { return out_.digitizer; }
@@ -154,6 +161,16 @@ class ScanMeasurer {
   SquareDetectionParams squares_;
   std::int64_t camera_offset_ = 0;
   std::vector<GridElement> laser_, stereo_;
+  // A detected view waiting for its matching: its elements in both images, or, for a pair without a
+  // working distance, the images themselves.
+  struct PendingView {
+    std::int64_t time_ns = 0;  // on the head track's clock
+    std::uint32_t id = 0;
+    std::optional<StereoRingImages> rings;
+    std::optional<StereoCellImages> cells;
+    cv::Mat left, right;
+  };
+  std::deque<PendingView> pending_views_;
   std::vector<std::vector<Vec3>> surface_points_;  // per part sweep
   // A sparse sample of the laser's returns (about one per square millimetre per sweep): the depth
   // prior of the stereo matching, with the elements. On a steep wall, where the laser finds few

@@ -28,6 +28,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <optional>
 #include <vector>
 
 namespace stampscan::registration {
@@ -51,6 +52,11 @@ struct StereoRig {
   Eigen::Isometry3d right_from_left = Eigen::Isometry3d::Identity();
 };
 
+// The depth in front of the left camera (along its optical axis) where the two cameras' axes pass
+// nearest each other: the pair's working distance, from its calibration alone. None when the axes
+// are near parallel (no vergence) or meet behind the cameras.
+std::optional<double> workingDistance(const StereoRig& rig);
+
 struct StereoStats {
   std::size_t left_rings = 0, right_rings = 0, without_prior = 0, unmatched = 0, matched = 0, rejected_fit = 0;
 };
@@ -67,7 +73,29 @@ struct StereoView {
   std::uint32_t index = 0;  // the view's number, which its elements carry (GridElement::view)
 };
 
-// The rings of one stereo view.
+// Where one view was taken from and what resolves its matching: the head's pose, and points of the
+// part's surface (machine frame); without them nothing can be matched. Borrowed for the call.
+struct StereoViewPose {
+  const StereoRig& rig;
+  Eigen::Isometry3d machine_from_head = Eigen::Isometry3d::Identity();
+  const std::vector<Vec3>& prior;
+  std::uint32_t index = 0;  // the view's number, which its elements carry (GridElement::view)
+};
+
+// Both images' rings of one view: stage 1 above, from the images alone (most of a view's work), so
+// that a scan runs it as the frames arrive and lets the images go.
+struct StereoRingImages {
+  std::vector<ImageRing> left, right;
+};
+StereoRingImages detectStereoRings(const cv::Mat& left, const cv::Mat& right, double expected_radius_px,
+                                   const RingDetectionParams& params);
+
+// Stages 2 and 3: the detected rings matched and measured.
+std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const StereoViewPose& pose,
+                                           const RingDetectionParams& params, StereoStats* stats = nullptr);
+
+// The rings of one stereo view: all three stages, the rings' size in pixels taken at the prior's
+// typical depth.
 std::vector<GridElement> measureStereoPair(const StereoView& view, const RingDetectionParams& params,
                                            StereoStats* stats = nullptr);
 

@@ -31,8 +31,20 @@ struct ImageCell {
 // `expected_pitch_px` is the unstrained pitch in pixels at the working distance.
 std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pitch_px, const SquareDetectionParams& params);
 
-// The square cells of one stereo view (stereo_rings.hpp). Each element is a cell's centre; fit_rms
+// Both images' cells of one view: stage 1 above, from the images alone (as detectStereoRings).
+struct StereoCellImages {
+  std::vector<ImageCell> left, right;
+};
+StereoCellImages detectStereoCells(const cv::Mat& left, const cv::Mat& right, double expected_pitch_px,
+                                   const SquareDetectionParams& params);
+
+// Stages 2 and 3: the detected cells matched and measured. Each element is a cell's centre; fit_rms
 // holds the corners' misfit to a parallelogram (mm).
+std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, const StereoViewPose& pose,
+                                              const SquareDetectionParams& params, StereoStats* stats = nullptr);
+
+// The square cells of one stereo view: all three stages, the pitch in pixels taken at the prior's
+// typical depth (stereo_rings.hpp).
 std::vector<GridElement> measureStereoSquares(const StereoView& view, const SquareDetectionParams& params,
                                               StereoStats* stats = nullptr);
 
