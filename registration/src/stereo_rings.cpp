@@ -29,7 +29,7 @@ struct RingRays {
 
 RingRays raysOf(const ImageRing& ring, const CameraModel& cam, const Eigen::Isometry3d& machine_from_camera) {
   RingRays r{machine_from_camera.translation(), {}};
-  for (const auto& q : detail::normalised(ring.edge, cam))
+  for (const auto& q : detail::normalised(ring.edge(), cam))
     r.directions.push_back((machine_from_camera.linear() * Vec3(q.x(), q.y(), 1)).normalized());
   return r;
 }
@@ -149,6 +149,14 @@ std::optional<RingSurface> ringSurface(const RingRays& left, const RingRays& rig
 
 }  // namespace
 
+std::vector<Eigen::Vector2d> ImageRing::edge(int points) const {
+  const detail::ImageEllipse e{.centre = centre, .shape = shape, .third = third};
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(static_cast<std::size_t>(std::max(0, points)));
+  for (int k = 0; k < points; ++k) out.push_back(e.point(2 * std::numbers::pi * k / points));
+  return out;
+}
+
 std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_radius_px, const RingDetectionParams& params) {
   cv::Mat I;
   image.convertTo(I, CV_32F);
@@ -251,7 +259,8 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     ring.blur = fit.blur;
     ring.contrast = fit.contrast;
     ring.rms = fit.rms;
-    for (int ray = 0; ray < 360; ++ray) ring.edge.push_back(e.point(2 * std::numbers::pi * ray / 360));
+    ring.shape = e.shape;
+    ring.third = e.third;
     refined[i] = std::move(ring);
   });
   std::vector<ImageRing> out;

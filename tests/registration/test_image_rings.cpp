@@ -81,8 +81,9 @@ Errors measure(const Lattice& L, double blur) {
     const Eigen::Vector2d c = L.centre(std::round(m.x()), std::round(m.y()));
     // The 360 points are spread evenly in the ellipse's parameter: their covariance is M M^T / 2.
     Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-    for (const auto& q : r.edge) cov += (q - r.centre) * (q - r.centre).transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> found(2 * cov / static_cast<double>(r.edge.size()));
+    const std::vector<Eigen::Vector2d> edge = r.edge();
+    for (const auto& q : edge) cov += (q - r.centre) * (q - r.centre).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> found(2 * cov / static_cast<double>(edge.size()));
     e.major += std::sqrt(found.eigenvalues()(1) / truth.eigenvalues()(1)) - 1;
     e.minor += std::sqrt(found.eigenvalues()(0) / truth.eigenvalues()(0)) - 1;
     e.centre += (r.centre - c).norm();
@@ -163,7 +164,7 @@ TEST(ImageRingShape, AThirdHarmonicWobbleIsFollowed) {
     for (const auto& r : rings) {
       const Eigen::Vector2d index = inverse * (r.centre - L.origin) / (2 * L.radius);
       const Eigen::Vector2d c = L.centre(std::round(index.x()), std::round(index.y()));
-      for (const auto& q : r.edge) {
+      for (const auto& q : r.edge()) {
         // Distance from the drawn curve, along the ray from the centre before the map, in px.
         const Eigen::Vector2d u = inverse * (q - c);
         const double theta = std::atan2(u.y(), u.x()), stretch = (L.map * u.normalized()).norm();

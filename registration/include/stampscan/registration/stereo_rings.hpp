@@ -33,14 +33,19 @@
 
 namespace stampscan::registration {
 
-// A ring's printed line as the image shows it: 360 points on the fitted centre line (pixel
-// coordinates, distortion not removed), and what the fit saw of the line.
+// A ring's printed line as the image shows it: its fitted centre line, centre + M (cos t, sin t)
+// moved along the normal by the third harmonic a cos 3t + b sin 3t (pixel coordinates, distortion
+// not removed), and what the fit saw of the line. A few numbers each: a scan keeps every view's
+// rings from their images' arrival to their matching.
 struct ImageRing {
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // of the fitted ellipse
-  std::vector<Eigen::Vector2d> edge;
+  Eigen::Matrix2d shape = Eigen::Matrix2d::Identity();  // M, symmetric
+  Eigen::Vector2d third = Eigen::Vector2d::Zero();      // (a, b), px
   double blur = 0;      // px: the line profile's Gaussian width (optics and pixel)
   double contrast = 0;  // share of the sheet's light the ink takes
   double rms = 0;       // of the fit, as a share of the sheet's level
+  // `points` points on the centre line, evenly spread in t.
+  std::vector<Eigen::Vector2d> edge(int points = 360) const;
 };
 
 // `expected_radius_px` is an unstrained ring's radius in pixels at the working distance.
