@@ -70,7 +70,22 @@ struct RingGeometry {
     inverse = e.shape.inverse();
     det = e.shape.determinant();
     mean = e.meanRadius();
+    inverse2 = inverse * inverse;
+    for (int k = 0; k < 3; ++k) {  // M11, M12 (both off-diagonal entries), M22
+      Eigen::Matrix2d E = Eigen::Matrix2d::Zero();
+      if (k == 0) E(0, 0) = 1;
+      else if (k == 1) E(0, 1) = E(1, 0) = 1;
+      else E(1, 1) = 1;
+      inverse_E[k] = inverse * E;
+      inverse2_E[k] = inverse2 * E;
+      half_trace_inverse_E[k] = 0.5 * inverse_E[k].trace();
+    }
   }
+  // The same for every pixel, so made once per parameter vector: A^2, and A E and A^2 E for each
+  // shape entry's unit change E (the slopes below).
+  Eigen::Matrix2d inverse2 = Eigen::Matrix2d::Zero();
+  std::array<Eigen::Matrix2d, 3> inverse_E{}, inverse2_E{};
+  std::array<double, 3> half_trace_inverse_E{};
   // The signed distance d, and how wide the line is there against the ring's mean (an affine image of
   // the printed annulus is widest across the major axis's ends), with their slopes in the
   // parameters when asked. With A = M^-1, u = A (x - c), rho = |u|, v = A u, g = |v| / rho:
@@ -96,7 +111,6 @@ struct RingGeometry {
     dd[5] = -c3;
     dd[6] = -s3;
     dscale[5] = dscale[6] = 0;
-    const Eigen::Matrix2d A2 = inverse * inverse;
     const auto slopes = [&](const Eigen::Vector2d& du, const Eigen::Vector2d& dv, double dlog_mean, int k) {
       const double drho = u.dot(du) / rho;
       const double dg = (v.dot(dv) / vn - g * drho) / rho;
@@ -104,16 +118,12 @@ struct RingGeometry {
       dscale[k] = -width_scale * (dg / g + dlog_mean);
     };
     for (int k = 0; k < 2; ++k) {  // the centre: du = -A e_k, dv = -A^2 e_k
-      slopes(-inverse.col(k), -A2.col(k), 0.0, k);
+      slopes(-inverse.col(k), -inverse2.col(k), 0.0, k);
     }
     for (int k = 0; k < 3; ++k) {  // M11, M12 (both off-diagonal entries), M22: dA = -A E A
-      Eigen::Matrix2d E = Eigen::Matrix2d::Zero();
-      if (k == 0) E(0, 0) = 1;
-      else if (k == 1) E(0, 1) = E(1, 0) = 1;
-      else E(1, 1) = 1;
-      const Eigen::Vector2d du = -inverse * E * u;
-      const Eigen::Vector2d dv = -inverse * E * v - A2 * E * u;
-      slopes(du, dv, 0.5 * (inverse * E).trace(), 2 + k);
+      const Eigen::Vector2d du = -(inverse_E[k] * u);
+      const Eigen::Vector2d dv = -(inverse_E[k] * v) - inverse2_E[k] * u;
+      slopes(du, dv, half_trace_inverse_E[k], 2 + k);
     }
   }
   bool plausible() const {
@@ -359,7 +369,10 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
     }
     if (!improved) break;
     fit.reweigh(residual, p(Model::L0));
-    if (delta.template head<G>().cwiseAbs().maxCoeff() < 2e-4) break;  // px: far below the noise
+    // A thousandth of a pixel: a strain of 1e-4 moves a 20 px ring's axes by 0.002 px, and the step
+    // after this one would be smaller still. (2e-4 took 5.7 rounds a ring instead of 4.3 and changed
+    // no measured strain's RMS against the truth.)
+    if (delta.template head<G>().cwiseAbs().maxCoeff() < 1e-3) break;
   }
   const std::array<double, G> g1 = geom.get();
   double moved = 0;

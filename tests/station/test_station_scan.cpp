@@ -352,8 +352,10 @@ TEST_F(StationTest, TheCellsMachineLimitsBoundThePlan) {
   writeFile(cell, "name = \"small cell\"\n[machine]\ntravel_min = [-100, -100, -100]\ntravel_max = [100, 100, 600]\n");
   RunResult r = run("scan --dry-run --cell " + quote(cell) + " --virtual -o " + quote(work() / "runs"));
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
-  // The plate stands at x = -250 beside the part.
-  EXPECT_NE(r.out.find("problem     step 1 (stereo calibration_plate 0): pose x = -2"), std::string::npos) << r.out;
+  // The reference sphere stands at x = 250 beside the part, the plate at x = -250: the sphere's
+  // sweeps come first (the part's sweeps are measured with their calibration).
+  EXPECT_NE(r.out.find("problem     step 1 (sweep reference_sphere 0): start x = 2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(stereo calibration_plate 0): pose x = -2"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find(" mm is outside the travel -100..100"), std::string::npos) << r.out;
   // A malformed [machine] names the file and the key.
   writeFile(cell, "[machine]\nmax_speed = -5\n");
