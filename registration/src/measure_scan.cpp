@@ -265,18 +265,21 @@ void ScanMeasurer::detectView(const ScanTrace& trace, std::size_t v, std::uint32
   // the calibration alone, so the images are searched as they come, before the laser has measured
   // the part (the search allows for a wide range of sizes). A pair without vergence has no working
   // distance of its own: its images wait for the laser's depth.
-  const double f = out_.rig->left.matrix(0, 0);
   if (const std::optional<double> depth = workingDistance(*out_.rig)) {
-    if (grid_ == "circle")
-      pending.rings = detectStereoRings(trace.part_left[v].image, trace.part_right[v].image, rings_.printed_radius * f / *depth, rings_);
-    else
-      pending.cells = detectStereoCells(trace.part_left[v].image, trace.part_right[v].image, squares_.pitch * f / *depth, squares_);
+    searchView(pending, trace.part_left[v].image, trace.part_right[v].image, *depth);
   } else {
     pending.left = trace.part_left[v].image;
     pending.right = trace.part_right[v].image;
   }
   pending_views_.push_back(std::move(pending));
   stereo_seconds_ += clock.lap();
+}
+
+void ScanMeasurer::searchView(PendingView& pending, const cv::Mat& left, const cv::Mat& right, double depth) const {
+  if (grid_ == "circle")
+    pending.rings = detectStereoRings(left, right, pixelsAtDepth(*out_.rig, rings_.printed_radius, depth), rings_);
+  else
+    pending.cells = detectStereoCells(left, right, pixelsAtDepth(*out_.rig, squares_.pitch, depth), squares_);
 }
 
 bool ScanMeasurer::measureDetectedView(const ScanTrace& trace) {
@@ -314,17 +317,18 @@ bool ScanMeasurer::measureDetectedView(const ScanTrace& trace) {
     icp_ = std::make_unique<PointToPlaneIcp>(icp_target_, std::move(normals));
   }
   const StereoRig& rig = *out_.rig;
-  const bool circles = grid_ == "circle";
   std::vector<Vec3> prior = laser_positions;
   prior.insert(prior.end(), depth_prior_.begin(), depth_prior_.end());
-  std::vector<GridElement> view;
+  const StereoViewPose pose{.rig = rig, .machine_from_head = track.poseAt(t), .prior = prior, .index = view_id};
+  // A pair without a working distance kept its images: searched now, at the laser's depth.
   if (!pending.left.empty()) {
-    const StereoView input{.left = pending.left, .right = pending.right, .rig = rig, .machine_from_head = track.poseAt(t), .prior = prior, .index = view_id};
-    view = circles ? measureStereoPair(input, rings_) : measureStereoSquares(input, squares_);
-  } else {
-    const StereoViewPose input{.rig = rig, .machine_from_head = track.poseAt(t), .prior = prior, .index = view_id};
-    view = circles ? measureStereoPair(*pending.rings, input, rings_) : measureStereoSquares(*pending.cells, input, squares_);
+    if (const double depth = priorDepth(pose); depth > 0) searchView(pending, pending.left, pending.right, depth);
+    pending.left.release();
+    pending.right.release();
   }
+  std::vector<GridElement> view;
+  if (pending.rings) view = measureStereoPair(*pending.rings, pose, rings_);
+  else if (pending.cells) view = measureStereoSquares(*pending.cells, pose, squares_);
   pending_views_.pop_front();
   if (view.size() >= 10) {
     std::vector<Vec3> source;
@@ -353,7 +357,7 @@ bool ScanMeasurer::measureDetectedView(const ScanTrace& trace) {
     for (const auto& q : laser_positions) centroid += q;
     centroid /= static_cast<double>(laser_positions.size());
     const double depth = ((track.poseAt(t) * rig.head_from_left).inverse() * centroid).z();
-    const double line_px = (circles ? rings_.line_width : squares_.line_width) * rig.left.matrix(0, 0) / depth;
+    const double line_px = pixelsAtDepth(rig, grid_ == "circle" ? rings_.line_width : squares_.line_width, depth);
     if (depth > 0 && line_px < 1.5)
       out_.stereo_note = format("the printed line is %.1f px wide in these images; the stereo path needs about 1.5 px "
                                 "or more (quick sessions render at a quarter of the resolution)",

@@ -293,14 +293,12 @@ StereoRingImages detectStereoRings(const cv::Mat& left, const cv::Mat& right, do
   return {std::move(l), std::move(r)};
 }
 
-std::vector<GridElement> measureStereoPair(const StereoView& input, const RingDetectionParams& params, StereoStats* stats) {
-  const detail::PairPoses poses = detail::pairPoses(input.rig, input.machine_from_head, input.prior);
-  if (poses.prior_depth <= 0) return {};
-  const double radius_px = params.printed_radius * input.rig.left.matrix(0, 0) / poses.prior_depth;
-  return measureStereoPair(detectStereoRings(input.left, input.right, radius_px, params),
-                           {.rig = input.rig, .machine_from_head = input.machine_from_head, .prior = input.prior, .index = input.index},
-                           params, stats);
+double priorDepth(const StereoViewPose& pose) {
+  return detail::pairPoses(pose.rig, pose.machine_from_head, pose.prior).prior_depth;
 }
+
+double pixelsAtDepth(const StereoRig& rig, double mm, double depth) { return mm * rig.left.matrix(0, 0) / depth; }
+
 
 std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const StereoViewPose& input,
                                            const RingDetectionParams& params, StereoStats* stats) {
@@ -312,7 +310,7 @@ std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const 
   const detail::PairPoses poses = detail::pairPoses(rig, input.machine_from_head, prior);
   if (poses.prior_depth <= 0) return {};
   // The ring's size in pixels at the prior's typical depth.
-  const double radius_px = params.printed_radius * rig.left.matrix(0, 0) / poses.prior_depth;
+  const double radius_px = pixelsAtDepth(rig, params.printed_radius, poses.prior_depth);
   // Matched within half a pitch: the next ring along the epipolar line is a whole pitch away, some
   // 6 mm of depth at the nominal standoff.
   const std::vector<ImageRing>& left = found.left;

@@ -255,14 +255,6 @@ StereoCellImages detectStereoCells(const cv::Mat& left, const cv::Mat& right, do
   return {std::move(l), std::move(r)};
 }
 
-std::vector<GridElement> measureStereoSquares(const StereoView& input, const SquareDetectionParams& params, StereoStats* stats) {
-  const detail::PairPoses poses = detail::pairPoses(input.rig, input.machine_from_head, input.prior);
-  if (poses.prior_depth <= 0) return {};
-  const double pitch_px = params.pitch * input.rig.left.matrix(0, 0) / poses.prior_depth;
-  return measureStereoSquares(detectStereoCells(input.left, input.right, pitch_px, params),
-                              {.rig = input.rig, .machine_from_head = input.machine_from_head, .prior = input.prior, .index = input.index},
-                              params, stats);
-}
 
 std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, const StereoViewPose& input,
                                               const SquareDetectionParams& params, StereoStats* stats) {
@@ -271,7 +263,7 @@ std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, con
   const StereoRig& rig = input.rig;
   const detail::PairPoses poses = detail::pairPoses(rig, input.machine_from_head, input.prior);
   if (poses.prior_depth <= 0) return {};
-  const double pitch_px = params.pitch * rig.left.matrix(0, 0) / poses.prior_depth;
+  const double pitch_px = pixelsAtDepth(rig, params.pitch, poses.prior_depth);
   // Matched within half a pitch, as for rings.
   const std::vector<ImageCell>& left = found.left;
   const std::vector<ImageCell>& right = found.right;

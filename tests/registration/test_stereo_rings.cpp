@@ -113,27 +113,24 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind g
     const Eigen::Isometry3d head = s.headAt(pair.left.device_time_ns - offset).pose();
     // The part's own surface as the depth prior (in the station, the laser's).
     const cv::Mat left = test_support::DecodedSession::image(pair.left), right = test_support::DecodedSession::image(pair.right);
-    const registration::StereoView input{
-        .left = left, .right = right, .rig = rig, .machine_from_head = head, .prior = prior, .index = view};
+    // Stage 1 at the prior's depth (as a pair without vergence is searched) or at the pair's working
+    // distance (as a scan searches each view when its frames arrive); then stages 2 and 3.
+    const registration::StereoViewPose pose{.rig = rig, .machine_from_head = head, .prior = prior, .index = view};
+    const std::optional<double> depth =
+        search == Search::AtPriorDepth ? std::optional<double>(registration::priorDepth(pose)) : registration::workingDistance(rig);
+    EXPECT_TRUE(depth && *depth > 0);
+    if (!depth || !(*depth > 0)) return {};
     std::vector<registration::GridElement> g;
-    if (search == Search::AtPriorDepth) {
-      g = grid == sim::GridKind::Circle ? registration::measureStereoPair(input, {}, &stats)
-                                        : registration::measureStereoSquares(input, {}, &stats);
+    if (grid == sim::GridKind::Circle) {
+      const registration::RingDetectionParams params;
+      g = registration::measureStereoPair(
+          registration::detectStereoRings(left, right, registration::pixelsAtDepth(rig, params.printed_radius, *depth), params), pose,
+          params, &stats);
     } else {
-      const std::optional<double> depth = registration::workingDistance(rig);
-      EXPECT_TRUE(depth.has_value());
-      if (!depth) return {};
-      const double f = rig.left.matrix(0, 0);
-      const registration::StereoViewPose pose{.rig = rig, .machine_from_head = head, .prior = prior, .index = view};
-      if (grid == sim::GridKind::Circle) {
-        const registration::RingDetectionParams params;
-        g = registration::measureStereoPair(registration::detectStereoRings(left, right, params.printed_radius * f / *depth, params),
-                                            pose, params, &stats);
-      } else {
-        const registration::SquareDetectionParams params;
-        g = registration::measureStereoSquares(registration::detectStereoCells(left, right, params.pitch * f / *depth, params),
-                                               pose, params, &stats);
-      }
+      const registration::SquareDetectionParams params;
+      g = registration::measureStereoSquares(
+          registration::detectStereoCells(left, right, registration::pixelsAtDepth(rig, params.pitch, *depth), params), pose,
+          params, &stats);
     }
     ++view;
     found.insert(found.end(), g.begin(), g.end());

@@ -170,6 +170,8 @@ class ScanMeasurer {
     std::optional<StereoCellImages> cells;
     cv::Mat left, right;
   };
+  // A view's images searched for elements of the size they have at `depth` (stage 1).
+  void searchView(PendingView& pending, const cv::Mat& left, const cv::Mat& right, double depth) const;
   std::deque<PendingView> pending_views_;
   std::vector<std::vector<Vec3>> surface_points_;  // per part sweep
   // A sparse sample of the laser's returns (about one per square millimetre per sweep): the depth

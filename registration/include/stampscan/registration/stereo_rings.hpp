@@ -66,18 +66,6 @@ struct StereoStats {
   std::size_t left_rings = 0, right_rings = 0, without_prior = 0, unmatched = 0, matched = 0, rejected_fit = 0;
 };
 
-// One stereo view to measure: both images, taken with the head at `machine_from_head`, and points
-// of the part's surface (machine frame) that resolve the matching; without them nothing can be
-// matched. Everything is borrowed for the call.
-struct StereoView {
-  const cv::Mat& left;
-  const cv::Mat& right;
-  const StereoRig& rig;
-  Eigen::Isometry3d machine_from_head = Eigen::Isometry3d::Identity();
-  const std::vector<Vec3>& prior;
-  std::uint32_t index = 0;  // the view's number, which its elements carry (GridElement::view)
-};
-
 // Where one view was taken from and what resolves its matching: the head's pose, and points of the
 // part's surface (machine frame); without them nothing can be matched. Borrowed for the call.
 struct StereoViewPose {
@@ -86,6 +74,14 @@ struct StereoViewPose {
   const std::vector<Vec3>& prior;
   std::uint32_t index = 0;  // the view's number, which its elements carry (GridElement::view)
 };
+
+// The typical depth of the pose's prior points in front of the left camera (its axis): where a pair
+// without a working distance looks for its elements. 0 when none lies in front.
+double priorDepth(const StereoViewPose& pose);
+
+// How many pixels of the left camera `mm` millimetres span at `depth` in front of it: the size of
+// the elements stage 1 looks for.
+double pixelsAtDepth(const StereoRig& rig, double mm, double depth);
 
 // Both images' rings of one view: stage 1 above, from the images alone (most of a view's work), so
 // that a scan runs it as the frames arrive and lets the images go.
@@ -98,10 +94,5 @@ StereoRingImages detectStereoRings(const cv::Mat& left, const cv::Mat& right, do
 // Stages 2 and 3: the detected rings matched and measured.
 std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const StereoViewPose& pose,
                                            const RingDetectionParams& params, StereoStats* stats = nullptr);
-
-// The rings of one stereo view: all three stages, the rings' size in pixels taken at the prior's
-// typical depth.
-std::vector<GridElement> measureStereoPair(const StereoView& view, const RingDetectionParams& params,
-                                           StereoStats* stats = nullptr);
 
 }  // namespace stampscan::registration

@@ -43,9 +43,4 @@ StereoCellImages detectStereoCells(const cv::Mat& left, const cv::Mat& right, do
 std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, const StereoViewPose& pose,
                                               const SquareDetectionParams& params, StereoStats* stats = nullptr);
 
-// The square cells of one stereo view: all three stages, the pitch in pixels taken at the prior's
-// typical depth (stereo_rings.hpp).
-std::vector<GridElement> measureStereoSquares(const StereoView& view, const SquareDetectionParams& params,
-                                              StereoStats* stats = nullptr);
-
 }  // namespace stampscan::registration
