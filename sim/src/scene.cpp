@@ -87,23 +87,43 @@ std::optional<Hit> PartScene::castOnPart(const Ray& ray, double footprint_per_mm
   t1 = (z_bottom - o.z()) / d.z();
   if (t1 < t0) std::swap(t0, t1);
   t0 = std::max(t0, 0.0);
-  const double denominator = std::abs(d.z()) + max_slope_ * std::hypot(d.x(), d.y());
-  double t = t0;
-  // A neighbouring ray's hit is a close start (coherent rays of a row or a profile); the gap must
-  // still be positive there, i.e. the start above the surface.
-  for (const double back : {0.05, 0.5}) {
-    if (t_hint > 0 && t_hint - back > t0 && gap(t_hint - back) > 0) {
-      t = t_hint - back;
-      break;
+  const double denominator = std::abs(d.z()) + max_slope_ * std::sqrt(d.x() * d.x() + d.y() * d.y());
+  double t = t0, g = 0, t_prev = t0, g_prev = 0;
+  bool started = false, bracketed = false;
+  if (t_hint > 0) {
+    // A neighbouring ray's hit is a close start (coherent rays of a row or a profile): this ray's
+    // hit is usually within the march's smallest step of it, so a bracket that wide around the hint,
+    // above the surface at its near end, holds it after two evaluations (the march took three or
+    // four from 0.05 before the hint). The bracket is no wider than a march step, so it skips
+    // nothing the march would have found.
+    const double near = t_hint - 0.01, far = t_hint + 0.01;
+    if (near > t0 && far < t1) {
+      if (const double g_near = gap(near); g_near > 0) {
+        t_prev = near;
+        g_prev = g_near;
+        t = far;
+        g = gap(far);
+        started = true;
+        bracketed = g <= 0;
+      }
+    }
+    // Otherwise from a little further back, the start still above the surface.
+    for (const double back : {0.05, 0.5}) {
+      if (started || !(t_hint - back > t0)) continue;
+      if (const double g_back = gap(t_hint - back); g_back > 0) {
+        t = t_hint - back;
+        g = g_back;
+        started = true;
+      }
     }
   }
-  double g = gap(t);
-  if (g < 0) return std::nullopt;  // starts below the surface: looking from underneath
+  if (!started) {
+    g = gap(t);
+    if (g < 0) return std::nullopt;  // starts below the surface: looking from underneath
+  }
   // March with steps that cannot cross the surface (the gap shrinks by at most `denominator` per
   // unit step), then bracket and refine by the Illinois variant of regula falsi.
-  double t_prev = t, g_prev = g;
-  bool bracketed = false;
-  while (t < t1) {
+  while (!bracketed && t < t1) {
     t_prev = t;
     g_prev = g;
     t += std::max(g / denominator, 0.02);
