@@ -56,6 +56,7 @@ PartScene::PartScene(const FormedPart& part, const GridSpec& grid, const Eigen::
       slope = std::max(slope, heightGradient([&](double u, double v) { return part.height(u, v); }, x, y).norm());
     }
   max_slope_ = 1.3 * slope + 0.1;
+  footprint_ = {box.min - Vec2(1, 1), box.max + Vec2(1, 1)};
 }
 
 std::optional<Hit> PartScene::cast(const Ray& ray, double footprint_per_mm, double t_hint) const {
@@ -87,6 +88,21 @@ std::optional<Hit> PartScene::castOnPart(const Ray& ray, double footprint_per_mm
   t1 = (z_bottom - o.z()) / d.z();
   if (t1 < t0) std::swap(t0, t1);
   t0 = std::max(t0, 0.0);
+  // And over the part's footprint: a ray beside the part ends here. (It used to march down to the
+  // flange's plane to be told it was past the blank: on the dome's views 29 % of the rays and 46 %
+  // of the height evaluations, for the same images.)
+  for (int axis = 0; axis < 2; ++axis) {
+    const double lo = footprint_.min(axis), hi = footprint_.max(axis);
+    if (std::abs(d(axis)) < 1e-12) {
+      if (o(axis) < lo || o(axis) > hi) return std::nullopt;
+      continue;
+    }
+    double ta = (lo - o(axis)) / d(axis), tb = (hi - o(axis)) / d(axis);
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (!(t0 < t1)) return std::nullopt;
   const double denominator = std::abs(d.z()) + max_slope_ * std::sqrt(d.x() * d.x() + d.y() * d.y());
   double t = t0, g = 0, t_prev = t0, g_prev = 0;
   bool started = false, bracketed = false;
@@ -128,10 +144,7 @@ std::optional<Hit> PartScene::castOnPart(const Ray& ray, double footprint_per_mm
     g_prev = g;
     t += std::max(g / denominator, 0.02);
     g = gap(t);
-    if (g <= 0) {
-      bracketed = true;
-      break;
-    }
+    bracketed = g <= 0;
   }
   if (!bracketed) return std::nullopt;
   double a = t_prev, fa = g_prev, b = t, fb = g;

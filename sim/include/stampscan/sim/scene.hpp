@@ -64,6 +64,7 @@ class PartScene final : public Scene {
   bool at_origin_ = true;
   Table table_;
   double max_slope_ = 1;  // bound on |grad h|, for the safe marching step
+  BlankRect footprint_;    // the part's footprint grown by a millimetre: rays beside it miss it
 };
 
 // A flat calibration plate with a symmetric grid of black dots on white, at a pose on the table.
