@@ -6,9 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <variant>
+#include <vector>
 
 namespace stampscan::acquisition {
 
@@ -131,6 +134,28 @@ ScanPlan calibrationPlan(const CellConfig& cell, const CalibrationScenes& scenes
   plan.park = parkingPose(cell.limits);
   appendCalibrationScenes(cell.geometry, cell.limits, scenes, plan);
   return plan;
+}
+
+ScanPlan withCalibrationScenes(ScanPlan part_plan, const CellGeometry& cell, const MachineLimits& limits,
+                               const CalibrationScenes& scenes) {
+  ScanPlan calibration;
+  appendCalibrationScenes(cell, limits, scenes, calibration);
+  const auto isPlateView = [](const PlanStep& step) {
+    const auto* view = std::get_if<StereoStep>(&step);
+    return view != nullptr && view->scene == Scene::CalibrationPlate;
+  };
+  const auto isView = [](const PlanStep& step) { return std::holds_alternative<StereoStep>(step); };
+  // The part's sweeps and views each keep their own order; a plan that mixes them has its sweeps first.
+  std::vector<PlanStep> steps;
+  const auto append = [&](const std::vector<PlanStep>& from, const auto& keep) {
+    std::copy_if(from.begin(), from.end(), std::back_inserter(steps), keep);
+  };
+  append(calibration.steps, [&](const PlanStep& step) { return !isPlateView(step); });
+  append(part_plan.steps, [&](const PlanStep& step) { return !isView(step); });
+  append(calibration.steps, isPlateView);
+  append(part_plan.steps, isView);
+  part_plan.steps = std::move(steps);
+  return part_plan;
 }
 
 }  // namespace stampscan::acquisition

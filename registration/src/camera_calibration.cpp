@@ -6,6 +6,7 @@
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -109,26 +110,44 @@ std::vector<cv::Point2f> detectCirclePlate(const cv::Mat& image, const CirclePla
   return centres;
 }
 
+PlateView findPlate(const cv::Mat& image, const CirclePlateSpec& plate) {
+  if (image.empty()) return {};
+  return {image.size(), detectCirclePlate(image, plate)};
+}
+
+namespace {
+
+std::vector<PlateView> findPlates(const std::vector<cv::Mat>& images, const CirclePlateSpec& plate) {
+  std::vector<PlateView> views(images.size());
+  tbb::parallel_for(std::size_t{0}, images.size(), [&](std::size_t v) { views[v] = findPlate(images[v], plate); });
+  return views;
+}
+
+}  // namespace
+
 CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const CirclePlateSpec& plate,
                                   const CalibrationParams& params) {
+  return calibrateCamera(findPlates(images, plate), plate, params);
+}
+
+CameraCalibration calibrateCamera(const std::vector<PlateView>& views, const CirclePlateSpec& plate,
+                                  const CalibrationParams& params) {
   CameraCalibration out;
-  out.views.resize(images.size());
-  out.plate_poses.assign(images.size(), std::nullopt);
-  std::vector<std::vector<cv::Point2f>> detected(images.size());
+  out.views.resize(views.size());
+  out.plate_poses.assign(views.size(), std::nullopt);
   cv::Size size;
-  for (std::size_t v = 0; v < images.size(); ++v) {
+  for (std::size_t v = 0; v < views.size(); ++v) {
     out.views[v].view = v;
-    if (images[v].empty()) {
+    if (views[v].image_size.empty()) {
       out.views[v].note = "empty image";
       continue;
     }
-    if (size.area() == 0) size = images[v].size();
-    if (images[v].size() != size) {
+    if (size.area() == 0) size = views[v].image_size;
+    if (views[v].image_size != size) {
       out.views[v].note = "image size differs from the first view";
       continue;
     }
-    detected[v] = detectCirclePlate(images[v], plate);
-    out.views[v].used = !detected[v].empty();
+    out.views[v].used = !views[v].dots.empty();
     if (!out.views[v].used) out.views[v].note = "plate not found";
   }
   const std::vector<cv::Point3f> model = plateModel(plate);
@@ -138,15 +157,15 @@ CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const Circ
     std::vector<std::vector<cv::Point3f>> object;
     std::vector<std::vector<cv::Point2f>> points;
     std::vector<std::size_t> index;
-    for (std::size_t v = 0; v < images.size(); ++v)
+    for (std::size_t v = 0; v < views.size(); ++v)
       if (out.views[v].used) {
         object.push_back(model);
-        points.push_back(detected[v]);
+        points.push_back(views[v].dots);
         index.push_back(v);
       }
     if (points.size() < params.min_views)
       throw std::runtime_error("camera calibration: the plate was found in " + std::to_string(points.size()) + " of " +
-                               std::to_string(images.size()) + " views; at least " + std::to_string(params.min_views) +
+                               std::to_string(views.size()) + " views; at least " + std::to_string(params.min_views) +
                                " are needed");
     std::vector<cv::Mat> rvecs, tvecs;
     cv::Mat intrinsics_sd, extrinsics_sd, view_errors;
@@ -180,6 +199,12 @@ CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const Circ
 StereoCalibration calibrateStereo(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
                                   const CirclePlateSpec& plate, const CalibrationParams& params) {
   if (left.size() != right.size()) throw std::invalid_argument("stereo calibration: left and right image counts differ");
+  return calibrateStereo(findPlates(left, plate), findPlates(right, plate), plate, params);
+}
+
+StereoCalibration calibrateStereo(const std::vector<PlateView>& left, const std::vector<PlateView>& right,
+                                  const CirclePlateSpec& plate, const CalibrationParams& params) {
+  if (left.size() != right.size()) throw std::invalid_argument("stereo calibration: left and right view counts differ");
   StereoCalibration out;
   out.left = calibrateCamera(left, plate, params);
   out.right = calibrateCamera(right, plate, params);
@@ -189,8 +214,8 @@ StereoCalibration calibrateStereo(const std::vector<cv::Mat>& left, const std::v
   for (std::size_t v = 0; v < left.size(); ++v) {
     if (!out.left.views[v].used || !out.right.views[v].used) continue;
     object.push_back(model);
-    l.push_back(detectCirclePlate(left[v], plate));
-    r.push_back(detectCirclePlate(right[v], plate));
+    l.push_back(left[v].dots);
+    r.push_back(right[v].dots);
   }
   out.pairs_used = object.size();
   if (out.pairs_used < 3)

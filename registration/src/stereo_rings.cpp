@@ -20,7 +20,6 @@ namespace {
 
 using detail::median;
 
-
 // The rays of a ring's line points from one camera (machine frame).
 struct RingRays {
   Vec3 origin;
@@ -298,7 +297,6 @@ double priorDepth(const StereoViewPose& pose) {
 }
 
 double pixelsAtDepth(const StereoRig& rig, double mm, double depth) { return mm * rig.left.matrix(0, 0) / depth; }
-
 
 std::vector<GridElement> measureStereoPair(const StereoRingImages& found, const StereoViewPose& input,
                                            const RingDetectionParams& params, StereoStats* stats) {

@@ -255,7 +255,6 @@ StereoCellImages detectStereoCells(const cv::Mat& left, const cv::Mat& right, do
   return {std::move(l), std::move(r)};
 }
 
-
 std::vector<GridElement> measureStereoSquares(const StereoCellImages& found, const StereoViewPose& input,
                                               const SquareDetectionParams& params, StereoStats* stats) {
   StereoStats local;

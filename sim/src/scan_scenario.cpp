@@ -118,16 +118,15 @@ class Planner {
     plan_.part.line_width = p_.grid.line_width;
     plan_.travel_speed = 200;
     plan_.park = acquisition::parkingPose(p_.limits);
-    // The calibration scenes, planned from the cell as the station plans them for a real cell.
+    // The calibration scenes, planned from the cell and placed as the station does for a real cell.
     acquisition::CalibrationScenes scenes;
     scenes.plate_views = p_.calibration ? p_.plate_poses : 0;
     scenes.sphere_sweeps = p_.calibration ? p_.sphere_sweeps : 0;
     scenes.second_sphere_sweeps = p_.has_second_sphere ? p_.second_sphere_sweeps : 0;
     scenes.seed = p_.seed;
-    acquisition::appendCalibrationScenes(p_.cell, p_.limits, scenes, plan_);
     if (p_.laser) planLaserStrips();
     if (p_.stereo) planStereo();
-    return std::move(plan_);
+    return acquisition::withCalibrationScenes(std::move(plan_), p_.cell, p_.limits, scenes);
   }
 
  private:

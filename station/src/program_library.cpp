@@ -4,9 +4,7 @@
 
 #include "virtual_cell/virtual_cell_host.hpp"
 
-#include <algorithm>
 #include <cstdio>
-#include <iterator>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -94,27 +92,7 @@ acquisition::ScanPlan programPlan(const acquisition::PartProgram& program, const
                              " --into-program` (or Plan on the panel's scan page)");
   // The program's plan is in the part's datum frame; the cell's fixture puts it on the table.
   acquisition::ScanPlan plan = acquisition::placeOnFixture(program.plan, cell.geometry, cell.limits.index_step);
-  if (calibration_scenes) {
-    // The digitizer's scenes come first: every part sweep is measured with their calibration. The
-    // plate's views come after the part's sweeps, just before its views: the cameras calibrate on
-    // them before the part's views need them, and while the head visits the plate the computer fits
-    // the sweeps' surface, its largest work, instead of sharing the cores with the views' images.
-    const acquisition::ScanPlan calibration = acquisition::calibrationPlan(cell, scenes);
-    const auto isPlateView = [](const acquisition::PlanStep& step) {
-      const auto* view = std::get_if<acquisition::StereoStep>(&step);
-      return view != nullptr && view->scene == acquisition::Scene::CalibrationPlate;
-    };
-    const auto first_view = std::find_if(plan.steps.begin(), plan.steps.end(), [](const acquisition::PlanStep& step) {
-      return std::holds_alternative<acquisition::StereoStep>(step);
-    });
-    std::vector<acquisition::PlanStep> steps;
-    std::copy_if(calibration.steps.begin(), calibration.steps.end(), std::back_inserter(steps),
-                 [&](const acquisition::PlanStep& step) { return !isPlateView(step); });
-    steps.insert(steps.end(), plan.steps.begin(), first_view);
-    std::copy_if(calibration.steps.begin(), calibration.steps.end(), std::back_inserter(steps), isPlateView);
-    steps.insert(steps.end(), first_view, plan.steps.end());
-    plan.steps = std::move(steps);
-  }
+  if (calibration_scenes) plan = acquisition::withCalibrationScenes(std::move(plan), cell.geometry, cell.limits, scenes);
   return plan;
 }
 

@@ -328,5 +328,32 @@ TEST(CellPlans, TheCellFileSetsHowManyCalibrationScenes) {
   EXPECT_EQ(plan.sweepCount(Scene::ReferenceSphere), 10u);
 }
 
+// A scan that calibrates itself runs the sphere's sweeps, the part's sweeps, the plate's views, then
+// the part's views; the part's steps keep their order, whatever order its plan gave them in.
+TEST(CellPlans, ASelfCalibratingScanPutsTheScenesWhereTheirWorkOverlapsThePartsWork) {
+  const CellConfig b = loadCellConfig(kSecondCell);
+  ScanPlan part;
+  part.name = "part";
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    part.steps.emplace_back(StereoStep{Scene::Part, k, {}, 0.4});
+    part.steps.emplace_back(SweepStep{Scene::Part, k, {}, {}, 25, 0});
+  }
+  const ScanPlan plan = withCalibrationScenes(part, b.geometry, b.limits, {5, 4, 0, 1});
+  EXPECT_EQ(plan.name, "part");
+  std::vector<std::string> order;
+  for (const PlanStep& step : plan.steps) {
+    const bool sweep = std::holds_alternative<SweepStep>(step);
+    const Scene scene = std::visit([](const auto& s) { return s.scene; }, step);
+    const std::uint32_t index = std::visit([](const auto& s) { return s.index; }, step);
+    const std::string kind = std::string(toString(scene)) + (sweep ? " sweep" : " view");
+    if (order.empty() || order.back().rfind(kind, 0) != 0) order.push_back(kind);
+    if (scene == Scene::Part) order.back() += " " + std::to_string(index);
+  }
+  EXPECT_EQ(order, (std::vector<std::string>{"reference_sphere sweep", "part sweep 0 1 2", "calibration_plate view",
+                                             "part view 0 1 2"}));
+  EXPECT_EQ(plan.sweepCount(Scene::ReferenceSphere), 4u);
+  EXPECT_EQ(plan.stereoCount(Scene::CalibrationPlate), 5u);
+}
+
 }  // namespace
 }  // namespace stampscan::acquisition

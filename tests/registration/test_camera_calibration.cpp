@@ -5,6 +5,7 @@
 #include "stampscan/registration/stereo_verification.hpp"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -115,6 +116,33 @@ TEST(CameraCalibration, ViewsWithoutThePlateAreLeftOutWithAReason) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("found in 3 of 3 views"), std::string::npos) << e.what();
   }
+}
+
+// A scan keeps each view's dots and lets its images go: the dots, found one view at a time, give the
+// very calibration the images give, and a view that is empty or of another size says so.
+TEST(CameraCalibration, TheDotsFoundViewByViewCalibrateAsTheImagesDo) {
+  const PlateSession& s = plateSession();
+  const registration::StereoCalibration from_images = registration::calibrateStereo(s.left, s.right, plateSpec());
+  std::vector<registration::PlateView> left, right;
+  for (std::size_t v = 0; v < s.left.size(); ++v) {
+    left.push_back(registration::findPlate(s.left[v], plateSpec()));
+    right.push_back(registration::findPlate(s.right[v], plateSpec()));
+    EXPECT_EQ(left.back().image_size, s.left[v].size());
+  }
+  const registration::StereoCalibration from_dots = registration::calibrateStereo(left, right, plateSpec());
+  EXPECT_EQ(from_dots.pairs_used, from_images.pairs_used);
+  EXPECT_EQ(from_dots.baseline_mm, from_images.baseline_mm);
+  EXPECT_EQ(from_dots.left.rms_px, from_images.left.rms_px);
+  EXPECT_TRUE(from_dots.right_from_left.isApprox(from_images.right_from_left, 0));
+
+  left.push_back(registration::findPlate(cv::Mat(), plateSpec()));
+  cv::Mat half;
+  cv::resize(s.left[0], half, cv::Size(), 0.5, 0.5);
+  left.push_back(registration::findPlate(half, plateSpec()));
+  const registration::CameraCalibration c = registration::calibrateCamera(left, plateSpec());
+  EXPECT_EQ(c.views[s.left.size()].note, "empty image");
+  EXPECT_EQ(c.views[s.left.size() + 1].note, "image size differs from the first view");
+  EXPECT_FALSE(c.views.back().used);
 }
 
 // The stereo pair verified on the plate's dots: calibrated on ten of the views, checked on the

@@ -130,8 +130,12 @@ TEST(ScanSession, ScenesAreBracketedAndCamerasPaired) {
       by_trigger[f.trigger_id].push_back(f);
     }
   }
-  for (const msg::Scene scene : {msg::Scene::CalibrationPlate, msg::Scene::ReferenceSphere, msg::Scene::Part})
-    EXPECT_EQ(phases[scene], (std::vector<std::string>{"begin", "end"})) << msg::toString(scene);
+  // Each run of a scene's steps is bracketed. The part's sweeps and its views are two runs, with the
+  // plate's views between them (acquisition::withCalibrationScenes).
+  const std::vector<std::string> one_run{"begin", "end"}, two_runs{"begin", "end", "begin", "end"};
+  EXPECT_EQ(phases[msg::Scene::ReferenceSphere], one_run);
+  EXPECT_EQ(phases[msg::Scene::CalibrationPlate], one_run);
+  EXPECT_EQ(phases[msg::Scene::Part], two_runs);
   ASSERT_EQ(by_trigger.size(), 5u);
   const CellTruth& truth = s.summary.truth;
   for (const auto& [trigger, frames] : by_trigger) {

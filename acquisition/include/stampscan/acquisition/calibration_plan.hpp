@@ -1,7 +1,7 @@
 // The calibration scenes of a cell, planned from its file: views of the calibration plate for the
 // stereo pair and sweeps over the reference sphere (and the ball bar's second sphere) for the
 // digitizer, at head angles the head can take. What `station calibrate` and `station verify` run,
-// and what a scan runs before its part when it calibrates itself.
+// and what a scan runs around its part when it calibrates itself.
 #pragma once
 
 #include "stampscan/acquisition/cell_config.hpp"
@@ -36,5 +36,13 @@ void appendCalibrationScenes(const CellGeometry& cell, const MachineLimits& limi
 
 // A plan of the scenes alone (parked and travelling as the built-in plans do).
 ScanPlan calibrationPlan(const CellConfig& cell, const CalibrationScenes& scenes);
+
+// The plan a scan that calibrates itself runs: the part's plan with the scenes where their
+// computing overlaps the part's. The sphere's sweeps come first (every part sweep is measured with
+// their calibration), then the part's sweeps, then the plate's views, then the part's views: the
+// cameras calibrate just before the part's views need them, and while the head visits the plate
+// the computer fits the sweeps' surface instead of sharing the cores with the views' images.
+ScanPlan withCalibrationScenes(ScanPlan part_plan, const CellGeometry& cell, const MachineLimits& limits,
+                               const CalibrationScenes& scenes);
 
 }  // namespace stampscan::acquisition

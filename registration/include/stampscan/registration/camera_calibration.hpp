@@ -25,6 +25,15 @@ struct CirclePlateSpec {
 std::vector<cv::Point2f> detectCirclePlate(const cv::Mat& image, const CirclePlateSpec& plate);
 std::vector<cv::Point3f> plateModel(const CirclePlateSpec& plate);
 
+// What calibration needs of one camera's image of the plate: the image's size and the dots found
+// there (detectCirclePlate; empty when not found). A few hundred bytes instead of the image, so a
+// scan finds them as each view arrives and lets the image go.
+struct PlateView {
+  cv::Size image_size;  // empty for an empty image
+  std::vector<cv::Point2f> dots;
+};
+PlateView findPlate(const cv::Mat& image, const CirclePlateSpec& plate);
+
 struct CameraModel {
   cv::Size size;
   cv::Matx33d matrix = cv::Matx33d::eye();  // fx 0 cx; 0 fy cy; 0 0 1
@@ -57,6 +66,9 @@ struct CalibrationParams {
 };
 
 // Throws std::runtime_error naming how many views were usable when fewer than min_views are.
+CameraCalibration calibrateCamera(const std::vector<PlateView>& views, const CirclePlateSpec& plate,
+                                  const CalibrationParams& params = {});
+// The same from the images (the plate is found in each first).
 CameraCalibration calibrateCamera(const std::vector<cv::Mat>& images, const CirclePlateSpec& plate,
                                   const CalibrationParams& params = {});
 
@@ -71,6 +83,8 @@ struct StereoCalibration {
 
 // Pairs are images taken at the same trigger. Each camera is calibrated on its own first, then the
 // extrinsics are estimated from the pairs where both saw the plate.
+StereoCalibration calibrateStereo(const std::vector<PlateView>& left, const std::vector<PlateView>& right,
+                                  const CirclePlateSpec& plate, const CalibrationParams& params = {});
 StereoCalibration calibrateStereo(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
                                   const CirclePlateSpec& plate, const CalibrationParams& params = {});
 

@@ -65,8 +65,22 @@ struct CameraRigCalibration {
   // The head pose and the left camera's plate pose of each view the hand-eye used.
   std::vector<Eigen::Isometry3d> machine_from_head, camera_from_plate;
 };
-// Nothing when the trace has fewer plate views than `min_plate_views` or no plate description;
-// throws std::runtime_error when the views do not calibrate (too few show the plate).
+// A view of the plate as calibration needs it: the dots each camera found, and when the left camera
+// took it (its clock).
+struct PlateViewPair {
+  std::int64_t left_time_ns = 0;
+  PlateView left, right;
+};
+// The dots of the trace's plate views plate_left[0..n) / plate_right[0..n) with n the fewer of the
+// two (the views of a scan whose second image is not in yet are left); nothing without a plate
+// description.
+std::vector<PlateViewPair> findPlateViews(const ScanTrace& trace);
+// Nothing when there are fewer plate views than `min_plate_views` or the trace has no plate
+// description; throws std::runtime_error when the views do not calibrate (too few show the plate).
+// The trace gives the plate, the head track and the clock pairs.
+std::optional<CameraRigCalibration> calibrateCameraRig(const std::vector<PlateViewPair>& views, const ScanTrace& trace,
+                                                       std::size_t min_plate_views);
+// The same on the trace's own plate views.
 std::optional<CameraRigCalibration> calibrateCameraRig(const ScanTrace& trace, std::size_t min_plate_views);
 
 // What happened, stage by stage, for the operator; `stage` is a short word ("digitizer", "laser",
@@ -121,9 +135,13 @@ class ScanMeasurer {
   // From the trace's sphere sweeps, or the stored calibration of the params. Throws
   // std::runtime_error when there is neither, or no session description, or no clock pairs.
   void calibrateDigitizer(const ScanTrace& trace);
-  // From the trace's plate views, when there are enough of them; otherwise from the stored
-  // calibration of the params once the trace has the cameras' clock pairs; otherwise the cameras
-  // stay uncalibrated and the stereo views cannot be measured.
+  // The plate's dots in the trace's plate views whose two images are in (findPlateViews), kept for
+  // calibrateCameras: a scan calls it as the views arrive and then lets their images go. Returns how
+  // many views it took, the first ones of the trace's lists; the caller removes them from its lists.
+  std::size_t findPlateDots(const ScanTrace& trace);
+  // From the plate views findPlateDots took and the trace's own, when there are enough of them;
+  // otherwise from the stored calibration of the params once the trace has the cameras' clock
+  // pairs; otherwise the cameras stay uncalibrated and the stereo views cannot be measured.
   void calibrateCameras(const ScanTrace& trace);
   // The grid elements of one part sweep (after calibrateDigitizer).
   void measureSweep(const ScanTrace& trace, const SweepWindow& sweep, std::uint32_t sweep_id);
@@ -160,6 +178,7 @@ class ScanMeasurer {
   RingDetectionParams rings_;
   SquareDetectionParams squares_;
   std::int64_t camera_offset_ = 0;
+  std::vector<PlateViewPair> plate_views_;  // findPlateDots's
   std::vector<GridElement> laser_, stereo_;
   // A detected view waiting for its matching: its elements in both images, or, for a pair without a
   // working distance, the images themselves.
