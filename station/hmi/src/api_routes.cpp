@@ -1,4 +1,4 @@
-// The cell and its jobs: GET /api/cell, /api/status, /api/health, /api/materials, /api/calibration,
+// The cell and its jobs: GET /api/cell, /api/status, /api/health, /api/cell/health, /api/materials, /api/calibration,
 // /api/scan/cloud, /api/programs (a program's model and predicted coverage); POST /api/scan/start,
 // /api/scan/abort, /api/verify, /api/calibrate, /api/programs/NAME/plan; GET /api/actions. See API.md.
 #include "json_views.hpp"
@@ -143,6 +143,11 @@ void addApiRoutes(HmiServer::Impl& impl) {
     const CellHealth health = impl.health();
     const bool with_detail = !impl.auth.loginRequired() || impl.sessionOf(req).has_value();
     sendJson(res, healthJson(health, with_detail), health.level == HealthLevel::Fault ? 503 : 200);
+  });
+  // The same findings for the panel's banner, always 200: a fault is what the banner shows, not a failed
+  // request (a browser logs every 5xx as an error, and the cameras' first seconds are a fault).
+  s.Get("/api/cell/health", [&impl](const httplib::Request&, httplib::Response& res) {
+    sendJson(res, healthJson(impl.health(), true));
   });
   s.Get("/api/materials", [](const httplib::Request&, httplib::Response& res) {
     json names = json::array();

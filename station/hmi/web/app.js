@@ -128,10 +128,11 @@ async function pollCell() {
   if (r.ok) renderCell(r.body);
 }
 
-// The cell's health (GET /api/health): what someone should act on (a calibration about to expire, the
-// runs' disk nearly full, a device down) in the banner under the header, until it is mended.
+// The cell's health (GET /api/cell/health: the monitoring's findings, answered 200 even on a fault): what
+// someone should act on (a calibration about to expire, the runs' disk nearly full, a device down) in the
+// banner under the header, until it is mended.
 async function pollHealth() {
-  const r = await api('/api/health');
+  const r = await api('/api/cell/health');
   const findings = r.body && Array.isArray(r.body.findings) ? r.body.findings : [];
   const banner = $('banner');
   banner.classList.toggle('hidden', findings.length === 0);

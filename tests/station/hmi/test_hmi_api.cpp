@@ -492,7 +492,7 @@ TEST_F(HmiTest, MaintenanceSettingsAreCheckedAppliedAndLogged) {
 }
 
 // A cell whose devices are nowhere and whose results database is damaged: the health says so (503,
-// each finding named), and `station hmi` writes the findings into its log once.
+// each finding named; 200 with the same findings for the panel's banner), and `station hmi` writes the findings into its log once.
 TEST_F(HmiTest, TheHealthNamesWhatKeepsTheCellFromScanning) {
   const fs::path cell = root_ / "cell.toml";
   std::ofstream(cell) << "name = \"press line 5\"\n[cmm]\nport = 9\n[plc]\nport = 9\n[cameras]\nleft_address = \"127.0.0.3\"\n"
@@ -509,6 +509,12 @@ TEST_F(HmiTest, TheHealthNamesWhatKeepsTheCellFromScanning) {
   EXPECT_NE(findings.find("database: the results database cannot be read"), std::string::npos) << findings;
   EXPECT_NE(findings.find(" is disconnected"), std::string::npos) << findings;
   EXPECT_FALSE(h["database"]["reachable"].get<bool>());
+  // The panel's banner reads the same findings answered 200: a fault is shown, not a failed request.
+  auto banner = client_->Get("/api/cell/health");
+  ASSERT_TRUE(banner);
+  EXPECT_EQ(banner->status, 200) << banner->body;
+  EXPECT_EQ(body(banner)["status"], "fault");
+  EXPECT_EQ(body(banner)["findings"].size(), h["findings"].size());
   // Into the log after the devices' first ten seconds, once.
   std::string log;
   for (int i = 0; i < 150 && log.find("station hmi: fault: the results database") == std::string::npos; ++i) {
