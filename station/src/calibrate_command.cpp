@@ -6,6 +6,7 @@
 #include "stampscan/jobs/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "cell_choice.hpp"
+#include "stampscan/station/measuring_priority.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
 #include "virtual_cell/virtual_cell_host.hpp"
@@ -83,6 +84,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     CommandCell command_cell = opt->cell.open();
+    const MeasuringPriority priority = raiseMeasuringPriority();
     const acquisition::CellConfig& config = command_cell.config;
     const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
     // The cell's calibration scenes ([calibration] plate_views, sphere_sweeps, planned for its
@@ -112,6 +114,7 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
 
     std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 command_cell.hostedNote());
+    std::printf("  priority    %s\n", priority.describe().c_str());
     std::printf("  folder      %s\n", job.calibration_dir.c_str());
     TerminalRunObserver observer(opt->quiet);
     CalibrateJob calibrate(cell, &observer);

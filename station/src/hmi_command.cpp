@@ -10,6 +10,7 @@
 #include "stampscan/jobs/calibrate_job.hpp"
 #include "stampscan/jobs/verify_job.hpp"
 #include "cell_choice.hpp"
+#include "stampscan/station/measuring_priority.hpp"
 #include "panel_programs.hpp"
 #include "program_library.hpp"
 #include "stop_signals.hpp"
@@ -205,6 +206,7 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   if (opt.front_config) return printFrontConfig(config, options);
   // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
   hmi::HmiServer::checkOptions(options);
+  const MeasuringPriority priority = raiseMeasuringPriority();
 
   // The panel's sessions are quick ones: the virtual cameras at a quarter of their resolution.
   VirtualWorld world;
@@ -229,6 +231,8 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   hmi::HmiServer server(std::move(setup), options);
   server.bind();
   printServing(config, server, options, hosted != nullptr);
+  std::printf("station hmi: priority %s\n", priority.describe().c_str());
+  std::fflush(stdout);
   if (!opt.ready_file.empty()) std::ofstream(opt.ready_file) << server.url() << '\n';
   serveUntilStopped(server, hosted);
   std::printf("station hmi: stopped\n");

@@ -10,6 +10,7 @@
 #include "stampscan/jobs/progress.hpp"
 #include "stampscan/jobs/scan_job.hpp"
 #include "cell_choice.hpp"
+#include "stampscan/station/measuring_priority.hpp"
 #include "program_library.hpp"
 #include "scan_terminal.hpp"
 #include "stop_signals.hpp"
@@ -209,6 +210,7 @@ VirtualWorld scanWorld(const ScanOptions& opt, bool quick) {
 
 int runScan(ScanOptions& opt) {
   CommandCell cell = opt.cell.open();
+  const MeasuringPriority priority = raiseMeasuringPriority();
   // An unknown material is refused before anything moves (the report at the end would fail).
   const report::MaterialLibrary materials = report::materialsWith(cell.config.materials_file);
   if (!opt.material.empty()) (void)materials.find(opt.material);
@@ -241,6 +243,7 @@ int runScan(ScanOptions& opt) {
   job.run.session.part_id = opt.part_id;
 
   std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(), cell.hostedNote());
+  std::printf("  priority    %s\n", priority.describe().c_str());
   if (program)
     std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
                 program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),

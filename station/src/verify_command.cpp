@@ -7,6 +7,7 @@
 #include "stampscan/station/commands.hpp"
 #include "stampscan/jobs/verify_job.hpp"
 #include "cell_choice.hpp"
+#include "stampscan/station/measuring_priority.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
 #include "virtual_cell/virtual_cell_host.hpp"
@@ -67,6 +68,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     CommandCell command_cell = opt->cell.open();
+    const MeasuringPriority priority = raiseMeasuringPriority();
     const acquisition::CellConfig& config = command_cell.config;
     // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
     // and direction of them, so that the check sees what calibration saw (and the first plate views).
@@ -109,6 +111,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
 
     std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 command_cell.hostedNote());
+    std::printf("  priority    %s\n", priority.describe().c_str());
     std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
                                                       : "none in use: the sweeps calibrate the digitizer themselves");
     TerminalRunObserver observer(opt->quiet);

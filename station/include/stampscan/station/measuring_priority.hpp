@@ -1,0 +1,29 @@
+// The CPU for the measurement before other work on the cell's computer. A cell PC also runs the
+// panel's browser, a database and the plant's software; at their equal share, the returns and
+// views of a scan beside heavy work were fitted a minute after the last sweep instead of seconds.
+// The commands that measure (scan, calibrate, verify, hmi) raise their nice value to
+// kMeasuringNice when the system lets them: as root, with CAP_SYS_NICE, or under the panel's
+// service unit, whose Nice= sets it before the panel starts. Nice is a share, not a real-time
+// class: the rest of the computer still runs, only later.
+#pragma once
+
+#include <string>
+
+namespace stampscan::station {
+
+inline constexpr int kMeasuringNice = -19;
+
+struct MeasuringPriority {
+  bool raised = false;  // the process runs at kMeasuringNice or above
+  int nice = 0;         // its nice value now
+  std::string reason;   // why it could not be raised, when it was not
+
+  // One line for the command's output: what the measurement may expect of this computer.
+  std::string describe() const;
+};
+
+// Raises every thread of this process (and so those it starts later) to kMeasuringNice; a process
+// already at or above it is left alone. Never fails: without the right it says why and runs on.
+MeasuringPriority raiseMeasuringPriority();
+
+}  // namespace stampscan::station
