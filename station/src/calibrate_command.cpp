@@ -27,7 +27,7 @@ struct CalibrateOptions {
 };
 
 
-void printSensor(const char* name, const SensorCalibration& s) {
+void printSensor(const char* name, const jobs::SensorCalibration& s) {
   const registration::CalibrationRecord& r = s.record;
   std::printf("\n  %s (record %s)\n", name, r.id.c_str());
   for (const std::string& l : s.left_out) std::printf("    left out  %s\n", l.c_str());
@@ -94,17 +94,17 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     world.quick = opt->quarter_resolution;
     world.options = opt->world;
     const VirtualCellHost* host = command_cell.simulate(world);
-    CalibrateJobOptions job;
+    jobs::CalibrateJobOptions job;
     const acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
-    job.plan = calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
+    job.plan = jobs::calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
                                                    : acquisition::loadScanPlan(opt->plan),
                                    digitizer, cameras);
     job.run.limits = config.limits;
     job.policy = config.calibration;
     job.digitizer = digitizer;
     job.cameras = cameras;
-    job.calibration_dir = calibrationFolder(opt->calibration_dir, config.calibration);
-    job.results_database = calibrationResultsDatabase(config.results_database, job.calibration_dir);
+    job.calibration_dir = jobs::calibrationFolder(opt->calibration_dir, config.calibration);
+    job.results_database = jobs::calibrationResultsDatabase(config.results_database, job.calibration_dir);
     if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
 
     command_cell.serve(cameras);
@@ -117,8 +117,8 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     std::printf("  priority    %s\n", priority.describe().c_str());
     std::printf("  folder      %s\n", job.calibration_dir.c_str());
     TerminalRunObserver observer(opt->quiet);
-    CalibrateJob calibrate(cell, &observer);
-    const CalibrateJobResult r = runAbortable(
+    jobs::CalibrateJob calibrate(cell, &observer);
+    const jobs::CalibrateJobResult r = runAbortable(
         observer, [&] { return calibrate.run(job); }, [&](const std::string& reason) { calibrate.abort(reason); });
     std::printf("  scenes      %zu sphere sweeps, %zu plate views in %.1f s; %llu profiles (%llu lost); trace %s\n",
                 r.run.sweeps_done, r.run.views_done, r.run.wall_seconds, static_cast<unsigned long long>(r.run.profiles),

@@ -131,10 +131,10 @@ int diff(const CalibrationOptions& o) {
 // that a scan would accept.
 int status(const CalibrationOptions& o) {
   const acquisition::CellConfig cell = o.cell.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(o.cell);
-  const CalibrationStatus st = calibrationStatus(o.calibration_dir, cell);
+  const jobs::CalibrationStatus st = jobs::calibrationStatus(o.calibration_dir, cell);
   std::printf("calibration in use in %s (cell '%s', valid %g days)\n", o.calibration_dir.c_str(), cell.name.c_str(),
               cell.calibration.validity_days);
-  for (const SensorCalibrationStatus& s : st.sensors) {
+  for (const jobs::SensorCalibrationStatus& s : st.sensors) {
     if (s.usable())
       std::printf("  %-11s record %s (%s), created %s: %.1f days old, valid %.1f days more\n", s.sensor.c_str(),
                   s.record_id.c_str(), s.verdict.c_str(), s.created.c_str(), s.age_days,

@@ -61,7 +61,7 @@ CommandRunner addFitCommand(CLI::App& app) {
     if (opt->threads > 0)
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(opt->threads));
-    FitParams params = fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
+    FitParams params = jobs::fitParamsFrom(opt->method, opt->bandwidth, opt->kernel, opt->scalar, opt->sig_r, opt->viewpoint);
     params.anchored.widen = opt->widen != "never";
     if (opt->widen == "always") params.anchored.widen_min_capped_share = 0.0;
     // Check where the results go before the work: a missing folder should not cost a fit, and a
@@ -75,20 +75,20 @@ CommandRunner addFitCommand(CLI::App& app) {
     ReadReport read;
     const Cloud input = readCloud(opt->input, &read);
     if (!opt->quiet) std::printf("station fit %s\n", opt->input.c_str());
-    FitOutcome outcome = runFit(input, params, FitRun{.with_mesh = !opt->mesh.empty(), .show_progress = !opt->quiet});
+    jobs::FitOutcome outcome = jobs::runFit(input, params, jobs::FitRun{.with_mesh = !opt->mesh.empty(), .show_progress = !opt->quiet});
     PlyWriteOptions write;
     write.format = opt->ascii ? PlyFormat::Ascii : PlyFormat::BinaryLittleEndian;
     write.precision = opt->doubles ? PlyPrecision::Double : PlyPrecision::Float;
     write.comment = "StampScan fit, method " + toString(params.method);
-    if (opt->colors) colorByStrain(outcome.surface);
+    if (opt->colors) jobs::colorByStrain(outcome.surface);
     else outcome.surface.colors.clear();
     writePly(opt->output, outcome.surface, write);
     if (!opt->mesh.empty()) {
-      colorByStrain(outcome.mesh.vertices);
+      jobs::colorByStrain(outcome.mesh.vertices);
       writePly(opt->mesh, outcome.mesh, write);
     }
     if (!opt->quiet) {
-      printFitSummary(read, params, outcome, !opt->mesh.empty());
+      jobs::printFitSummary(read, params, outcome, !opt->mesh.empty());
       std::printf("  wrote       %s%s%s\n", opt->output.c_str(), opt->mesh.empty() ? "" : ", ", opt->mesh.c_str());
     }
     return 0;

@@ -89,15 +89,15 @@ int printFrontConfig(const acquisition::CellConfig& config, const hmi::HmiOption
 
 // The scan the panel starts without a program: on the virtual cell, its sample pan's region (the
 // program sim-pan-circle-sample), as `station scan`; a real cell scans only programs.
-ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cell, const HmiCommandOptions& opt,
+jobs::ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cell, const HmiCommandOptions& opt,
                          const fs::path& calibration_dir) {
-  ScanJobOptions scan;
+  jobs::ScanJobOptions scan;
   if (virtual_cell) {
     const acquisition::PartProgram sample =
         programFromLibrary(simulatedProgramName(kPanelPart, kPanelGrid, true), config, true, opt.runs);
     scan.plan = programPlan(sample, config, acquisition::calibrationScenes(config.calibration, 0.5, opt.seed), true);
     scan.plan.name = sample.name + ", laser and stereo, with calibration scenes";
-    scan.part_program = PartProgramRef{sample.name, sample.folder.string()};
+    scan.part_program = jobs::PartProgramRef{sample.name, sample.folder.string()};
   }
   scan.run.limits = config.limits;
   scan.run.session = acquisition::describeSession(config.geometry, scan.plan);
@@ -111,29 +111,29 @@ ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtual_cel
 // The verification of the digitizer: every sphere sweep of the calibration and the ball bar, as
 // `station verify` (the stereo pair's check on the plate stays with the command, whose cameras take
 // the calibration's resolution).
-VerifyJobOptions panelVerify(const acquisition::CellConfig& config, const fs::path& calibration_dir, std::uint64_t seed) {
+jobs::VerifyJobOptions panelVerify(const acquisition::CellConfig& config, const fs::path& calibration_dir, std::uint64_t seed) {
   acquisition::CalibrationScenes sphere_scenes = acquisition::calibrationScenes(config.calibration, 1.0, seed);
-  VerifyJobOptions verify;
+  jobs::VerifyJobOptions verify;
   verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
   verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
   if (const auto& bar = config.geometry.ball_bar) {
-    verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
+    verify.ball_bar = jobs::VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
     sphere_scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
   }
-  verify.plan = verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
+  verify.plan = jobs::verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
   verify.run.limits = config.limits;
   verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
   verify.run.session.part_id = "reference sphere";
-  verify.results_database = calibrationResultsDatabase(config.results_database, calibration_dir);
+  verify.results_database = jobs::calibrationResultsDatabase(config.results_database, calibration_dir);
   return verify;
 }
 
 // The calibration: the cell's calibration scenes (every sphere sweep and plate view) at the hosted
 // cameras' resolution, as `station calibrate`.
-CalibrateJobOptions panelCalibrate(const acquisition::CellConfig& config, const fs::path& calibration_dir,
+jobs::CalibrateJobOptions panelCalibrate(const acquisition::CellConfig& config, const fs::path& calibration_dir,
                                    const std::string& results_database, std::uint64_t seed) {
-  CalibrateJobOptions calibrate;
-  calibrate.plan = calibrationScenesOf(
+  jobs::CalibrateJobOptions calibrate;
+  calibrate.plan = jobs::calibrationScenesOf(
       acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, seed)), true, true);
   calibrate.run.limits = config.limits;
   calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
@@ -216,7 +216,7 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   world.options.seed = opt.seed;
   VirtualCellHost* hosted = command_cell.simulate(world);
   hmi::CellSetup setup;
-  setup.calibration_dir = calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
+  setup.calibration_dir = jobs::calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
   setup.scan = panelScan(config, virtual_cell, opt, setup.calibration_dir);
   setup.verify = panelVerify(config, setup.calibration_dir, opt.seed);
   setup.calibrate = panelCalibrate(config, setup.calibration_dir, setup.verify->results_database, opt.seed);

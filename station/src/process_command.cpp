@@ -105,9 +105,9 @@ void fitSurface(const ProcessOptions& opt, registration::ScanMeasurement& m, fit
                 const fitting::PlyWriteOptions& w) {
   if (m.surface_points.empty())
     throw std::runtime_error(opt.input + ": the part sweeps have no laser returns to fit a surface to");
-  const auto shape = runShapeFit(std::move(m.surface_points), !opt.quiet);
-  const fitting::ShapeAndStrain fit = runStrainOnShape(*shape, cloud);
-  printShapeAndStrainSummary(fit);
+  const auto shape = jobs::runShapeFit(std::move(m.surface_points), !opt.quiet);
+  const fitting::ShapeAndStrain fit = jobs::runStrainOnShape(*shape, cloud);
+  jobs::printShapeAndStrainSummary(fit);
   cloud.scalars[fitting::kFittedStrain] = fit.strain_at_carriers;
   fitting::writePly(opt.output, cloud, w);
   fitting::writePly(opt.fit, fit.surface, w);
@@ -121,7 +121,7 @@ int runProcess(const ProcessOptions& opt) {
   std::printf("station process: %s\n", opt.input.c_str());
   registration::ScanTrace trace;
   {
-    ProgressBar bar;
+    jobs::ProgressBar bar;
     trace = registration::loadScanTrace(
         opt.input,
         [&](double f) {

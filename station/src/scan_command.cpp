@@ -95,7 +95,7 @@ std::optional<acquisition::PartProgram> programOf(ScanOptions& opt, const acquis
 // The plan: a recording's (a replay plays it on a virtual cell, `host`, that serves the recording),
 // the program's, or a plan file's, the last two placed on the cell's fixture.
 void choosePlan(ScanOptions& opt, const acquisition::CellConfig& config, const std::optional<acquisition::PartProgram>& program,
-                bool quick, VirtualCellHost* host, ScanJobOptions& job) {
+                bool quick, VirtualCellHost* host, jobs::ScanJobOptions& job) {
   const bool replay = !opt.replay.empty();
   if (replay) {
     if (!host) throw std::runtime_error("--replay runs on a virtual cell: leave --cell out, or add --virtual");
@@ -121,7 +121,7 @@ void choosePlan(ScanOptions& opt, const acquisition::CellConfig& config, const s
   }
 }
 
-void printResult(const ScanJobResult& r, const ScanJobOptions& job, const VirtualCellHost* host) {
+void printResult(const jobs::ScanJobResult& r, const jobs::ScanJobOptions& job, const VirtualCellHost* host) {
   const bool hosted = host != nullptr;
   std::printf("  measured    %zu grid elements (%zu measurements); cloud4d.ply %.2f s after the scan; fitted.ply, mesh.ply "
               "%.2f s after it\n",
@@ -158,7 +158,7 @@ void printResult(const ScanJobResult& r, const ScanJobOptions& job, const Virtua
 }
 
 // 0, or 1 when the report failed or the scan lost data (unless accepted).
-int exitStatus(const ScanJobResult& r, bool accept_damaged) {
+int exitStatus(const jobs::ScanJobResult& r, bool accept_damaged) {
   if (!r.history_error.empty())
     std::fprintf(stderr, "station: warning: the run is complete but not in the results history: %s\n",
                  r.history_error.c_str());
@@ -180,7 +180,7 @@ int exitStatus(const ScanJobResult& r, bool accept_damaged) {
 
 // --dry-run: the plan checked against the cell's limits and, with a program, its model: what the
 // plan is predicted to see and the head's clearance along it. 0 when it can run.
-int dryRun(const ScanJobOptions& job, const acquisition::CellConfig& config,
+int dryRun(const jobs::ScanJobOptions& job, const acquisition::CellConfig& config,
            const std::optional<acquisition::PartProgram>& program) {
   auto problems = acquisition::checkPlan(job.plan, job.run.limits);
   std::optional<acquisition::Coverage> coverage;
@@ -218,9 +218,9 @@ int runScan(ScanOptions& opt) {
   const std::optional<acquisition::PartProgram> program = programOf(opt, cell.config, quick, materials);
   if (VirtualCellHost* host = cell.simulate(scanWorld(opt, quick)); host && program) host->useProgram(*program);
 
-  ScanJobOptions job;
+  jobs::ScanJobOptions job;
   job.calibration_policy = cell.config.calibration;
-  job.calibration_dir = calibrationFolder(opt.calibration_dir, cell.config.calibration, opt.runs);
+  job.calibration_dir = jobs::calibrationFolder(opt.calibration_dir, cell.config.calibration, opt.runs);
   job.run.limits = cell.config.limits;
   choosePlan(opt, cell.config, program, quick, cell.host.get(), job);
   if (opt.dry_run) return dryRun(job, cell.config, program);
@@ -236,7 +236,7 @@ int runScan(ScanOptions& opt) {
   job.material = opt.material;
   job.materials = &materials;
   job.program = opt.press_program;
-  if (program) job.part_program = PartProgramRef{program->name, program->folder.string()};
+  if (program) job.part_program = jobs::PartProgramRef{program->name, program->folder.string()};
   // The cell's geometry as drawn, from its file: what calibration starts from (a replay's is the
   // recording's).
   if (opt.replay.empty()) job.run.session = acquisition::describeSession(config.geometry, job.plan);
@@ -249,8 +249,8 @@ int runScan(ScanOptions& opt) {
                 program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),
                 program->sheet_thickness_mm, program->model.triangles.size());
   TerminalObserver observer(opt.quiet);
-  ScanJob scan(devices, &observer);
-  ScanJobResult r;
+  jobs::ScanJob scan(devices, &observer);
+  jobs::ScanJobResult r;
   {
     const StopSignalGuard stop([&](const std::string& reason) { scan.abort(reason); });
     r = scan.run(job);

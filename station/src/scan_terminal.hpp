@@ -13,7 +13,7 @@
 
 namespace stampscan::station {
 
-class TerminalObserver final : public ScanJobObserver {
+class TerminalObserver final : public jobs::ScanJobObserver {
  public:
   explicit TerminalObserver(bool quiet) : quiet_(quiet) {}
   void runFolder(const std::filesystem::path& dir) override {
@@ -48,7 +48,7 @@ class TerminalObserver final : public ScanJobObserver {
 
  private:
   bool quiet_;
-  ProgressBar bar_;
+  jobs::ProgressBar bar_;
 };
 
 // `coverage`: what the plan's part steps are predicted to see of the program's model; null without a

@@ -25,7 +25,7 @@ class TerminalRunObserver final : public acquisition::ScanObserver {
 
  private:
   bool quiet_;
-  ProgressBar bar_;
+  jobs::ProgressBar bar_;
 };
 
 // `run()`'s result; a signal meanwhile calls `abort(reason)` from the guard's thread.

@@ -73,19 +73,19 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
     // and direction of them, so that the check sees what calibration saw (and the first plate views).
     acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
-    VerifyJobOptions job;
+    jobs::VerifyJobOptions job;
     job.run.limits = config.limits;
     job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
     job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
     if (const auto& bar = config.geometry.ball_bar) {
-      job.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
+      job.ball_bar = jobs::VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
       scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
     }
-    const fs::path dir = calibrationFolder(opt->calibration_dir, config.calibration);
+    const fs::path dir = jobs::calibrationFolder(opt->calibration_dir, config.calibration);
     job.history = dir / "history";
-    job.results_database = calibrationResultsDatabase(config.results_database, dir);
+    job.results_database = jobs::calibrationResultsDatabase(config.results_database, dir);
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
-    if (!opt->calibration.empty() || fs::exists(stored)) verifyWithCalibration(job, stored);
+    if (!opt->calibration.empty() || fs::exists(stored)) jobs::verifyWithCalibration(job, stored);
 
     // The stereo pair too when its calibration is in use: three views of the plate. A virtual
     // cell's world is a quick session's, its cameras at the resolution they were calibrated at.
@@ -99,7 +99,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       world.image_scale = static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width;
     }
     command_cell.simulate(world);
-    job.plan = verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
+    job.plan = jobs::verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
                                                    : acquisition::loadScanPlan(opt->plan),
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
@@ -115,8 +115,8 @@ CommandRunner addVerifyCommand(CLI::App& app) {
     std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
                                                       : "none in use: the sweeps calibrate the digitizer themselves");
     TerminalRunObserver observer(opt->quiet);
-    VerifyJob verify(cell, &observer);
-    const VerifyJobResult r = runAbortable(
+    jobs::VerifyJob verify(cell, &observer);
+    const jobs::VerifyJobResult r = runAbortable(
         observer, [&] { return verify.run(job); }, [&](const std::string& reason) { verify.abort(reason); });
     const registration::SphereVerification& v = r.digitizer;
     std::printf("  sweeps      %zu over the spheres, %llu profiles (%llu lost) in %.1f s\n", r.run.sweeps_done,

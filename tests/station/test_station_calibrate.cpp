@@ -162,7 +162,7 @@ TEST_F(StationTest, ASecondCellIsCheckedCalibratedAndVerifiedFromItsFile) {
 TEST_F(StationTest, CalibrateLeavesOutTheViewsThatSpoilAFit) {
   sim::ScanParams world;
   world.seed = 1;
-  acquisition::ScanPlan plan = calibrationScenesOf(sim::planScan(world), true, true);
+  acquisition::ScanPlan plan = jobs::calibrationScenesOf(sim::planScan(world), true, true);
   bool moved_sweep = false, moved_view = false;
   for (acquisition::PlanStep& step : plan.steps) {
     if (auto* sweep = std::get_if<acquisition::SweepStep>(&step); sweep && sweep->index == 0 && !moved_sweep) {

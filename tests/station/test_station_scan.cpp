@@ -63,17 +63,17 @@ TEST(ScanShortfall, ASweepThatFoundMuchLessThanPredictedIsNamed) {
     m.push_back(stereo);
     return m;
   };
-  EXPECT_FALSE(measurementShortfall(plan, found({104, 118, 0})).has_value()) << "a sweep predicted to see 4 found none";
-  const auto half = measurementShortfall(plan, found({100, 50, 4}));
+  EXPECT_FALSE(jobs::measurementShortfall(plan, found({104, 118, 0})).has_value()) << "a sweep predicted to see 4 found none";
+  const auto half = jobs::measurementShortfall(plan, found({100, 50, 4}));
   ASSERT_TRUE(half.has_value());
   EXPECT_NE(half->find("2 (50 of 120)"), std::string::npos) << *half;
-  const auto all = measurementShortfall(plan, found({80, 90, 4}));
+  const auto all = jobs::measurementShortfall(plan, found({80, 90, 4}));
   ASSERT_TRUE(all.has_value());
   EXPECT_NE(all->find("found 174 grid elements where the plan predicts 224"), std::string::npos) << *all;
   // A plan that predicts nothing is not checked.
   acquisition::ScanPlan silent;
   silent.steps.emplace_back(acquisition::SweepStep{});
-  EXPECT_FALSE(measurementShortfall(silent, found({0})).has_value());
+  EXPECT_FALSE(jobs::measurementShortfall(silent, found({0})).has_value());
 }
 
 // What the scan measures does not depend on the machine's load: the default scan beside a heavy
@@ -232,10 +232,10 @@ TEST(ScanDataLoss, NamesWhatTheScanDidNotRecord) {
   acquisition::ScanRunResult r;
   r.completed = true;
   r.lost_profiles = 7;  // within the per-sweep limit: the sweeps were kept whole enough
-  EXPECT_FALSE(dataLoss(r).has_value());
+  EXPECT_FALSE(jobs::dataLoss(r).has_value());
   r.views_missing = 2;
   r.sweeps_over_loss_limit = 1;
-  const std::optional<std::string> loss = dataLoss(r);
+  const std::optional<std::string> loss = jobs::dataLoss(r);
   ASSERT_TRUE(loss.has_value());
   EXPECT_NE(loss->find("2 stereo views missing"), std::string::npos) << *loss;
   EXPECT_NE(loss->find("1 sweeps lost more digitizer profiles"), std::string::npos) << *loss;

@@ -51,7 +51,7 @@ void checkDevices(const CellJobs& jobs, CellHealth& h) {
 void checkCalibration(const CellJobs& jobs, const HealthLimits& limits, CellHealth& h) {
   const acquisition::CellConfig config = configInUse(jobs);
   json sensors = json::array();
-  for (const station::SensorCalibrationStatus& s : station::calibrationStatus(jobs.setup().calibration_dir, config).sensors) {
+  for (const jobs::SensorCalibrationStatus& s : jobs::calibrationStatus(jobs.setup().calibration_dir, config).sensors) {
     json j = {{"sensor", s.sensor}, {"in_use", s.in_use}, {"usable", s.usable()}};
     // A file a scan would refuse (unreadable, another cell's, failed, expired) stops the scans.
     if (s.problem) {

@@ -24,7 +24,7 @@ json progressJson(const acquisition::ScanProgress& p) {
 
 // Turns what a job reports into hub events. Progress comes many times a second; the browsers get
 // at most ten a second (the last one of a burst is never lost: the next event or the end carries on).
-class HubObserver final : public station::ScanJobObserver {
+class HubObserver final : public jobs::ScanJobObserver {
  public:
   HubObserver(EventHub& hub, acquisition::Cell& cell, std::string kind,
               std::function<void(const std::string&)> on_run_folder = {}, std::function<void()> on_scan_done = {},
@@ -222,14 +222,14 @@ std::optional<std::string> CellJobs::startCalibrate(const std::string& sensors, 
   if (!setup_.calibrate) return std::string("this cell offers no calibration");
   if (sensors != "digitizer" && sensors != "cameras" && sensors != "all")
     return std::string("sensors must be digitizer, cameras or all, not '") + sensors + "'";
-  station::CalibrateJobOptions options = [this] {
+  jobs::CalibrateJobOptions options = [this] {
     std::lock_guard lock(mutex_);
     return *setup_.calibrate;
   }();
   options.digitizer = sensors != "cameras";
   options.cameras = sensors != "digitizer";
   try {
-    options.plan = station::calibrationScenesOf(options.plan, options.digitizer, options.cameras);
+    options.plan = jobs::calibrationScenesOf(options.plan, options.digitizer, options.cameras);
   } catch (const std::exception& e) {
     return std::string(e.what());
   }
@@ -296,7 +296,7 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
   JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
-    station::ScanJobOptions options = [this] {
+    jobs::ScanJobOptions options = [this] {
       std::lock_guard lock(mutex_);
       return setup_.scan;
     }();
@@ -335,8 +335,8 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
           status_.measuring = true;
         },
         &live_cloud_);
-    station::ScanJob job(*setup_.cell, &observer);
-    station::ScanJobResult r;
+    jobs::ScanJob job(*setup_.cell, &observer);
+    jobs::ScanJobResult r;
     {
       const RunningJob running(*this, job);
       r = job.run(options);
@@ -375,7 +375,7 @@ void CellJobs::runScan(ScanRequest request, std::string user) {
   } catch (const std::exception& e) {
     done["error"] = e.what();
     setFault(done, e);
-    outcome.end = dynamic_cast<const station::ScanStopped*>(&e) != nullptr ? JobOutcome::End::Stopped : JobOutcome::End::Failed;
+    outcome.end = dynamic_cast<const jobs::ScanStopped*>(&e) != nullptr ? JobOutcome::End::Stopped : JobOutcome::End::Failed;
     outcome.error = e.what();
     std::lock_guard lock(mutex_);
     if (!status_.run_id.empty()) done["run_id"] = status_.run_id;
@@ -388,16 +388,16 @@ void CellJobs::runVerify(std::string user) {
   JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
-    station::VerifyJobOptions options = [this] {
+    jobs::VerifyJobOptions options = [this] {
       std::lock_guard lock(mutex_);
       return *setup_.verify;
     }();
     options.history = setup_.calibration_dir / "history";
     if (const fs::path stored = setup_.calibration_dir / "digitizer.json"; fs::exists(stored))
-      station::verifyWithCalibration(options, stored);
+      jobs::verifyWithCalibration(options, stored);
     HubObserver observer(hub_, *setup_.cell, "verify");
-    station::VerifyJob job(*setup_.cell, &observer);
-    station::VerifyJobResult r;
+    jobs::VerifyJob job(*setup_.cell, &observer);
+    jobs::VerifyJobResult r;
     {
       const RunningJob running(*this, job);
       r = job.run(options);
@@ -415,14 +415,14 @@ void CellJobs::runVerify(std::string user) {
   finish(done.dump(), std::move(outcome));
 }
 
-void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string user) {
+void CellJobs::runCalibrate(jobs::CalibrateJobOptions options, std::string user) {
   json done = {{"kind", "calibrate"}, {"user", user}, {"ok", false}};
   JobOutcome outcome;
   try {
     std::lock_guard cell_lock(cell_mutex_);
     HubObserver observer(hub_, *setup_.cell, "calibrate");
-    station::CalibrateJob job(*setup_.cell, &observer);
-    station::CalibrateJobResult r;
+    jobs::CalibrateJob job(*setup_.cell, &observer);
+    jobs::CalibrateJobResult r;
     {
       const RunningJob running(*this, job);
       r = job.run(options);
@@ -431,7 +431,7 @@ void CellJobs::runCalibrate(station::CalibrateJobOptions options, std::string us
     json sensors = json::array();
     for (const auto* sensor : {&r.digitizer, &r.cameras}) {
       if (!*sensor) continue;
-      const station::SensorCalibration& s = **sensor;
+      const jobs::SensorCalibration& s = **sensor;
       sensors.push_back({{"sensor", s.record.kind},
                          {"record_id", s.record.id},
                          {"verdict", registration::toString(s.record.verdict)},

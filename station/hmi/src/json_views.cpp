@@ -69,7 +69,7 @@ json calibrationJson(const fs::path& calibration_dir, const acquisition::CellCon
   j["records"] = listing.records.size();
   // Each sensor's calibration in use as a scan would judge it (station/calibration_status.hpp).
   json sensors = json::array();
-  for (const station::SensorCalibrationStatus& s : station::calibrationStatus(calibration_dir, cell).sensors)
+  for (const jobs::SensorCalibrationStatus& s : jobs::calibrationStatus(calibration_dir, cell).sensors)
     sensors.push_back({{"sensor", s.sensor},
                        {"in_use", s.in_use},
                        {"usable", s.usable()},

@@ -14,7 +14,7 @@
 #include <cstdio>
 #include <stdexcept>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 namespace fs = std::filesystem;
 using registration::RecordCheck;
@@ -441,4 +441,4 @@ CalibrateJobResult CalibrateJob::run(const CalibrateJobOptions& o) {
   return result;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -2,7 +2,7 @@
 
 #include "stampscan/results/results_store.hpp"
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 std::string calibrationResultsDatabase(const std::string& configured, const std::filesystem::path& calibration_dir) {
   if (!configured.empty()) return configured;
@@ -34,4 +34,4 @@ std::string recordCalibrationInResults(const registration::CalibrationRecord& r,
   }
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

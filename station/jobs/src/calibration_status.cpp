@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 namespace fs = std::filesystem;
 
@@ -52,4 +52,4 @@ CalibrationStatus calibrationStatus(const fs::path& dir, const acquisition::Cell
   return out;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 Rgb temperatureColor(double t) {
   if (!std::isfinite(t)) return {128, 128, 128};
@@ -34,4 +34,4 @@ std::array<double, 2> displayRange(const std::vector<double>& values) {
   return {lo, hi > lo ? hi : lo + 1e-9};
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -11,7 +11,7 @@
 #include <memory>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 using namespace stampscan::fitting;
 
@@ -139,4 +139,4 @@ void colorByStrain(Cloud& cloud) {
   cloud.colors = colorize(thinning, range[0], range[1]);
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -6,7 +6,7 @@
 #include <iterator>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 namespace {
 
@@ -261,4 +261,4 @@ registration::ScanMeasurement LiveMeasurement::finish() {
   return measurer_.finish();
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -25,7 +25,7 @@
 #include <mutex>
 #include <thread>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 class LiveMeasurement {
  public:
@@ -93,4 +93,4 @@ class LiveMeasurement {
   std::thread thread_;
 };
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

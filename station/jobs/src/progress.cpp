@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 ProgressBar::ProgressBar() : enabled_(isatty(STDERR_FILENO) == 1) {}
 ProgressBar::~ProgressBar() { finish(); }
@@ -31,4 +31,4 @@ void ProgressBar::finish() {
   drawn_ = false;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -23,7 +23,7 @@
 #include <functional>
 #include <limits>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 namespace fs = std::filesystem;
 
@@ -660,4 +660,4 @@ std::optional<std::string> measurementShortfall(const acquisition::ScanPlan& pla
   return text;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -3,7 +3,7 @@
 #include "stampscan/acquisition/trace/mcap_writer.hpp"
 #include "stampscan/acquisition/trace/trace_recorder.hpp"
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 void TracedRun::abort(const std::string& reason) {
   std::lock_guard lock(mutex_);
@@ -43,4 +43,4 @@ acquisition::ScanRunResult TracedRun::run(const acquisition::ScanPlan& plan, con
   return result;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -9,7 +9,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 namespace fs = std::filesystem;
 using registration::RecordCheck;
@@ -218,4 +218,4 @@ VerifyJobResult VerifyJob::run(const VerifyJobOptions& o) {
   return result;
 }
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

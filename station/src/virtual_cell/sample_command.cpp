@@ -84,13 +84,13 @@ CommandRunner addDemoCommand(CLI::App& app) {
     ReadReport read;
     read.points_read = sample.cloud.size();
     const FitParams params;
-    FitOutcome outcome = runFit(sample.cloud, params, FitRun{.with_mesh = true, .show_progress = true});
-    colorByStrain(outcome.surface);
-    colorByStrain(outcome.mesh.vertices);
+    jobs::FitOutcome outcome = jobs::runFit(sample.cloud, params, jobs::FitRun{.with_mesh = true, .show_progress = true});
+    jobs::colorByStrain(outcome.surface);
+    jobs::colorByStrain(outcome.mesh.vertices);
     w.comment = "StampScan fit of the sample pan, method auto";
     writePly(dir / "fitted.ply", outcome.surface, w);
     writePly(dir / "mesh.ply", outcome.mesh, w);
-    printFitSummary(read, params, outcome, true);
+    jobs::printFitSummary(read, params, outcome, true);
 
     const sim::SurfaceError before = sim::surfaceError(part, sample.cloud.positions);
     const sim::SurfaceError after = sim::surfaceError(part, outcome.surface.positions);

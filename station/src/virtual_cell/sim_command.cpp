@@ -127,7 +127,7 @@ CommandRunner addSimCommand(CLI::App& app) {
                                                   : trace::Compression::None;
       trace::McapWriter writer(output.temporaryPath(), w);
       trace::TraceRecorder recorder(writer);
-      ProgressBar bar;
+      jobs::ProgressBar bar;
       summary = sim::generateScan(params, recorder, [&](double f, std::string_view stage) { bar.update(std::string(stage), f); });
       bar.finish();
       writer.close();

@@ -118,17 +118,17 @@ const acquisition::CellConfig& VirtualCellHost::config() const {
   return state_->hosted->config();
 }
 
-SimulationTruth VirtualCellHost::truthOfScan(acquisition::ScanPlan& plan) {
+jobs::SimulationTruth VirtualCellHost::truthOfScan(acquisition::ScanPlan& plan) {
   std::lock_guard lock(state_->mutex);
   if (!state_->hosted) throw std::logic_error("VirtualCellHost::truthOfScan before start()");
   return state_->hosted->truthOfScan(state_->world, plan);
 }
 
-SimulationTruth VirtualCellHost::truthOfPart() {
+jobs::SimulationTruth VirtualCellHost::truthOfPart() {
   std::lock_guard lock(state_->mutex);
   if (!state_->hosted) throw std::logic_error("VirtualCellHost::truthOfPart before start()");
   sim::VirtualCell& cell = state_->hosted->cell();
-  return SimulationTruth{sim::groundTruth(cell.part(), state_->world.grid, sim::machineFromDatum(state_->world)),
+  return jobs::SimulationTruth{sim::groundTruth(cell.part(), state_->world.grid, sim::machineFromDatum(state_->world)),
                          cell.truth().digitizer_latency_ns};
 }
 
@@ -149,7 +149,7 @@ void VirtualCellHost::closeDoor() {
 
 bool VirtualCellHost::replaying() const { return state_->replay != nullptr; }
 
-void VirtualCellHost::printReplay(const ScanJobResult& r) const {
+void VirtualCellHost::printReplay(const jobs::ScanJobResult& r) const {
   if (!state_->replay) return;
   const sim::ReplayStats s = state_->replay->stats();
   std::printf("  replay      followed %zu recorded moves (%zu not in the recording), served %zu recorded profiles "

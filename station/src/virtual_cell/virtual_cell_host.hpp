@@ -124,9 +124,9 @@ class VirtualCellHost {
   // What the simulator knows of a scan of `plan` (as the machine runs it) on the part now on the
   // fixture: the true elements, which of them the plan lets a sensor see whole, the digitizer's
   // true latency. The plan's part sweeps are given the elements each is predicted to see.
-  SimulationTruth truthOfScan(acquisition::ScanPlan& plan);
+  jobs::SimulationTruth truthOfScan(acquisition::ScanPlan& plan);
   // The true elements of the part now on the fixture and the true latency, for a plan not known yet.
-  SimulationTruth truthOfPart();
+  jobs::SimulationTruth truthOfPart();
 
   VirtualSensorTruth sensorTruth() const;
 
@@ -135,7 +135,7 @@ class VirtualCellHost {
   void closeDoor();
 
   // What a replay served, and the scan's result against `station process` on the recording.
-  void printReplay(const ScanJobResult& result) const;
+  void printReplay(const jobs::ScanJobResult& result) const;
   bool replaying() const;
 
  private:

@@ -172,11 +172,11 @@ HostedVirtualCell::HostedVirtualCell(const sim::ScanParams& world, const acquisi
   config_.digitizer_virtual = true;
 }
 
-SimulationTruth HostedVirtualCell::truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan) {
+jobs::SimulationTruth HostedVirtualCell::truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan) {
   // The truth keeps the part it was made of, whatever part the cell loads next.
   const std::shared_ptr<const sim::FormedPart> part = cell_->sharedPart();
   const Eigen::Isometry3d machine_from_datum = sim::machineFromDatum(world);
-  SimulationTruth truth{sim::groundTruth(*part, world.grid, machine_from_datum), cell_->truth().digitizer_latency_ns};
+  jobs::SimulationTruth truth{sim::groundTruth(*part, world.grid, machine_from_datum), cell_->truth().digitizer_latency_ns};
   truth.thickness_strain_at = [part, datum_from_machine = machine_from_datum.inverse()](const fitting::Vec3& point) {
     const fitting::Vec3 on_part = datum_from_machine * point;
     return part->deformationAt(on_part.x(), on_part.y()).thickness_strain;

@@ -66,7 +66,7 @@ class HostedVirtualCell {
   // lets a sensor see whole, and the digitizer's true latency. The plan's part sweeps are given the
   // elements the simulator predicts each sees (SweepStep::expected_elements). `world` is the one
   // the cell simulates (its part and grid).
-  SimulationTruth truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan);
+  jobs::SimulationTruth truthOfScan(const sim::ScanParams& world, acquisition::ScanPlan& plan);
 
  private:
   std::unique_ptr<sim::VirtualCell> cell_;

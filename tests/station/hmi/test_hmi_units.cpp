@@ -152,7 +152,7 @@ TEST(HmiAdvice, TheKindComesFromTheErrorNotItsWords) {
             FaultKind::Other);
   EXPECT_EQ(acquisition::faultKindOf(acquisition::ScanError("the cell door is open", FaultKind::DoorOpen)),
             FaultKind::DoorOpen);
-  EXPECT_EQ(acquisition::faultKindOf(station::ScanStopped(FaultKind::LightCurtain, "the scan was aborted: ...")),
+  EXPECT_EQ(acquisition::faultKindOf(jobs::ScanStopped(FaultKind::LightCurtain, "the scan was aborted: ...")),
             FaultKind::LightCurtain);
   EXPECT_EQ(acquisition::faultKindOf(drivers::DeviceError("cmm", "timeout", "no reply in 5 s")), FaultKind::DeviceSilent);
   EXPECT_EQ(acquisition::faultKindOf(drivers::DeviceError("cmm", "protocol", "a reply out of order")), FaultKind::Other);

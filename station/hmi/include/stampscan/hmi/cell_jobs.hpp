@@ -1,6 +1,6 @@
-// The work the panel starts on the cell: a scan (station::ScanJob, as `station scan` runs it), a
-// check of the digitizer (station::VerifyJob, as `station verify`) or a calibration
-// (station::CalibrateJob), one at a time. The panel only
+// The work the panel starts on the cell: a scan (jobs::ScanJob, as `station scan` runs it), a
+// check of the digitizer (jobs::VerifyJob, as `station verify`) or a calibration
+// (jobs::CalibrateJob), one at a time. The panel only
 // chooses what to start; the jobs are the CLI's own, and their observer turns what they report into
 // events for the browsers (event_hub.hpp). The names and payloads of the events are in API.md.
 //
@@ -43,8 +43,8 @@ struct ProgramSummary {
 struct ProgramScan {
   acquisition::ScanPlan plan;
   std::string material, press_program;
-  station::PartProgramRef program;
-  std::optional<station::SimulationTruth> truth;
+  jobs::PartProgramRef program;
+  std::optional<jobs::SimulationTruth> truth;
 };
 
 // What a program's plan is predicted to see of its model's grid area (acquisition/part_planner.hpp),
@@ -84,12 +84,12 @@ struct CellPrograms {
 struct CellSetup {
   acquisition::Cell* cell = nullptr;  // borrowed; alive while the jobs exist
   // Plan, run parameters, runs folder, truth; part id, program and material come with each start.
-  station::ScanJobOptions scan;
+  jobs::ScanJobOptions scan;
   // The verification's sphere sweeps; absent: the cell offers no verify.
-  std::optional<station::VerifyJobOptions> verify;
+  std::optional<jobs::VerifyJobOptions> verify;
   // The calibration: its plan holds every calibration scene (sphere sweeps, plate views); each
   // request takes the scenes of the sensors it asks for. Absent: the cell offers no calibrate.
-  std::optional<station::CalibrateJobOptions> calibrate;
+  std::optional<jobs::CalibrateJobOptions> calibrate;
   // digitizer.json in use and history/ of calibration records.
   std::filesystem::path calibration_dir = "stampscan-runs/calibration";
   CellPrograms programs;
@@ -178,7 +178,7 @@ class CellJobs {
   std::optional<std::string> begin(const std::string& kind, const std::string& user, const std::string& part_id);
   void runScan(ScanRequest request, std::string user);
   void runVerify(std::string user);
-  void runCalibrate(station::CalibrateJobOptions options, std::string user);
+  void runCalibrate(jobs::CalibrateJobOptions options, std::string user);
   void finish(const std::string& event_json, JobOutcome outcome);
 
   CellSetup setup_;  // its options and policy change only under mutex_ (setCalibrationPolicy)

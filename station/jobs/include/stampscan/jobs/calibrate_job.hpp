@@ -40,7 +40,7 @@
 #include <string>
 #include <vector>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 // The cell's calibration folder: `option` when given, else the cell config's [calibration] dir,
 // else <runs>/calibration (beside the run folders of `station scan -o RUNS`).
@@ -95,4 +95,4 @@ class CalibrateJob {
   TracedRun traced_;
 };
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

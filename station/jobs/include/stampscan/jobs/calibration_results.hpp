@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 // The database a cell's calibrations go to: `configured` (the cell's [results] database: a runs
 // folder or a PostgreSQL URL) when set, else the folder that holds the calibration folder (by
@@ -20,4 +20,4 @@ std::string calibrationResultsDatabase(const std::string& configured, const std:
 std::string recordCalibrationInResults(const registration::CalibrationRecord& record,
                                        const std::filesystem::path& record_file, const std::string& database);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

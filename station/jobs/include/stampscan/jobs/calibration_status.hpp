@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 struct SensorCalibrationStatus {
   std::string sensor;              // "digitizer", "cameras"
@@ -34,4 +34,4 @@ struct CalibrationStatus {
 CalibrationStatus calibrationStatus(const std::filesystem::path& calibration_dir, const acquisition::CellConfig& cell,
                                     std::chrono::system_clock::time_point now = std::chrono::system_clock::now());
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

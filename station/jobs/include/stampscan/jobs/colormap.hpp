@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 using Rgb = std::array<std::uint8_t, 3>;
 
@@ -16,4 +16,4 @@ std::vector<Rgb> colorize(const std::vector<double>& values, double lo, double h
 // A robust display range: the 1st and 99th percentiles, so a few outliers do not wash out the map.
 std::array<double, 2> displayRange(const std::vector<double>& values);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 // What a fit run makes besides the surface, and whether it shows a progress bar.
 struct FitRun {
@@ -44,4 +44,4 @@ void printFitSummary(const fitting::ReadReport& read, const fitting::FitParams& 
 // Colours a cloud (or mesh vertices) by thinning with the temperature map (no-op without strain).
 void colorByStrain(fitting::Cloud& cloud);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

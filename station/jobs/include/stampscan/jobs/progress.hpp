@@ -4,7 +4,7 @@
 #include <mutex>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 class ProgressBar {
  public:
@@ -22,4 +22,4 @@ class ProgressBar {
   std::string last_stage_;
 };
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -37,7 +37,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 // What the simulator knows of a virtual cell's scan, for the accuracy figures.
 struct SimulationTruth {
@@ -191,4 +191,4 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
 run_folder::SurfaceStrainFigures surfaceAccuracyAgainst(const fitting::Cloud& elements, const fitting::Cloud& surface,
                                              const SimulationTruth& truth);
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

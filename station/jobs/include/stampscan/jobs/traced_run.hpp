@@ -13,7 +13,7 @@
 #include <optional>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 class TracedRun {
  public:
@@ -34,4 +34,4 @@ class TracedRun {
   std::optional<std::string> pending_abort_;
 };
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs

@@ -34,7 +34,7 @@
 #include <optional>
 #include <string>
 
-namespace stampscan::station {
+namespace stampscan::jobs {
 
 // The plan's sweeps over the reference sphere and the ball bar's second sphere, and its first
 // `plate_views` views of the plate, named for verification. Throws std::runtime_error when the plan
@@ -97,4 +97,4 @@ class VerifyJob {
   TracedRun traced_;
 };
 
-}  // namespace stampscan::station
+}  // namespace stampscan::jobs
