@@ -10,14 +10,27 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
+#include <fstream>
+#include <optional>
+#include <string>
 #include <thread>
 
 namespace stampscan::station::test {
 namespace {
 
 int threadNice(pid_t tid) { return getpriority(PRIO_PROCESS, static_cast<id_t>(tid)); }
+
+// The session's nice value where the kernel shares the CPU by session first (its autogroups).
+std::optional<int> sessionNice() {
+  std::ifstream in("/proc/self/autogroup");
+  std::string group, word;
+  int nice = 0;
+  if (in >> group >> word >> nice && word == "nice") return nice;
+  return std::nullopt;
+}
 
 // Runs `check` in a child process and returns its exit code (0: every expectation held).
 template <typename Check>
@@ -41,7 +54,11 @@ TEST(MeasuringPriority, EveryThreadAlreadyRunningAndEveryLaterOneIsRaised) {
       while (!done) std::this_thread::yield();
     });
     while (early_tid == 0) std::this_thread::yield();
-    const MeasuringPriority p = raiseMeasuringPriority();
+    const std::optional<int> session_before = sessionNice();
+    std::optional<MeasuringPriority> held(raiseMeasuringPriority());
+    const MeasuringPriority& p = *held;
+    // The session's share with it, while held, and as it was once the command is done.
+    if (session_before && sessionNice() != std::min(*session_before, kMeasuringNice)) return 7;
     int later_nice = 1;
     std::thread later([&] { later_nice = threadNice(static_cast<pid_t>(syscall(SYS_gettid))); });
     later.join();
@@ -54,10 +71,12 @@ TEST(MeasuringPriority, EveryThreadAlreadyRunningAndEveryLaterOneIsRaised) {
     if (later_nice != kMeasuringNice) return 4;
     if (p.describe().find("before other work") == std::string::npos) return 5;
     // A second call finds it raised and leaves it.
-    return raiseMeasuringPriority().raised ? 0 : 6;
+    if (!raiseMeasuringPriority().raised) return 6;
+    held.reset();
+    return sessionNice() == session_before ? 0 : 8;
   });
   EXPECT_EQ(code, 0) << "1: not raised, 2: this thread, 3: a thread started before, 4: a thread started after, "
-                        "5: the line, 6: a second call";
+                        "5: the line, 6: a second call, 7: the session not raised, 8: the session's not put back";
 }
 
 TEST(MeasuringPriority, WithoutTheRightItRunsOnAndSaysWhy) {

@@ -6,6 +6,7 @@
 //
 // Each device runs in a process of its own under a supervisor (sim/supervised_cell.hpp), which
 // starts again one that stops unexpectedly; this command only sets it up, prints and waits.
+#include "stampscan/station/measuring_priority.hpp"
 #include "stampscan/sim/supervised_cell.hpp"
 #include "virtual_digitizer_host.hpp"
 #include "stampscan/acquisition/cell_config.hpp"
@@ -46,6 +47,9 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     sigaddset(&stop, SIGINT);
     sigaddset(&stop, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop, nullptr);
+    // The virtual cell stands for the cell's own controllers, which keep their time whatever the
+    // station's computer runs: at the priority of the commands that measure on it, not below.
+    const MeasuringPriority priority = raiseMeasuringPriority();
 
     // The virtual cell as one world (sim/virtual_cell): the cameras render the part, sphere and
     // plate from the head pose the CMM has, whoever moves it. The second camera address is added
@@ -62,6 +66,7 @@ CommandRunner addServeSubcommand(CLI::App* sim) {
     const int cmm_port = served.cmmPort(), plc_port = served.plcPort();
     std::printf("station sim serve: %s (each device in a process of its own)%s\n", cell.name.c_str(),
                 opt->replay.empty() ? "" : (", replaying " + opt->replay).c_str());
+    std::printf("  priority    %s\n", priority.describe().c_str());
     std::printf("  cmm         I++ DME on %s:%d   (try: printf '00001 StartSession()\\r\\n' | nc %s %d)\n",
                 cell.cmm.host.c_str(), cmm_port, cell.cmm.host.c_str(), cmm_port);
     // The discrete inputs where the cell file's map puts them (mbpoll numbers references from 1).
