@@ -84,7 +84,6 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     CommandCell command_cell = opt->cell.open();
-    const MeasuringPriority priority = raiseMeasuringPriority();
     const acquisition::CellConfig& config = command_cell.config;
     const bool digitizer = opt->what != "cameras", cameras = opt->what != "digitizer";
     // The cell's calibration scenes ([calibration] plate_views, sphere_sweeps, planned for its
@@ -108,6 +107,9 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
 
     command_cell.serve(cameras);
+    // After serving the cell: serving may re-execute this program, which would not put the session's
+    // share back (measuring_priority.hpp).
+    const MeasuringPriority priority = raiseMeasuringPriority();
     acquisition::Cell cell(config);
     job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "calibration";

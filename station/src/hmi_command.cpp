@@ -206,7 +206,6 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   if (opt.front_config) return printFrontConfig(config, options);
   // Bad options are refused before the virtual cell is hosted: it takes the GigE Vision port.
   hmi::HmiServer::checkOptions(options);
-  const MeasuringPriority priority = raiseMeasuringPriority();
 
   // The panel's sessions are quick ones: the virtual cameras at a quarter of their resolution.
   VirtualWorld world;
@@ -223,6 +222,9 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
 
   // The embedded virtual cell first: hosting may re-execute this program (umockdev).
   command_cell.serve(true);
+  // After serving the cell: serving may re-execute this program, which would not put the session's
+  // share back (measuring_priority.hpp).
+  const MeasuringPriority priority = raiseMeasuringPriority();
   if (hosted) setup.scan.truth = hosted->truthOfPart();
   setup.programs = panelPrograms(config, virtual_cell, opt.runs, opt.seed, hosted);
   setup.line_start = config.plc_line_start;

@@ -210,7 +210,6 @@ VirtualWorld scanWorld(const ScanOptions& opt, bool quick) {
 
 int runScan(ScanOptions& opt) {
   CommandCell cell = opt.cell.open();
-  const MeasuringPriority priority = raiseMeasuringPriority();
   // An unknown material is refused before anything moves (the report at the end would fail).
   const report::MaterialLibrary materials = report::materialsWith(cell.config.materials_file);
   if (!opt.material.empty()) (void)materials.find(opt.material);
@@ -226,6 +225,9 @@ int runScan(ScanOptions& opt) {
   if (opt.dry_run) return dryRun(job, cell.config, program);
 
   cell.serve(job.plan.stereoCount() > 0);
+  // After serving the cell: serving may re-execute this program, which would not put the session's
+  // share back (measuring_priority.hpp).
+  const MeasuringPriority priority = raiseMeasuringPriority();
   // The planner's prediction of what each sweep sees, against which the scan is checked, too.
   if (cell.host && !cell.host->replaying()) job.truth = cell.host->truthOfScan(job.plan);
   const acquisition::CellConfig& config = cell.config;

@@ -68,7 +68,6 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   cmd->add_flag("-q,--quiet", opt->quiet, "No progress bar");
   return [opt]() {
     CommandCell command_cell = opt->cell.open();
-    const MeasuringPriority priority = raiseMeasuringPriority();
     const acquisition::CellConfig& config = command_cell.config;
     // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
     // and direction of them, so that the check sees what calibration saw (and the first plate views).
@@ -104,6 +103,9 @@ CommandRunner addVerifyCommand(CLI::App& app) {
                                    job.cameras ? 3 : 0);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
     command_cell.serve(job.plan.stereoCount() > 0);
+    // After serving the cell: serving may re-execute this program, which would not put the session's
+    // share back (measuring_priority.hpp).
+    const MeasuringPriority priority = raiseMeasuringPriority();
     acquisition::Cell cell(config);
     // The cell's geometry as drawn, the sphere's certified diameter with it.
     job.run.session = acquisition::describeSession(config.geometry, job.plan);

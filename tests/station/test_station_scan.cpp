@@ -19,6 +19,7 @@
 #include <limits>
 #include <cmath>
 #include <random>
+#include <thread>
 #include <csignal>
 #include <cstdlib>
 #include <unistd.h>
@@ -89,14 +90,18 @@ TEST_F(StationTest, TheDefaultScanBesideAHeavyLoadMeasuresThePartAsOnAnIdleMachi
     // The load at the scan's own raised priority (measuring_priority.hpp, as root): the scan is starved
     // as at an equal share, which is what this test is about; the priority is not what saves it.
     setpriority(PRIO_PROCESS, 0, kMeasuringNice);
+    setpgid(0, 0);  // its workers in a group of their own, ended with it below
     execlp("stress-ng", "stress-ng", "--cpu", "4", "--io", "2", "--vm", "1", "--vm-bytes", "512M", "--timeout", "600s",
            "--quiet", static_cast<char*>(nullptr));
     _exit(127);
   }
   const fs::path runs = work() / "runs";
   const RunResult r = run("scan -q --part-id LOADED -o " + quote(runs));
-  kill(load, SIGTERM);
+  // Every worker of the load gone before the next test: a worker left running at this priority
+  // would be a load on it.
+  kill(-load, SIGKILL);
   waitpid(load, nullptr, 0);
+  for (int i = 0; i < 100 && kill(-load, 0) == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   std::ifstream in(onlyRunFolder(runs) / "run.json");
   const nlohmann::json j = nlohmann::json::parse(in);
