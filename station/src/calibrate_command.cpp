@@ -6,7 +6,6 @@
 #include "stampscan/jobs/calibration_results.hpp"
 #include "stampscan/station/commands.hpp"
 #include "cell_choice.hpp"
-#include "stampscan/station/measuring_priority.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
 #include "virtual_cell/virtual_cell_host.hpp"
@@ -93,30 +92,20 @@ CommandRunner addCalibrateCommand(CLI::App& app) {
     world.quick = opt->quarter_resolution;
     world.options = opt->world;
     const VirtualCellHost* host = command_cell.simulate(world);
-    jobs::CalibrateJobOptions job;
-    const acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
-    job.plan = jobs::calibrationScenesOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
-                                                   : acquisition::loadScanPlan(opt->plan),
-                                   digitizer, cameras);
-    job.run.limits = config.limits;
-    job.policy = config.calibration;
-    job.digitizer = digitizer;
-    job.cameras = cameras;
-    job.calibration_dir = jobs::calibrationFolder(opt->calibration_dir, config.calibration);
-    job.results_database = jobs::calibrationResultsDatabase(config.results_database, job.calibration_dir);
+    jobs::CalibrateJobOptions job =
+        jobs::cellCalibration(config, jobs::calibrationFolder(opt->calibration_dir, config.calibration), digitizer, cameras);
+    job.plan = opt->plan.empty() ? jobs::cellCalibrationPlan(config, opt->world.seed, digitizer, cameras)
+                                 : jobs::calibrationScenesOf(acquisition::loadScanPlan(opt->plan), digitizer, cameras);
     if (opt->accept) job.accepted_by = opt->engineer.empty() ? loginName() : opt->engineer;
 
-    command_cell.serve(cameras);
-    // After serving the cell: serving may re-execute this program, which would not put the session's
-    // share back (measuring_priority.hpp).
-    const MeasuringPriority priority = raiseMeasuringPriority();
+    command_cell.serveToMeasure(cameras);
     acquisition::Cell cell(config);
     job.run.session = acquisition::describeSession(config.geometry, job.plan);
     job.run.session.part_id = "calibration";
 
     std::printf("station calibrate: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 command_cell.hostedNote());
-    std::printf("  priority    %s\n", priority.describe().c_str());
+    std::printf("  priority    %s\n", command_cell.priorityNote().c_str());
     std::printf("  folder      %s\n", job.calibration_dir.c_str());
     TerminalRunObserver observer(opt->quiet);
     jobs::CalibrateJob calibrate(cell, &observer);

@@ -5,11 +5,13 @@
 #pragma once
 
 #include "stampscan/acquisition/cell_config.hpp"
+#include "stampscan/station/measuring_priority.hpp"
 #include "virtual_cell/virtual_cell_host.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace stampscan::station {
@@ -19,6 +21,7 @@ struct CommandCell {
   acquisition::CellConfig config;
   bool virtual_cell = false;              // hosted in this process
   std::unique_ptr<VirtualCellHost> host;  // once simulate() has built the twin's world
+  std::optional<MeasuringPriority> priority;  // once serveToMeasure() has raised it; put back with the cell
 
   // The twin's world, on a hosted cell (nothing otherwise): the config's cameras become the world's.
   VirtualCellHost* simulate(const VirtualWorld& world) {
@@ -33,6 +36,15 @@ struct CommandCell {
     host->start(cameras);
     config = host->config();
   }
+  // serve(), then the measurement's priority (measuring_priority.hpp) for as long as this cell is
+  // in use: after serving, since serving may re-execute the program, which would not put the
+  // session's share back. For the commands that measure (scan, calibrate, verify, hmi).
+  void serveToMeasure(bool cameras) {
+    serve(cameras);
+    priority.emplace(raiseMeasuringPriority());
+  }
+  // The priority line of the command's output (after serveToMeasure()).
+  std::string priorityNote() const { return priority ? priority->describe() : "nice as started"; }
   const char* hostedNote() const { return host ? " (hosted in this process)" : ""; }
 };
 
@@ -61,7 +73,7 @@ struct CellChoice {
   acquisition::CellConfig load() const {
     return file.empty() ? acquisition::virtualCell() : acquisition::loadCellConfig(file);
   }
-  CommandCell open() const { return CommandCell{load(), hosted(), nullptr}; }
+  CommandCell open() const { return CommandCell{load(), hosted(), nullptr, std::nullopt}; }
 };
 
 }  // namespace stampscan::station

@@ -10,7 +10,6 @@
 #include "stampscan/jobs/calibrate_job.hpp"
 #include "stampscan/jobs/verify_job.hpp"
 #include "cell_choice.hpp"
-#include "stampscan/station/measuring_priority.hpp"
 #include "panel_programs.hpp"
 #include "program_library.hpp"
 #include "stop_signals.hpp"
@@ -112,35 +111,21 @@ jobs::ScanJobOptions panelScan(const acquisition::CellConfig& config, bool virtu
 // `station verify` (the stereo pair's check on the plate stays with the command, whose cameras take
 // the calibration's resolution).
 jobs::VerifyJobOptions panelVerify(const acquisition::CellConfig& config, const fs::path& calibration_dir, std::uint64_t seed) {
-  acquisition::CalibrationScenes sphere_scenes = acquisition::calibrationScenes(config.calibration, 1.0, seed);
-  jobs::VerifyJobOptions verify;
-  verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
-  verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
-  if (const auto& bar = config.geometry.ball_bar) {
-    verify.ball_bar = jobs::VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
-    sphere_scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
-  }
-  verify.plan = jobs::verificationStepsOf(acquisition::calibrationPlan(config, sphere_scenes));
-  verify.run.limits = config.limits;
+  jobs::VerifyJobOptions verify = jobs::cellVerification(config, calibration_dir);
+  verify.plan = jobs::cellVerificationPlan(config, seed);
   verify.run.session = acquisition::describeSession(config.geometry, verify.plan);
   verify.run.session.part_id = "reference sphere";
-  verify.results_database = jobs::calibrationResultsDatabase(config.results_database, calibration_dir);
   return verify;
 }
 
 // The calibration: the cell's calibration scenes (every sphere sweep and plate view) at the hosted
 // cameras' resolution, as `station calibrate`.
 jobs::CalibrateJobOptions panelCalibrate(const acquisition::CellConfig& config, const fs::path& calibration_dir,
-                                   const std::string& results_database, std::uint64_t seed) {
-  jobs::CalibrateJobOptions calibrate;
-  calibrate.plan = jobs::calibrationScenesOf(
-      acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, seed)), true, true);
-  calibrate.run.limits = config.limits;
+                                         std::uint64_t seed) {
+  jobs::CalibrateJobOptions calibrate = jobs::cellCalibration(config, calibration_dir);
+  calibrate.plan = jobs::cellCalibrationPlan(config, seed);
   calibrate.run.session = acquisition::describeSession(config.geometry, calibrate.plan);
   calibrate.run.session.part_id = "calibration";
-  calibrate.calibration_dir = calibration_dir;
-  calibrate.policy = config.calibration;
-  calibrate.results_database = results_database;
   return calibrate;
 }
 
@@ -218,13 +203,10 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   setup.calibration_dir = jobs::calibrationFolder(opt.calibration_dir, config.calibration, opt.runs);
   setup.scan = panelScan(config, virtual_cell, opt, setup.calibration_dir);
   setup.verify = panelVerify(config, setup.calibration_dir, opt.seed);
-  setup.calibrate = panelCalibrate(config, setup.calibration_dir, setup.verify->results_database, opt.seed);
+  setup.calibrate = panelCalibrate(config, setup.calibration_dir, opt.seed);
 
   // The embedded virtual cell first: hosting may re-execute this program (umockdev).
-  command_cell.serve(true);
-  // After serving the cell: serving may re-execute this program, which would not put the session's
-  // share back (measuring_priority.hpp).
-  const MeasuringPriority priority = raiseMeasuringPriority();
+  command_cell.serveToMeasure(true);
   if (hosted) setup.scan.truth = hosted->truthOfPart();
   setup.programs = panelPrograms(config, virtual_cell, opt.runs, opt.seed, hosted);
   setup.line_start = config.plc_line_start;
@@ -233,7 +215,7 @@ int runHmi(const HmiCommandOptions& opt, bool listen_given) {
   hmi::HmiServer server(std::move(setup), options);
   server.bind();
   printServing(config, server, options, hosted != nullptr);
-  std::printf("station hmi: priority %s\n", priority.describe().c_str());
+  std::printf("station hmi: priority %s\n", command_cell.priorityNote().c_str());
   std::fflush(stdout);
   if (!opt.ready_file.empty()) std::ofstream(opt.ready_file) << server.url() << '\n';
   serveUntilStopped(server, hosted);

@@ -14,14 +14,6 @@ namespace {
 
 constexpr const char* kSessionGroup = "/proc/self/autogroup";  // "/autogroup-N nice K" where the kernel has it
 
-std::optional<int> sessionNice() {
-  std::ifstream in(kSessionGroup);
-  std::string group, word;
-  int nice = 0;
-  if (in >> group >> word >> nice && word == "nice") return nice;
-  return std::nullopt;
-}
-
 bool setSessionNice(int nice) {
   std::ofstream out(kSessionGroup);
   out << nice << std::flush;
@@ -29,6 +21,14 @@ bool setSessionNice(int nice) {
 }
 
 }  // namespace
+
+std::optional<int> sessionNice() {
+  std::ifstream in(kSessionGroup);
+  std::string group, word;
+  int nice = 0;
+  if (in >> group >> word >> nice && word == "nice") return nice;
+  return std::nullopt;
+}
 
 MeasuringPriority::MeasuringPriority(MeasuringPriority&& other) noexcept
     : raised(other.raised), nice(other.nice), reason(std::move(other.reason)),

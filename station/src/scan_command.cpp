@@ -10,7 +10,6 @@
 #include "stampscan/jobs/progress.hpp"
 #include "stampscan/jobs/scan_job.hpp"
 #include "cell_choice.hpp"
-#include "stampscan/station/measuring_priority.hpp"
 #include "program_library.hpp"
 #include "scan_terminal.hpp"
 #include "stop_signals.hpp"
@@ -224,10 +223,7 @@ int runScan(ScanOptions& opt) {
   choosePlan(opt, cell.config, program, quick, cell.host.get(), job);
   if (opt.dry_run) return dryRun(job, cell.config, program);
 
-  cell.serve(job.plan.stereoCount() > 0);
-  // After serving the cell: serving may re-execute this program, which would not put the session's
-  // share back (measuring_priority.hpp).
-  const MeasuringPriority priority = raiseMeasuringPriority();
+  cell.serveToMeasure(job.plan.stereoCount() > 0);
   // The planner's prediction of what each sweep sees, against which the scan is checked, too.
   if (cell.host && !cell.host->replaying()) job.truth = cell.host->truthOfScan(job.plan);
   const acquisition::CellConfig& config = cell.config;
@@ -245,7 +241,7 @@ int runScan(ScanOptions& opt) {
   job.run.session.part_id = opt.part_id;
 
   std::printf("station scan: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(), cell.hostedNote());
-  std::printf("  priority    %s\n", priority.describe().c_str());
+  std::printf("  priority    %s\n", cell.priorityNote().c_str());
   if (program)
     std::printf("  program     %s (%s): %s grid %.2f mm, %s %.2f mm; model %zu triangles\n", program->name.c_str(),
                 program->folder.c_str(), program->grid.kind.c_str(), program->grid.pitch_mm, program->material.c_str(),

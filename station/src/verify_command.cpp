@@ -7,7 +7,6 @@
 #include "stampscan/station/commands.hpp"
 #include "stampscan/jobs/verify_job.hpp"
 #include "cell_choice.hpp"
-#include "stampscan/station/measuring_priority.hpp"
 #include "stampscan/acquisition/calibration_plan.hpp"
 #include "terminal_run.hpp"
 #include "virtual_cell/virtual_cell_host.hpp"
@@ -69,20 +68,10 @@ CommandRunner addVerifyCommand(CLI::App& app) {
   return [opt]() {
     CommandCell command_cell = opt->cell.open();
     const acquisition::CellConfig& config = command_cell.config;
-    // The calibration's sweeps over the cell's sphere: every fan position, depth, head angle, speed
-    // and direction of them, so that the check sees what calibration saw (and the first plate views).
-    acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, opt->world.seed);
-    jobs::VerifyJobOptions job;
-    job.run.limits = config.limits;
-    job.sphere.form_mpe_mm = opt->form_mpe_mm.value_or(config.calibration.form_mpe_mm);
-    job.sphere.size_mpe_mm = opt->size_mpe_mm.value_or(config.calibration.size_mpe_mm);
-    if (const auto& bar = config.geometry.ball_bar) {
-      job.ball_bar = jobs::VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
-      scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
-    }
     const fs::path dir = jobs::calibrationFolder(opt->calibration_dir, config.calibration);
-    job.history = dir / "history";
-    job.results_database = jobs::calibrationResultsDatabase(config.results_database, dir);
+    jobs::VerifyJobOptions job = jobs::cellVerification(config, dir);
+    if (opt->form_mpe_mm) job.sphere.form_mpe_mm = *opt->form_mpe_mm;
+    if (opt->size_mpe_mm) job.sphere.size_mpe_mm = *opt->size_mpe_mm;
     const fs::path stored = opt->calibration.empty() ? dir / "digitizer.json" : fs::path(opt->calibration);
     if (!opt->calibration.empty() || fs::exists(stored)) jobs::verifyWithCalibration(job, stored);
 
@@ -98,14 +87,11 @@ CommandRunner addVerifyCommand(CLI::App& app) {
       world.image_scale = static_cast<double>(job.cameras->stereo.left.model.size.width) / config.geometry.cameras.width;
     }
     command_cell.simulate(world);
-    job.plan = jobs::verificationStepsOf(opt->plan.empty() ? acquisition::calibrationPlan(config, scenes)
-                                                   : acquisition::loadScanPlan(opt->plan),
-                                   job.cameras ? 3 : 0);
+    const std::size_t plate_views = job.cameras ? 3 : 0;
+    job.plan = opt->plan.empty() ? jobs::cellVerificationPlan(config, opt->world.seed, plate_views)
+                                 : jobs::verificationStepsOf(acquisition::loadScanPlan(opt->plan), plate_views);
     // The embedded virtual cell first (it may re-execute this program); cameras only for plate views.
-    command_cell.serve(job.plan.stereoCount() > 0);
-    // After serving the cell: serving may re-execute this program, which would not put the session's
-    // share back (measuring_priority.hpp).
-    const MeasuringPriority priority = raiseMeasuringPriority();
+    command_cell.serveToMeasure(job.plan.stereoCount() > 0);
     acquisition::Cell cell(config);
     // The cell's geometry as drawn, the sphere's certified diameter with it.
     job.run.session = acquisition::describeSession(config.geometry, job.plan);
@@ -113,7 +99,7 @@ CommandRunner addVerifyCommand(CLI::App& app) {
 
     std::printf("station verify: %s on %s%s\n", job.plan.name.c_str(), config.name.c_str(),
                 command_cell.hostedNote());
-    std::printf("  priority    %s\n", priority.describe().c_str());
+    std::printf("  priority    %s\n", command_cell.priorityNote().c_str());
     std::printf("  calibration %s\n", job.calibration ? job.calibration_source.c_str()
                                                       : "none in use: the sweeps calibrate the digitizer themselves");
     TerminalRunObserver observer(opt->quiet);

@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
-#include <fstream>
 #include <optional>
 #include <string>
 #include <thread>
@@ -22,15 +21,6 @@ namespace stampscan::station::test {
 namespace {
 
 int threadNice(pid_t tid) { return getpriority(PRIO_PROCESS, static_cast<id_t>(tid)); }
-
-// The session's nice value where the kernel shares the CPU by session first (its autogroups).
-std::optional<int> sessionNice() {
-  std::ifstream in("/proc/self/autogroup");
-  std::string group, word;
-  int nice = 0;
-  if (in >> group >> word >> nice && word == "nice") return nice;
-  return std::nullopt;
-}
 
 // Runs `check` in a child process and returns its exit code (0: every expectation held).
 template <typename Check>

@@ -1,6 +1,7 @@
 #include "stampscan/jobs/calibrate_job.hpp"
 
 #include "stampscan/jobs/calibration_results.hpp"
+#include "stampscan/acquisition/calibration_plan.hpp"
 
 #include "stampscan/fitting/median.hpp"
 
@@ -344,6 +345,25 @@ std::filesystem::path calibrationFolder(const std::string& option, const acquisi
   if (!option.empty()) return option;
   if (!policy.dir.empty()) return policy.dir;
   return runs / "calibration";
+}
+
+CalibrateJobOptions cellCalibration(const acquisition::CellConfig& config, const std::filesystem::path& calibration_dir,
+                                    bool digitizer, bool cameras) {
+  CalibrateJobOptions calibrate;
+  calibrate.run.limits = config.limits;
+  calibrate.policy = config.calibration;
+  calibrate.digitizer = digitizer;
+  calibrate.cameras = cameras;
+  calibrate.calibration_dir = calibration_dir;
+  calibrate.results_database = calibrationResultsDatabase(config.results_database, calibration_dir);
+  return calibrate;
+}
+
+acquisition::ScanPlan cellCalibrationPlan(const acquisition::CellConfig& config, std::uint64_t seed, bool digitizer,
+                                          bool cameras) {
+  return calibrationScenesOf(
+      acquisition::calibrationPlan(config, acquisition::calibrationScenes(config.calibration, 1.0, seed)), digitizer,
+      cameras);
 }
 
 acquisition::ScanPlan calibrationScenesOf(const acquisition::ScanPlan& plan, bool digitizer, bool cameras) {

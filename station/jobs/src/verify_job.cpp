@@ -2,6 +2,7 @@
 
 #include "stampscan/jobs/calibration_results.hpp"
 
+#include "stampscan/acquisition/calibration_plan.hpp"
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/registration/measure_scan.hpp"
 #include "stampscan/registration/scan_trace.hpp"
@@ -39,6 +40,27 @@ std::vector<RecordValue> calibrationValues(const registration::DigitizerCalibrat
 }
 
 }  // namespace
+
+VerifyJobOptions cellVerification(const acquisition::CellConfig& config, const fs::path& calibration_dir) {
+  VerifyJobOptions verify;
+  verify.run.limits = config.limits;
+  verify.sphere.form_mpe_mm = config.calibration.form_mpe_mm;
+  verify.sphere.size_mpe_mm = config.calibration.size_mpe_mm;
+  if (const auto& bar = config.geometry.ball_bar)
+    verify.ball_bar = VerifyJobOptions::BallBar{bar->diameter_mm, bar->distance_mm, config.calibration.length_mpe_mm};
+  verify.history = calibration_dir / "history";
+  verify.results_database = calibrationResultsDatabase(config.results_database, calibration_dir);
+  return verify;
+}
+
+acquisition::ScanPlan cellVerificationPlan(const acquisition::CellConfig& config, std::uint64_t seed,
+                                           std::size_t plate_views) {
+  // Every sweep calibration makes (fan position, depth, head angle, speed and direction), so that
+  // the check sees what calibration saw.
+  acquisition::CalibrationScenes scenes = acquisition::calibrationScenes(config.calibration, 1.0, seed);
+  if (config.geometry.ball_bar) scenes.second_sphere_sweeps = config.calibration.ball_bar_sweeps;
+  return verificationStepsOf(acquisition::calibrationPlan(config, scenes), plate_views);
+}
 
 acquisition::ScanPlan verificationStepsOf(const acquisition::ScanPlan& plan, std::size_t plate_views) {
   acquisition::ScanPlan out = plan;

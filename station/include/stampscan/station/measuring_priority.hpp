@@ -34,6 +34,10 @@ class MeasuringPriority {
 
  private:
   friend MeasuringPriority raiseMeasuringPriority();
+
+// The session's nice value where the kernel shares the CPU by session first (its autogroups), or
+// nothing where it does not.
+std::optional<int> sessionNice();
   std::optional<int> session_nice_before_;  // the session's nice value this raised, to put back
 };
 
@@ -41,5 +45,9 @@ class MeasuringPriority {
 // session's share when the kernel groups by session; a process already at or above it is left
 // alone. Never fails: without the right it says why and runs on.
 MeasuringPriority raiseMeasuringPriority();
+
+// The session's nice value where the kernel shares the CPU by session first (its autogroups), or
+// nothing where it does not.
+std::optional<int> sessionNice();
 
 }  // namespace stampscan::station

@@ -35,6 +35,7 @@
 #include "stampscan/registration/calibration_store.hpp"
 #include "stampscan/jobs/traced_run.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -62,6 +63,17 @@ struct CalibrateJobOptions {
   // The results database the records also go to as rows (calibration_results.hpp); "" for none.
   std::string results_database;
 };
+
+// The calibration of the sensors asked for as the cell file defines it: its acceptance and drift
+// limits, the run's limits, and `calibration_dir` with its results database. The plan and the
+// session are the caller's.
+CalibrateJobOptions cellCalibration(const acquisition::CellConfig& config, const std::filesystem::path& calibration_dir,
+                                    bool digitizer = true, bool cameras = true);
+
+// The cell's calibration plan: its calibration scenes ([calibration] sphere_sweeps, plate_views,
+// planned from `seed` for its artefacts), those of the sensors asked for.
+acquisition::ScanPlan cellCalibrationPlan(const acquisition::CellConfig& config, std::uint64_t seed,
+                                          bool digitizer = true, bool cameras = true);
 
 struct SensorCalibration {
   registration::CalibrationRecord record;

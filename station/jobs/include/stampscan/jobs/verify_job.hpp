@@ -22,6 +22,7 @@
 #pragma once
 
 #include "stampscan/acquisition/cell.hpp"
+#include "stampscan/acquisition/cell_config.hpp"
 #include "stampscan/acquisition/scan_runner.hpp"
 #include "stampscan/registration/calibration_record.hpp"
 #include "stampscan/registration/digitizer_calibration.hpp"
@@ -30,6 +31,7 @@
 #include "stampscan/registration/stereo_verification.hpp"
 #include "stampscan/jobs/traced_run.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -78,6 +80,17 @@ struct VerifyJobResult {
   std::filesystem::path record_file, trace_file;
   std::string history_error;  // why the record is not a row of the results database ("" when it is)
 };
+
+// The verification as the cell file defines it: the MPEs of its [calibration], its ball bar's length
+// check where it has one, the run's limits, and the records in `calibration_dir`'s history and
+// results database. The plan, the session and the calibration in use are the caller's.
+VerifyJobOptions cellVerification(const acquisition::CellConfig& config, const std::filesystem::path& calibration_dir);
+
+// The cell's verification plan: the sphere sweeps of its calibration scenes (planned from `seed` as
+// calibration plans them), the ball bar's too where the cell has one, and the first `plate_views`
+// plate views.
+acquisition::ScanPlan cellVerificationPlan(const acquisition::CellConfig& config, std::uint64_t seed,
+                                           std::size_t plate_views = 0);
 
 // The verification of the digitizer calibration in `file` (digitizer.json): sets the options'
 // calibration and names its source. Throws std::runtime_error naming the file when it cannot be read.
