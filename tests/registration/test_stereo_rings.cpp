@@ -31,6 +31,7 @@ registration::CameraModel modelOf(const sim::CameraIntrinsics& c) {
 struct StereoMeasured {
   std::size_t found = 0, false_found = 0, truth_in_view = 0, truth_found = 0;
   std::size_t without_prior = 0;  // rings in the left image with no prior to match them on
+  std::size_t rejected = 0;       // matched rings left out: the views disagree, a poor fit, a bend too tight
   double position_rms = 0, strain_rms = 0;
 };
 
@@ -143,6 +144,7 @@ StereoMeasured runStereo(sim::PartKind kind, std::uint64_t seed, sim::GridKind g
   StereoMeasured m;
   m.found = found.size();
   m.without_prior = stats.without_prior;
+  m.rejected = stats.rejected_fit;
   const fitting::KdTree tree(t.positions);
   std::vector<fitting::Neighbor> nn;
   double sq_pos = 0, sq_strain = 0, bias_major = 0, bias_minor = 0;
@@ -206,8 +208,15 @@ TEST(StereoRings, ElementsInAHoleOfThePriorAreFound) {
   EXPECT_EQ(m.without_prior, 0u);
 }
 
-// The pan's walls are seen at up to 60 degrees and its radii bend rings out of their plane.
-TEST(StereoRings, PanElementsMatchTheGroundTruth) { expectGoals(runStereo(sim::PartKind::Pan, 42)); }
+// The pan's walls are seen at up to 60 degrees and its radii bend rings out of their plane. The
+// rings over its 7 mm die radii (a sagitta of 0.07-0.11 mm on the sheet) are measured too: a die
+// radius is where a part splits. With a bend limit of 0.06 mm a fifth of the matched rings here
+// were left out, and some elements of the whole pan were seen by no measurement.
+TEST(StereoRings, PanElementsMatchTheGroundTruth) {
+  const StereoMeasured m = runStereo(sim::PartKind::Pan, 42);
+  expectGoals(m);
+  EXPECT_LE(static_cast<double>(m.rejected), 0.05 * static_cast<double>(m.found + m.rejected));
+}
 
 // Rings there are bent and strained unevenly, so no longer ellipses in the images: the line model's
 // third harmonic follows them, and each is cast onto the curved sheet.
