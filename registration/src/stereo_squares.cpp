@@ -112,7 +112,10 @@ std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pi
     const auto corners = quadrilateralOf(in.hull);
     if (!corners) return;
     // Each side's line: start from the interior's edge moved out by half the line, fit the model
-    // to the middle 60 % of the side (the crossing lines at the nodes stay out).
+    // to the middle 92 % of the interior's side (the crossing lines at the nodes begin at its
+    // corners and stay out). On a cell foreshortened by a steep wall every pixel of the line counts:
+    // the middle 60 % gave the pan's 60-degree walls 0.0081 thickness strain RMS, 92 % gives 0.0060
+    // (the whole pan 0.0029 -> 0.0024, its floor a little better too).
     std::array<detail::ImageLine, 4> lines;
     double blur = 0;
     for (std::size_t i = 0; i < 4; ++i) {
@@ -126,7 +129,7 @@ std::vector<ImageCell> detectImageCells(const cv::Mat& image, double expected_pi
       const double width = line_px * length / side_px;  // the line stretches with the cell
       const Eigen::Vector2d on_line = mid + (0.5 * width + 0.5) * normal;
       detail::ImageLine line{normal, normal.dot(on_line)};
-      const detail::LineFitResult fit = detail::fitStraightLine(I, width, on_line, 0.3 * length, {}, line);
+      const detail::LineFitResult fit = detail::fitStraightLine(I, width, on_line, 0.46 * length, {}, line);
       if (!fit.ok) return;
       lines[i] = line;
       blur += 0.25 * fit.blur;
