@@ -132,6 +132,11 @@ void printResult(const jobs::ScanJobResult& r, const jobs::ScanJobOptions& job, 
                 r.accuracy->matched, r.elements, r.accuracy->position_rms_mm, r.accuracy->strain_rms,
                 static_cast<double>(r.digitizer.latency_ns) * 1e-6,
                 static_cast<double>(job.truth->digitizer_latency_ns) * 1e-6);
+  if (r.accuracy && hosted && r.accuracy->laser.matched > 0 && r.accuracy->stereo.matched > 0)
+    std::printf("  by sensor   laser-led %lld elements %.4f mm, strain %.4f; stereo-led %lld elements %.4f mm, strain %.4f\n",
+                static_cast<long long>(r.accuracy->laser.matched), r.accuracy->laser.position_rms_mm,
+                r.accuracy->laser.strain_rms, static_cast<long long>(r.accuracy->stereo.matched),
+                r.accuracy->stereo.position_rms_mm, r.accuracy->stereo.strain_rms);
   if (r.accuracy && r.accuracy->visible > 0)
     std::printf("  visible     %zu of %zu visible elements found (%.1f %%; a sensor sees them whole from a pose of the "
                 "plan); %zu more found that none sees whole\n",

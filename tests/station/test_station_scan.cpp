@@ -153,6 +153,13 @@ TEST_F(StationTest, ScanOnTheVirtualCellMeasuresThePart) {
   EXPECT_EQ(j.at("accuracy").at("matched"), j.at("measurement").at("elements"));
   EXPECT_LE(j.at("accuracy").at("position_rms_mm").get<double>(), 0.05);
   EXPECT_LE(j.at("accuracy").at("strain_rms").get<double>(), 0.005);
+  // The same figures split by the sensor that leads each element: between them, every element.
+  const nlohmann::json& by_sensor = j.at("accuracy").at("by_sensor");
+  const auto led = [&](const char* sensor) {
+    return by_sensor.contains(sensor) ? by_sensor.at(sensor).at("matched").get<int>() : 0;
+  };
+  EXPECT_GT(led("laser"), 0);
+  EXPECT_EQ(led("laser") + led("stereo"), j.at("accuracy").at("matched").get<int>());
   EXPECT_TRUE(j.at("data_loss").is_null()) << j.dump(2);
   // The fitted surface takes its shape from the laser's returns: many more points than elements,
   // and each element's position lies on it.

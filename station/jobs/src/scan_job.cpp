@@ -117,6 +117,8 @@ run_folder::AccuracyFigures accuracyRecord(const ScanJobResult& result, const Si
                                                 .found = static_cast<std::int64_t>(a.visible_found),
                                                 .found_not_visible = static_cast<std::int64_t>(a.found_not_visible)};
   record.surface_strain = result.surface_accuracy;
+  if (a.laser.matched) record.laser_led = a.laser;
+  if (a.stereo.matched) record.stereo_led = a.stereo;
   return record;
 }
 
@@ -333,6 +335,9 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   double sp = 0, ss = 0;
   const auto stated = measured.scalars.find(fitting::kStrainUncertainty);
   const bool states = stated != measured.scalars.end() && stated->second.size() == measured.size();
+  const auto source = measured.scalars.find(fitting::kSource);
+  const bool sourced = source != measured.scalars.end() && source->second.size() == measured.size();
+  run_folder::SensorAccuracyFigures* sensor[2] = {&a.laser, &a.stereo};
   std::size_t covered = 0;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     tree.knn(measured.positions[i], 1, nn);
@@ -341,6 +346,12 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
     sp += nn[0].distance_sq;
     const double d = measured.strain[i] - truth.strain[nn[0].index];
     ss += d * d;
+    if (sourced) {
+      run_folder::SensorAccuracyFigures& s = *sensor[source->second[i] == static_cast<double>(registration::Source::Stereo)];
+      ++s.matched;
+      s.position_rms_mm += nn[0].distance_sq;  // sums until the end
+      s.strain_rms += d * d;
+    }
     if (states && std::isfinite(stated->second[i]) && stated->second[i] > 0) {
       ++a.with_uncertainty;
       covered += std::abs(d) <= 2 * stated->second[i];
@@ -351,6 +362,11 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
     a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
     a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
   }
+  for (run_folder::SensorAccuracyFigures* s : sensor)
+    if (s->matched) {
+      s->position_rms_mm = std::sqrt(s->position_rms_mm / static_cast<double>(s->matched));
+      s->strain_rms = std::sqrt(s->strain_rms / static_cast<double>(s->matched));
+    }
   if (visible.size() == truth.size() && measured.size() > 0) {
     const fitting::KdTree found(measured.positions);
     for (std::size_t i = 0; i < truth.size(); ++i) {

@@ -80,6 +80,9 @@ json encode(const AccuracyFigures& a) {
                            {"between_rms", f->between_rms},
                            {"within_grid_points", f->within_grid_points},
                            {"within_grid_without_strain", f->within_grid_without_strain}};
+  for (const auto& [key, figures] : {std::pair{"laser", &a.laser_led}, std::pair{"stereo", &a.stereo_led}})
+    if (const auto& f = *figures)
+      j["by_sensor"][key] = {{"matched", f->matched}, {"position_rms_mm", f->position_rms_mm}, {"strain_rms", f->strain_rms}};
   return j;
 }
 
@@ -260,6 +263,20 @@ void readAccuracy(const Members& m, AccuracyFigures& a) {
     s.count("within_grid_points", out.within_grid_points);
     s.count("within_grid_without_strain", out.within_grid_without_strain);
   });
+  struct BySensor {
+    std::optional<SensorAccuracyFigures> laser, stereo;
+  };
+  std::optional<BySensor> by_sensor;
+  m.object("by_sensor", by_sensor, [](const Members& b, BySensor& out) {
+    const auto figures = [](const Members& f, SensorAccuracyFigures& x) {
+      f.count("matched", x.matched);
+      f.number("position_rms_mm", x.position_rms_mm);
+      f.number("strain_rms", x.strain_rms);
+    };
+    b.object("laser", out.laser, figures);
+    b.object("stereo", out.stereo, figures);
+  });
+  if (by_sensor) a.laser_led = by_sensor->laser, a.stereo_led = by_sensor->stereo;
 }
 
 }  // namespace

@@ -55,6 +55,8 @@ RunRecord fullRecord() {
   a.strain_within_expanded_uncertainty = 0.99;
   a.visible = stampscan::run_folder::VisibleFigures{3249, 3242, 0};
   a.surface_strain = stampscan::run_folder::SurfaceStrainFigures{3242, 0.0006, 0.0008, 49627, 0.0009, 112217, 0};
+  a.laser_led = stampscan::run_folder::SensorAccuracyFigures{3124, 0.0040, 0.0006};
+  a.stereo_led = stampscan::run_folder::SensorAccuracyFigures{118, 0.0083, 0.0005};
   r.replay = stampscan::run_folder::ReplayFigures{"recorded/trace.mcap", 10199, 10199, 0.0, 0.0};
   r.data_loss = "1 stereo views missing (no frames from a camera)";
   r.material = "DC04";

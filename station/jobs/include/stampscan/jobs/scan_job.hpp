@@ -106,6 +106,9 @@ struct ScanAccuracy {
   // the share whose true strain lies within the expanded uncertainty (k = 2): about 95 % when honest.
   std::size_t with_uncertainty = 0;
   double within_expanded_uncertainty = 0;
+  // The matched elements split by the sensor whose measurement leads each (the Cloud4D's `source`):
+  // where the error comes from when a session has both.
+  run_folder::SensorAccuracyFigures laser, stereo;
 };
 
 struct ScanJobResult {

@@ -110,6 +110,14 @@ struct SurfaceStrainFigures {
   bool operator==(const SurfaceStrainFigures&) const = default;
 };
 
+// "accuracy.by_sensor.laser" / ".stereo": the matched elements whose leading measurement (the
+// Cloud4D's `source`) is that sensor's, against the truth.
+struct SensorAccuracyFigures {
+  std::int64_t matched = 0;
+  double position_rms_mm = 0, strain_rms = 0;
+  bool operator==(const SensorAccuracyFigures&) const = default;
+};
+
 // "accuracy": the scan against the simulator's truth (a virtual cell only).
 struct AccuracyFigures {
   std::int64_t matched = 0;
@@ -118,6 +126,7 @@ struct AccuracyFigures {
   double true_latency_ms = 0;
   std::optional<VisibleFigures> visible;
   std::optional<SurfaceStrainFigures> surface_strain;
+  std::optional<SensorAccuracyFigures> laser_led, stereo_led;  // "by_sensor": where the error comes from
   bool operator==(const AccuracyFigures&) const = default;
 };
 
