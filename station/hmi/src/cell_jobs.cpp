@@ -392,7 +392,6 @@ void CellJobs::runVerify(std::string user) {
       std::lock_guard lock(mutex_);
       return *setup_.verify;
     }();
-    options.history = setup_.calibration_dir / "history";
     if (const fs::path stored = setup_.calibration_dir / "digitizer.json"; fs::exists(stored))
       jobs::verifyWithCalibration(options, stored);
     HubObserver observer(hub_, *setup_.cell, "verify");
