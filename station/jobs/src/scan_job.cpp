@@ -338,6 +338,7 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
   const auto source = measured.scalars.find(fitting::kSource);
   const bool sourced = source != measured.scalars.end() && source->second.size() == measured.size();
   run_folder::SensorAccuracyFigures* sensor[2] = {&a.laser, &a.stereo};
+  double sensor_position_sq[2] = {0, 0}, sensor_strain_sq[2] = {0, 0};  // laser, stereo
   std::size_t covered = 0;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     tree.knn(measured.positions[i], 1, nn);
@@ -347,10 +348,10 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
     const double d = measured.strain[i] - truth.strain[nn[0].index];
     ss += d * d;
     if (sourced) {
-      run_folder::SensorAccuracyFigures& s = *sensor[source->second[i] == static_cast<double>(registration::Source::Stereo)];
-      ++s.matched;
-      s.position_rms_mm += nn[0].distance_sq;  // sums until the end
-      s.strain_rms += d * d;
+      const int k = source->second[i] == static_cast<double>(registration::Source::Stereo) ? 1 : 0;
+      ++sensor[k]->matched;
+      sensor_position_sq[k] += nn[0].distance_sq;
+      sensor_strain_sq[k] += d * d;
     }
     if (states && std::isfinite(stated->second[i]) && stated->second[i] > 0) {
       ++a.with_uncertainty;
@@ -362,10 +363,10 @@ ScanAccuracy accuracyAgainst(const fitting::Cloud& measured, const fitting::Clou
     a.position_rms_mm = std::sqrt(sp / static_cast<double>(a.matched));
     a.strain_rms = std::sqrt(ss / static_cast<double>(a.matched));
   }
-  for (run_folder::SensorAccuracyFigures* s : sensor)
-    if (s->matched) {
-      s->position_rms_mm = std::sqrt(s->position_rms_mm / static_cast<double>(s->matched));
-      s->strain_rms = std::sqrt(s->strain_rms / static_cast<double>(s->matched));
+  for (int k = 0; k < 2; ++k)
+    if (const auto n = static_cast<double>(sensor[k]->matched); n > 0) {
+      sensor[k]->position_rms_mm = std::sqrt(sensor_position_sq[k] / n);
+      sensor[k]->strain_rms = std::sqrt(sensor_strain_sq[k] / n);
     }
   if (visible.size() == truth.size() && measured.size() > 0) {
     const fitting::KdTree found(measured.positions);
