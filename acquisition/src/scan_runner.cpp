@@ -4,12 +4,16 @@
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/drivers/camera/stereo_pair.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
+#include <vector>
 
 namespace stampscan::acquisition {
 
@@ -51,7 +55,8 @@ struct ScanRunner::Impl {
   std::int64_t cmm_offset = 0;  // CMM clock to station clock; the CMM driver's reader thread's alone
   std::mutex pair_mutex;  // the stereo pairs that arrived, by trigger id
   std::condition_variable pair_arrived;
-  std::uint64_t last_pair_trigger = 0;
+  std::set<std::uint64_t> arrived_pairs;  // their trigger ids
+  double camera_exposure_us = -1;          // the longer of the two cameras' exposures; < 0: unknown
   std::mutex abort_mutex;
   std::optional<std::string> abort_reason;
 
@@ -166,7 +171,7 @@ struct ScanRunner::Impl {
     }
     {
       std::lock_guard lock(pair_mutex);
-      last_pair_trigger = std::max(last_pair_trigger, pair.trigger_id);
+      arrived_pairs.insert(pair.trigger_id);
     }
     pair_arrived.notify_all();
   }
@@ -178,12 +183,15 @@ struct ScanRunner::Impl {
     config.pixel_format = params.session.camera_bits > 8 ? "Mono16" : "Mono8";
     config.roi = {0, 0, params.session.camera_nominal->width, params.session.camera_nominal->height};
     config.trigger = drivers::camera::TriggerMode::Software;
+    camera_exposure_us = 0;
     for (drivers::camera::GigECamera* camera : {dev.left_camera, dev.right_camera}) {
       try {
         camera->configure(config);
       } catch (const std::exception& e) {
         throw ScanError(camera->name() + " refuses the scan's image format: " + e.what());
       }
+      const std::optional<double> exposure = camera->readConfig().exposure_us;
+      camera_exposure_us = exposure && camera_exposure_us >= 0 ? std::max(camera_exposure_us, *exposure) : -1;
     }
   }
 
@@ -297,6 +305,15 @@ struct ScanRunner::Impl {
     SafetyInterlock& safety;
     ScanRunResult& result;
     std::unique_ptr<drivers::camera::StereoPair> pair = nullptr;
+    // How long the head stays after a trigger when it need not wait for the frames (leaveAfter()).
+    std::optional<std::chrono::microseconds> leave_after{};
+    // Views the head has left whose frames are still on their way.
+    struct OutstandingView {
+      std::uint64_t trigger = 0;
+      std::size_t step = 0;
+      std::chrono::steady_clock::time_point triggered;
+    };
+    std::vector<OutstandingView> outstanding{};
     std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
     std::uint64_t lost_before = 0;  // the digitizer's lost profiles before the run
     double motion_done = 0;         // s of the plan's motion done, for the time left
@@ -325,7 +342,10 @@ struct ScanRunner::Impl {
     poller.emplace(*this, params.plc_state_period);
     try {
       startCmmReports(params);
-      if (stereo) r.pair = startStereoPair();
+      if (stereo) {
+        r.pair = startStereoPair();
+        r.leave_after = leaveAfter();
+      }
       home(r);
       runSteps(r);
       park(r);
@@ -518,8 +538,23 @@ struct ScanRunner::Impl {
     r.at = target;
   }
 
-  // Settle, then trigger both cameras and wait for the pair (the scene's end marker must come after
-  // its frames). A view without frames is marked missing and the scan goes on.
+  // The head may leave a view as soon as both exposures are over when both cameras stamp their
+  // frames on a clock the station reads to the millisecond (a latched timestamp): the frames, still
+  // on their way, say when they were exposed, and the head's track says where it stood then. A
+  // camera whose clock is only estimated from its frames' arrivals, or whose exposure time is not
+  // known, keeps the head until the frames are in.
+  std::optional<std::chrono::microseconds> leaveAfter() const {
+    for (const drivers::camera::GigECamera* camera : {dev.left_camera, dev.right_camera})
+      if (camera->clockSyncMethod() != drivers::camera::ClockSyncMethod::TimestampLatch) return std::nullopt;
+    if (camera_exposure_us < 0) return std::nullopt;
+    // The trigger is acknowledged once the cameras have it; a millisecond more for their trigger
+    // latency and the clock's bracket.
+    return std::chrono::microseconds(static_cast<std::int64_t>(std::ceil(camera_exposure_us))) + std::chrono::milliseconds(1);
+  }
+
+  // Settle, trigger both cameras, and stay for the exposure (leaveAfter()) or for the frames. A view
+  // without frames is marked missing and the scan goes on. The scene's end marker comes after all
+  // its frames.
   void runView(Running& r, std::size_t k, const StereoStep& view, bool first, bool last) {
     travelTo(r, k, view.pose);
     r.motion_done += view.settle_s;
@@ -527,23 +562,49 @@ struct ScanRunner::Impl {
     report(r, k, describe(r.plan.steps[k]));
     timed(spent.settling, [&] { std::this_thread::sleep_for(std::chrono::duration<double>(view.settle_s)); });
     checkAbort(r.safety);
-    bool arrived = false;
     timed(spent.frames, [&] {
+      std::optional<std::uint64_t> id;
       try {
-        const std::uint64_t id = r.pair->trigger();
-        std::unique_lock lock(pair_mutex);
-        arrived = pair_arrived.wait_for(lock, r.params.frame_timeout, [&] { return last_pair_trigger >= id; });
+        id = r.pair->trigger();
       } catch (const drivers::DeviceError& e) {
         if (observer) observer->safetyEvent(faultKindOf(e), std::string("camera: ") + e.what());
       }
+      if (!id) {
+        viewMissing(r, k);
+        return;
+      }
+      r.outstanding.push_back({*id, k, std::chrono::steady_clock::now()});
+      if (r.leave_after) {
+        std::this_thread::sleep_for(*r.leave_after);
+      } else {
+        collectViews(r);
+      }
     });
-    if (arrived) {
-      ++r.result.views_done;
-    } else {
-      ++r.result.views_missing;
-      event(msg::CmmEventKind::ViewMissing, describe(r.plan.steps[k]));
+    if (last) {
+      timed(spent.frames, [&] { collectViews(r); });
+      marker(view.scene, "end", view.index);
     }
-    if (last) marker(view.scene, "end", view.index);
+  }
+
+  // Waits for the frames of every view the head has left, each until its trigger's frame timeout.
+  void collectViews(Running& r) {
+    for (const Running::OutstandingView& v : r.outstanding) {
+      std::unique_lock lock(pair_mutex);
+      const bool arrived = pair_arrived.wait_until(lock, v.triggered + r.params.frame_timeout,
+                                                   [&] { return arrived_pairs.contains(v.trigger); });
+      lock.unlock();
+      if (arrived) {
+        ++r.result.views_done;
+      } else {
+        viewMissing(r, v.step);
+      }
+    }
+    r.outstanding.clear();
+  }
+
+  void viewMissing(Running& r, std::size_t k) {
+    ++r.result.views_missing;
+    event(msg::CmmEventKind::ViewMissing, describe(r.plan.steps[k]));
   }
 
   // A sweep that lost more profiles on the way than the limit is run again, once; the trace says the
@@ -564,7 +625,10 @@ struct ScanRunner::Impl {
       if (observer) observer->safetyEvent(FaultKind::DataLost, label + ": " + std::to_string(lost) + " profiles lost; sweeping again");
       ++r.result.sweeps_repeated;
     }
-    if (last) marker(sweep.scene, "end", sweep.index);
+    if (last) {
+      timed(spent.frames, [&] { collectViews(r); });  // a scene's views before its end
+      marker(sweep.scene, "end", sweep.index);
+    }
   }
 
   // One run of a sweep: to its start, the laser on, along it at its speed, the profiles drained, the

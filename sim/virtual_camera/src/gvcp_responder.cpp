@@ -28,14 +28,15 @@ constexpr std::uint32_t kRegAcquisition = ARV_FAKE_CAMERA_REGISTER_ACQUISITION;
 struct Range {
   std::uint32_t begin, end;  // [begin, end)
 };
-constexpr std::array<Range, 8> kReadOnly{{{0x0000, 0x0014},
+constexpr std::array<Range, 9> kReadOnly{{{0x0000, 0x0014},
                                           {0x0024, 0x00E8},
                                           {0x0200, 0x0300},
                                           {0x0400, 0x0600},
                                           {ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH + 4},
                                           {0x0900, 0x090C},
                                           {0x092C, 0x0938},
-                                          {0x093C, 0x0944}}};
+                                          {0x093C, 0x0944},
+                                          {kRegTimestampValueHigh, kRegTimestampValueLow + 4}}};
 
 // Where "Local:<name>;<hex address>;<hex size>" puts the GenICam XML; 0 when it cannot be read.
 std::uint64_t xmlAddressFromUrl(const std::string& url) {
@@ -249,6 +250,20 @@ std::uint16_t Responder::writeRegister(std::uint32_t address, std::uint32_t valu
   if (const std::uint16_t status = writableRange(address, 4); status != GEV_STATUS_SUCCESS) return status;
   if (!isController(from)) return GEV_STATUS_ACCESS_DENIED;
   if (address == kRegHeartbeatTimeout) value = std::max(value, kMinHeartbeatTimeoutMs);
+  if (address == kRegTimestampControl) {
+    // Latch: the counter's value now, readable at 0x0948. The counter is the clock the frames are
+    // stamped with; it runs on, so a reset is acknowledged and changes nothing.
+    if ((value & kTimestampLatch) != 0) {
+      const std::uint64_t now = deviceTimeNs();
+      arv_fake_camera_write_register(camera_, kRegTimestampValueHigh, static_cast<std::uint32_t>(now >> 32));
+      arv_fake_camera_write_register(camera_, kRegTimestampValueLow, static_cast<std::uint32_t>(now));
+    }
+    return GEV_STATUS_SUCCESS;
+  }
+  if (address == ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE) {
+    // The exposure starts now: the frame carries this instant, however long it takes to make.
+    last_trigger_ = Trigger{deviceTimeNs(), std::chrono::steady_clock::now()};
+  }
   return arv_fake_camera_write_register(camera_, address, value) ? GEV_STATUS_SUCCESS : GEV_STATUS_INVALID_ADDRESS;
 }
 

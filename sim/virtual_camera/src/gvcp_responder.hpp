@@ -21,12 +21,18 @@
 
 #include <arv.h>
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <span>
 #include <vector>
 
 namespace stampscan::sim::gvcp {
+
+// The camera's timestamp counter in ns (tick frequency 1 GHz, bootstrap 0x093C): the real-time
+// clock, which Aravis' fake camera stamps its frames with, so that latched values and frame stamps
+// are one clock.
+inline std::uint64_t deviceTimeNs() { return static_cast<std::uint64_t>(g_get_real_time()) * 1000; }
 
 struct Peer {
   std::uint32_t address = 0;  // IPv4, host byte order
@@ -47,6 +53,14 @@ class Responder {
   // acknowledge datagram; empty when nothing is to be sent back. Never throws on content.
   std::vector<std::uint8_t> handle(std::span<const std::uint8_t> request, const Peer& from, Channel channel,
                                    std::int64_t now_ms);
+
+  // The last software trigger written: when it came, on the camera's timestamp clock and the
+  // steady clock.
+  struct Trigger {
+    std::uint64_t device_ns = 0;
+    std::chrono::steady_clock::time_point steady;
+  };
+  std::optional<Trigger> lastTrigger() const { return last_trigger_; }
 
   // Releases control when the controller's heartbeat ran out; true when it did.
   bool expireController(std::int64_t now_ms);
@@ -71,6 +85,7 @@ class Responder {
   std::optional<Peer> controller_;
   std::int64_t last_heartbeat_ms_ = 0;
   std::uint32_t default_heartbeat_ms_ = 3000;  // the model's heartbeat timeout at power-up
+  std::optional<Trigger> last_trigger_;
 };
 
 }  // namespace stampscan::sim::gvcp

@@ -20,7 +20,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <mutex>
+#include <string>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -62,6 +64,69 @@ bool addressOnLo(const std::string& address) {
 namespace {
 
 bool isLoopbackHost(std::uint32_t address) { return (address >> 24) == 127; }
+
+// GigE Vision's timestamp latch as GenICam features (Standard Features Naming Convention names)
+// over the bootstrap registers the responder serves: control 0x0944, latched value 0x0948 and the
+// tick frequency 0x093C.
+constexpr const char* kTimestampLatchFeatures = R"(
+	<Command Name="GevTimestampControlLatch" NameSpace="Standard">
+		<ToolTip>Latches the timestamp counter into GevTimestampValue</ToolTip>
+		<pValue>GevTimestampControlRegister</pValue>
+		<CommandValue>2</CommandValue>
+	</Command>
+	<IntReg Name="GevTimestampControlRegister" NameSpace="Custom">
+		<Address>0x0944</Address>
+		<Length>4</Length>
+		<AccessMode>RW</AccessMode>
+		<pPort>Device</pPort>
+		<Cachable>NoCache</Cachable>
+		<Sign>Unsigned</Sign>
+		<Endianess>BigEndian</Endianess>
+	</IntReg>
+	<IntReg Name="GevTimestampValue" NameSpace="Standard">
+		<ToolTip>The timestamp counter's value at the last latch, in ticks</ToolTip>
+		<Address>0x0948</Address>
+		<Length>8</Length>
+		<AccessMode>RO</AccessMode>
+		<pPort>Device</pPort>
+		<Cachable>NoCache</Cachable>
+		<Sign>Unsigned</Sign>
+		<Endianess>BigEndian</Endianess>
+	</IntReg>
+	<IntReg Name="GevTimestampTickFrequency" NameSpace="Standard">
+		<Address>0x093C</Address>
+		<Length>8</Length>
+		<AccessMode>RO</AccessMode>
+		<pPort>Device</pPort>
+		<Sign>Unsigned</Sign>
+		<Endianess>BigEndian</Endianess>
+	</IntReg>
+)";
+
+// Aravis' fake camera description with the timestamp latch added, in a file of its own (the model
+// reads its description from a file when it is created); empty when the description is not as
+// expected.
+std::string fileWithTimestampLatch(const std::string& serial) {
+  ArvFakeCamera* plain = arv_fake_camera_new(serial.c_str());
+  if (plain == nullptr) return {};
+  std::size_t size = 0;
+  const char* xml = arv_fake_camera_get_genicam_xml(plain, &size);
+  std::string text = xml != nullptr ? std::string(xml, size) : std::string();
+  g_object_unref(plain);
+  const std::size_t end = text.rfind("</RegisterDescription>");
+  if (end == std::string::npos || text.find("GevTimestampValue") != std::string::npos) return {};
+  text.insert(end, kTimestampLatchFeatures);
+  std::string path = (std::filesystem::temp_directory_path() / "stampscan-camera-XXXXXX.xml").string();
+  const int fd = ::mkstemps(path.data(), 4);
+  if (fd < 0) return {};
+  const bool written = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  ::close(fd);
+  if (!written) {
+    ::unlink(path.c_str());
+    return {};
+  }
+  return path;
+}
 
 std::int64_t monotonicMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
@@ -205,6 +270,7 @@ struct VirtualCamera::Impl {
     request.height = height;
     request.bytes_per_pixel = ARV_PIXEL_FORMAT_BIT_PER_PIXEL(format) > 8 ? 2 : 1;
     request.index = self->filled++;
+    request.exposure = std::chrono::steady_clock::now();
     size_t size = 0;
     // The public API only hands out the buffer's data as const; the fake camera gives it to this
     // hook precisely to be written, as Aravis' own default pattern does.
@@ -346,6 +412,7 @@ void VirtualCamera::Impl::runStream() {
     bool due = false;
     gvsp::BlockInfo info;
     FrameRequest render;
+    std::uint64_t exposed_ns = 0;  // the frame's timestamp: when its exposure started
     gvsp::Destination to;
     std::uint32_t packet_size = 0;
     std::size_t payload = 0;
@@ -387,10 +454,16 @@ void VirtualCamera::Impl::runStream() {
         render.width = info.width;
         render.height = info.height;
         render.bytes_per_pixel = ARV_PIXEL_FORMAT_BIT_PER_PIXEL(format) > 8 ? 2 : 1;
+        // A triggered exposure starts with its trigger, a free-running one now.
+        const std::optional<gvcp::Responder::Trigger> trigger =
+            arv_fake_camera_is_in_software_trigger_mode(camera) ? responder->lastTrigger() : std::nullopt;
+        exposed_ns = trigger ? trigger->device_ns : gvcp::deviceTimeNs();
+        render.exposure = trigger ? trigger->steady : std::chrono::steady_clock::now();
       }
     }
     if (due) {
       stageFrame(render);
+
       std::lock_guard lock(device_mutex);
       {
         payload = arv_fake_camera_get_payload(camera);
@@ -408,7 +481,9 @@ void VirtualCamera::Impl::runStream() {
         arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_X_OFFSET, &info.offset_x);
         arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_Y_OFFSET, &info.offset_y);
         arv_fake_camera_read_register(camera, ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, &info.pixel_format);
-        info.timestamp = arv_buffer_get_timestamp(buffer);
+        // Stamped with the exposure's start, as a camera latches its counter at the frame start,
+        // not when the image was made (the fake camera stamps the fill).
+        info.timestamp = exposed_ns;
         due = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
       }
     }
@@ -443,8 +518,14 @@ void VirtualCamera::start() {
     throw std::runtime_error("virtual camera " + options_.serial + ": " + options_.address +
                              " is not on lo (see VirtualCamera::ensureLoopbackAddress)");
   }
-  ArvFakeCamera* camera = arv_fake_camera_new_full(
-      options_.serial.c_str(), options_.genicam_file.empty() ? nullptr : options_.genicam_file.c_str());
+  // The description: the one given, else Aravis' own, with the timestamp latch unless left out.
+  std::string description = options_.genicam_file;
+  const std::string latch_file =
+      description.empty() && options_.timestamp_latch ? fileWithTimestampLatch(options_.serial) : std::string();
+  if (description.empty()) description = latch_file;
+  ArvFakeCamera* camera =
+      arv_fake_camera_new_full(options_.serial.c_str(), description.empty() ? nullptr : description.c_str());
+  if (!latch_file.empty()) ::unlink(latch_file.c_str());  // read when the model was made
   if (camera == nullptr) {
     throw std::runtime_error("virtual camera " + options_.serial + ": Aravis cannot create the camera model" +
                              (options_.genicam_file.empty() ? std::string() : " from " + options_.genicam_file));

@@ -68,6 +68,7 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
       o.serial = c == 0 ? options_.left_serial : options_.right_serial;
       cameras_.push_back(std::make_unique<VirtualCamera>(o));
       renderers_[c] = std::make_unique<CameraRenderer>(c == 0 ? truth_.left : truth_.right);
+      frame_bits_[static_cast<std::size_t>(c)] = options_.world.camera_sensor.bits;
       cameras_.back()->setFrameSource([this, c](const FrameRequest& request, std::span<std::uint8_t> out) {
         return renderFrame(c, request, out);
       });
@@ -111,15 +112,26 @@ void VirtualCell::renderAhead() {
              }();
     };
     std::array<std::vector<float>, 2> radiance;
+    std::array<Ahead::Exposed, 2> exposed;
     bool complete = true;
     for (int c = 0; c < 2 && complete; ++c) {
-      radiance[static_cast<std::size_t>(c)] = radianceAt(c, key, moved_on);
+      const auto k = static_cast<std::size_t>(c);
+      radiance[k] = radianceAt(c, key, moved_on);
+      complete = !moved_on();
+      if (!complete) break;
+      // The camera's next frame, at the depth it was last asked for.
+      CameraSensor sensor = options_.world.camera_sensor;
+      sensor.bits = frame_bits_[k].load();
+      exposed[k].index = cameras_[k]->framesFilled();
+      exposed[k].bits = sensor.bits;
+      exposed[k].bytes = renderers_[k]->expose(radiance[k], sensor, exposureSeed(c, exposed[k].index)).bytes();
       complete = !moved_on();
     }
     lock.lock();
     ahead_.rendering = false;
     if (complete && ahead_.head == key) {
       ahead_.radiance = std::move(radiance);
+      ahead_.exposed = std::move(exposed);
       ahead_.ready = true;
     }
     ahead_changed_.notify_all();
@@ -132,26 +144,41 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
   const CameraIntrinsics& in = renderer.intrinsics();
   // The image the camera is set to must be the size its optics are simulated at.
   if (static_cast<int>(request.width) != in.width || static_cast<int>(request.height) != in.height) return false;
-  const VirtualCmmStatus st = options_.head_status ? options_.head_status() : cmm_->status();
+  // The head where it stood when the exposure started (the station may have sent it on since). A
+  // camera in a process of its own reads the head as it is now, which the trigger just preceded.
+  const VirtualCmmStatus st = options_.head_status ? options_.head_status() : cmm_->statusAt(request.exposure);
   const HeadKey key{st.position, st.head_a, st.head_b};
+  const bool at_rest = key == HeadKey{st.destination, st.destination_a, st.destination_b};
   CameraSensor sensor = options_.world.camera_sensor;
   sensor.bits = request.bytes_per_pixel == 2 ? 16 : 8;
-  // The light rendered ahead for this very pose (waiting for it when it is under way), else now.
+  const auto k = static_cast<std::size_t>(camera);
+  frame_bits_[k] = sensor.bits;
+  // The frame exposed ahead for this very pose (waiting for it when it is under way), else the
+  // light rendered ahead, else both now.
   std::vector<float> radiance;
   {
     std::unique_lock lock(ahead_mutex_);
-    if (!st.moving && ahead_.head == key) {
+    if (at_rest && ahead_.head == key) {
       ahead_changed_.wait(lock, [&] { return !ahead_.rendering || !(ahead_.head == key); });
-      if (ahead_.ready && ahead_.head == key) radiance = ahead_.radiance[static_cast<std::size_t>(camera)];
+      if (ahead_.ready && ahead_.head == key) {
+        const Ahead::Exposed& e = ahead_.exposed[k];
+        if (e.index == request.index && e.bits == sensor.bits && e.bytes.size() == out.size()) {
+          std::copy(e.bytes.begin(), e.bytes.end(), out.begin());
+          return true;
+        }
+        radiance = ahead_.radiance[k];
+      }
     }
   }
   if (radiance.empty()) radiance = radianceAt(camera, key);
-  const GrayImage image = renderer.expose(radiance, sensor,
-                                          options_.world.seed * 1000003ull + request.index * 2 + static_cast<std::uint64_t>(camera));
-  const std::vector<std::uint8_t> bytes = image.bytes();
+  const std::vector<std::uint8_t> bytes = renderer.expose(radiance, sensor, exposureSeed(camera, request.index)).bytes();
   if (bytes.size() != out.size()) return false;
   std::copy(bytes.begin(), bytes.end(), out.begin());
   return true;
+}
+
+std::uint64_t VirtualCell::exposureSeed(int camera, std::uint64_t index) const {
+  return options_.world.seed * 1000003ull + index * 2 + static_cast<std::uint64_t>(camera);
 }
 
 // The recorded frame of that instant; a black one when the recording has none of that size there
@@ -159,7 +186,7 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
 bool VirtualCell::replayFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const {
   CellReplay& replay = *options_.replay;
   const RecordedFrame* frame =
-      replay.frameNear(camera, replay.recordedTime(std::chrono::steady_clock::now()), 2'000'000'000);
+      replay.frameNear(camera, replay.recordedTime(request.exposure), 2'000'000'000);
   if (frame && frame->width == request.width && frame->height == request.height &&
       frame->bytes_per_pixel == request.bytes_per_pixel && frame->data.size() == out.size()) {
     std::copy(frame->data.begin(), frame->data.end(), out.begin());

@@ -77,9 +77,16 @@ MachinePose CmmMachine::pose(Clock::time_point now) const {
   return poseLocked(now);
 }
 
-MachinePose CmmMachine::destination(Clock::time_point now) const {
+MachinePose CmmMachine::destination(Clock::time_point when) const {
   std::lock_guard lock(mutex_);
-  return move_ ? move_->to : poseLocked(now);  // a followed move's `to` is where the recording arrived
+  // A followed move's `to` is where the recording arrived.
+  if (move_ && when >= move_->start) return move_->to;
+  // Before the move under way: the target of the move under way then, or where it stood.
+  for (auto m = history_.rbegin(); m != history_.rend(); ++m) {
+    if (when < m->start) continue;
+    return when < *m->end ? m->to : m->rest;
+  }
+  return poseLocked(when);
 }
 
 bool CmmMachine::homed() const {

@@ -40,8 +40,8 @@ class CmmMachine {
 
   Vec3 position(Clock::time_point now) const;  // interpolated along the move in progress
   MachinePose pose(Clock::time_point now) const;  // position and angles at the same instant
-  // Where the move in progress ends (pose(now) at rest).
-  MachinePose destination(Clock::time_point now) const;
+  // Where the move in progress at `when` ends (pose(when) at rest then).
+  MachinePose destination(Clock::time_point when) const;
   bool homed() const;
   bool moving() const;
   void setHomed();

@@ -333,7 +333,12 @@ void IppSession::executorLoop() {
     Pending pending;
     {
       std::unique_lock lock(mutex_);
-      work_.wait(lock, [this] { return closing_ || !queue_.empty(); });
+      const auto work = [this] { return closing_ || !queue_.empty(); };
+      // Between commands: the report at the last move's target, when it is due.
+      while (final_report_due_ && !work()) {
+        if (!work_.wait_until(lock, *final_report_due_, work)) sendFinalReport(lock);
+      }
+      work_.wait(lock, work);
       if (closing_) return;
       pending = std::move(queue_.front());
       queue_.pop_front();
@@ -386,6 +391,7 @@ bool IppSession::runMove(const MachinePose& target) {
   const std::vector<Clock::time_point> report_times = machine_.followedReportTimes();
   std::size_t next_report = 0;
   std::unique_lock lock(mutex_);
+  final_report_due_.reset();  // this move's reports follow from where the last one ended
   for (;;) {
     if (report_times.empty()) break;
     const Clock::time_point now = Clock::now();
@@ -421,19 +427,29 @@ bool IppSession::runMove(const MachinePose& target) {
     motion_.wait_until(lock, std::min(arrival, nextReportCheck(now)));
   }
   machine_.endMove(true, arrival);
-  // One more report at the target, as soon as the rate limit allows, so the client's last report is
-  // where the move ended. An AbortE meanwhile skips it; the move itself is complete.
-  while (daemon_ && !abort_requested_ && !closing_) {
+  // One more report at the target, so the client's last report is where the move ended: now when
+  // the rate limit allows, else from the executor as soon as it does (sendFinalReport()). The move
+  // is complete when the machine arrives, as a machine's `%` does not wait for its daemon.
+  if (daemon_ && !abort_requested_ && !closing_) {
     if (std::optional<std::string> report = dueReport(Clock::now(), true)) {
       lock.unlock();
       sink_(*report);
       lock.lock();
-      break;
+    } else if (daemon_->reported && daemon_->last_pose != machine_.pose(Clock::now())) {
+      final_report_due_ = daemon_->last_time + kMinReportGap;
     }
-    if (!daemon_->reported || daemon_->last_pose == machine_.pose(Clock::now())) break;
-    motion_.wait_until(lock, daemon_->last_time + kMinReportGap);
   }
   return true;
+}
+
+void IppSession::sendFinalReport(std::unique_lock<std::mutex>& lock) {
+  final_report_due_.reset();
+  if (!daemon_ || closing_) return;
+  if (std::optional<std::string> report = dueReport(Clock::now(), true)) {
+    lock.unlock();
+    sink_(*report);
+    lock.lock();
+  }
 }
 
 std::optional<std::string> IppSession::dueReport(Clock::time_point now, bool at_rest) {

@@ -113,6 +113,7 @@ class IppSession {
   void execute(Pending& pending);
   void dispatch(const ipp::Command& command, Responder& out);  // session_commands.cpp
   bool runMove(const MachinePose& target);                       // false when aborted
+  void sendFinalReport(std::unique_lock<std::mutex>& lock);      // under mutex_, which it may release
   bool pause(Clock::time_point until);                           // false when aborted
   std::optional<std::string> dueReport(Clock::time_point now, bool at_rest);  // with mutex_ held
   // The report of the daemon's items now, whatever its schedule (a replayed move's recorded instants).
@@ -169,6 +170,8 @@ class IppSession {
   bool user_enabled_ = false;
   std::string found_tool_ = "UnDefTool";  // FindTool's pointer (§6.3.2.17)
   std::optional<MoveDaemon> daemon_;
+  // When the report at a move's target, held back by the rate limit, is due (the executor sends it).
+  std::optional<Clock::time_point> final_report_due_;
 
   std::thread executor_;
 };

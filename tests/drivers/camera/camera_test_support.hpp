@@ -69,8 +69,12 @@ class VirtualCamerasTest : public ::testing::Test {
     if (std::getenv(kCamerasServedElsewhere) != nullptr) return;
     const sim::LoopbackStatus status = sim::VirtualCamera::ensureLoopbackAddress(kRightAddress);
     if (!status.ok) GTEST_SKIP() << "virtual right camera unavailable: " << status.reason;
-    left_ = std::make_unique<sim::VirtualCamera>(sim::VirtualCameraOptions{kLeftAddress, kLeftSerial, "", 0.0});
-    right_ = std::make_unique<sim::VirtualCamera>(sim::VirtualCameraOptions{kRightAddress, kRightSerial, "", 0.0});
+    // The left camera has GigE Vision's timestamp latch, as most machine-vision cameras; the right
+    // one has none (as Aravis' own fake camera), so that both ways of reading a camera's clock run.
+    sim::VirtualCameraOptions left{kLeftAddress, kLeftSerial, "", 0.0}, right{kRightAddress, kRightSerial, "", 0.0};
+    right.timestamp_latch = false;
+    left_ = std::make_unique<sim::VirtualCamera>(left);
+    right_ = std::make_unique<sim::VirtualCamera>(right);
     left_->setFrameSource([](const sim::FrameRequest& r, std::span<std::uint8_t> out) {
       drawTestImage(1, r.index, out);
       return true;

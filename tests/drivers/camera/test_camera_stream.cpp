@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "camera_test_support.hpp"
 
@@ -64,10 +66,13 @@ TEST_F(CameraStream, BothCamerasDeliverTheSuppliedImages) {
       }
     }
   }
-  EXPECT_EQ(left.clockSyncMethod(), drivers::camera::ClockSyncMethod::FirstFrames);
-  // The fake camera stamps with the real-time clock, as the default station clock is: the offset
-  // is the transfer latency, well under a frame period.
-  EXPECT_LT(std::llabs(left.clockOffsetNs()), 50'000'000);
+  // The virtual cameras count time on the real-time clock, as the default station clock does. The
+  // left one's clock is latched: the offset is a millisecond at most. The right one's is estimated
+  // from the frames' arrivals: the offset is the transfer latency, well under a frame period.
+  EXPECT_EQ(left.clockSyncMethod(), drivers::camera::ClockSyncMethod::TimestampLatch);
+  EXPECT_LT(std::llabs(left.clockOffsetNs()), 1'000'000);
+  EXPECT_EQ(right.clockSyncMethod(), drivers::camera::ClockSyncMethod::FirstFrames);
+  EXPECT_LT(std::llabs(right.clockOffsetNs()), 50'000'000);
   EXPECT_EQ(left.stats().incomplete, 0u);
   EXPECT_GE(left.stats().delivered, kFrames);
 }
@@ -120,6 +125,45 @@ TEST_F(CameraStream, SoftwareTriggerGivesOneFramePerTrigger) {
   ASSERT_EQ(got.size(), 5u);
   for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].info.trigger_id, i + 1);
   EXPECT_FALSE(hasFault(cam, "timeout"));
+}
+
+// A triggered frame carries the instant its exposure started, however long the image takes to
+// make (a simulated world may take a second to render): the station may move the head on as soon
+// as the exposure is over, and the frame's time still says where the head stood.
+TEST_F(CameraStream, ATriggeredFrameIsStampedAtItsTrigger) {
+  constexpr auto kRender = std::chrono::milliseconds(300);
+  left_->setFrameSource([&](const sim::FrameRequest& r, std::span<std::uint8_t> out) {
+    std::this_thread::sleep_for(kRender);
+    drawTestImage(1, r.index, out);
+    return true;
+  });
+  GigECamera cam("left", options(kLeftSerial, kLeftAddress));
+  cam.connect();
+  CameraConfig c = smallFreeRun();
+  c.frame_rate_hz.reset();
+  c.trigger = TriggerMode::Software;
+  cam.configure(c);
+  FrameSink frames;
+  cam.startStreaming(std::ref(frames));
+  ASSERT_EQ(cam.clockSyncMethod(), drivers::camera::ClockSyncMethod::TimestampLatch);
+  const auto stationNow = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  };
+  std::vector<std::int64_t> triggered;
+  for (std::uint64_t k = 1; k <= 3; ++k) {
+    const std::int64_t before = stationNow();
+    cam.softwareTrigger();
+    triggered.push_back((before + stationNow()) / 2);
+    ASSERT_TRUE(frames.waitFor(k, std::chrono::seconds(3))) << "no frame for trigger " << k;
+  }
+  cam.stopStreaming();
+  const auto got = frames.frames();
+  ASSERT_EQ(got.size(), 3u);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    // Within 5 ms of the trigger (the trigger's round trip and the latch's bracket), not the 300 ms
+    // the image took.
+    EXPECT_NEAR(static_cast<double>(got[i].info.station_time_ns), static_cast<double>(triggered[i]), 5e6) << "frame " << i;
+  }
 }
 
 // Full resolution, both cameras free-running as fast as they go; prints the measured rate.

@@ -2,6 +2,7 @@
 // raw line client that talks I++ DME the way a user with netcat would.
 #pragma once
 
+#include "stampscan/drivers/cmm/ipp_client.hpp"
 #include "stampscan/sim/virtual_cmm.hpp"
 
 #include <arpa/inet.h>
@@ -12,8 +13,10 @@
 
 #include <array>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <functional>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -121,6 +124,41 @@ class RawIppClient {
  private:
   int fd_ = -1;
   std::string buffer_;
+};
+
+// Collects move reports from the driver's reader thread.
+class ReportLog {
+ public:
+  drivers::cmm::MoveReportCallback callback() {
+    return [this](const drivers::cmm::MoveReport& r) {
+      {
+        std::lock_guard lock(mutex_);
+        reports_.push_back(r);
+      }
+      changed_.notify_all();
+    };
+  }
+  std::vector<drivers::cmm::MoveReport> reports() const {
+    std::lock_guard lock(mutex_);
+    return reports_;
+  }
+  // The reports once the last one satisfies `at_target`: a move's `%` comes when the machine
+  // arrives, and the report at its target may follow within the daemon's rate limit (0.1 s).
+  std::vector<drivers::cmm::MoveReport> reportsEndingWith(const std::function<bool(const drivers::cmm::MoveReport&)>& at_target,
+                                                          std::chrono::milliseconds limit = 1000ms) {
+    std::unique_lock lock(mutex_);
+    changed_.wait_for(lock, limit, [&] { return !reports_.empty() && at_target(reports_.back()); });
+    return reports_;
+  }
+  void clear() {
+    std::lock_guard lock(mutex_);
+    reports_.clear();
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<drivers::cmm::MoveReport> reports_;
 };
 
 }  // namespace stampscan::test

@@ -16,28 +16,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// Collects move reports from the driver's reader thread.
-class ReportLog {
- public:
-  MoveReportCallback callback() {
-    return [this](const MoveReport& r) {
-      std::lock_guard lock(mutex_);
-      reports_.push_back(r);
-    };
-  }
-  std::vector<MoveReport> reports() const {
-    std::lock_guard lock(mutex_);
-    return reports_;
-  }
-  void clear() {
-    std::lock_guard lock(mutex_);
-    reports_.clear();
-  }
-
- private:
-  mutable std::mutex mutex_;
-  std::vector<MoveReport> reports_;
-};
+using test::ReportLog;
 
 double seconds(std::chrono::steady_clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -107,11 +86,12 @@ TEST_F(CmmDriver, GoToReportsPositionsAlongTheTrapezoid) {
   const auto began = std::chrono::steady_clock::now();
   EXPECT_EQ(cmm_->goTo(target), MoveOutcome::Reached);
   const double took = seconds(std::chrono::steady_clock::now() - began);
-  // The move takes the trapezoid's time; the `%` may wait up to 0.1 s more for the last report.
+  // The move takes the trapezoid's time: the `%` comes when the machine arrives.
   EXPECT_GE(took, expected - 0.01);
-  EXPECT_LE(took, expected + 0.35);
+  EXPECT_LE(took, expected + 0.25);
 
-  const std::vector<MoveReport> reports = log.reports();
+  const std::vector<MoveReport> reports =
+      log.reportsEndingWith([&](const MoveReport& r) { return distanceBetween(r.position, target) == 0; });
   ASSERT_GE(reports.size(), 6u);
   const MoveReport& first = reports.front();
   const MoveReport& last = reports.back();

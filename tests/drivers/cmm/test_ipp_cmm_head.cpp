@@ -22,23 +22,7 @@ constexpr double kRad = std::numbers::pi / 180;  // one degree
 // The wire carries degrees (§6.1.2): radians -> degrees -> radians may cost an ulp or two.
 constexpr double kAngleTolerance = 1e-12;
 
-class ReportLog {
- public:
-  MoveReportCallback callback() {
-    return [this](const MoveReport& r) {
-      std::lock_guard lock(mutex_);
-      reports_.push_back(r);
-    };
-  }
-  std::vector<MoveReport> reports() const {
-    std::lock_guard lock(mutex_);
-    return reports_;
-  }
-
- private:
-  mutable std::mutex mutex_;
-  std::vector<MoveReport> reports_;
-};
+using test::ReportLog;
 
 void expectOrientation(const ToolOrientation& actual, const ToolOrientation& expected, const std::string& what) {
   EXPECT_NEAR(actual.a, expected.a, kAngleTolerance) << what;
@@ -146,7 +130,9 @@ TEST_F(CmmHead, MoveReportsShowTheAnglesProgressingWithThePosition) {
   const sim::VirtualCmmConfig& k = server_->config();
   EXPECT_GE(took, test::trapezoidSeconds(90, k.head_max_rate_deg_s, k.head_accel_deg_s2) - 0.01);
 
-  const std::vector<MoveReport> reports = log.reports();
+  const std::vector<MoveReport> reports = log.reportsEndingWith([&](const MoveReport& r) {
+    return r.orientation && std::abs(r.orientation->b - turned.b) <= kAngleTolerance;
+  });
   ASSERT_GE(reports.size(), 8u);
   // The first report as the move starts (a moment after: the head has barely begun to turn).
   EXPECT_LT(std::abs(reports.front().orientation->a), 1e-3 * turned.a);

@@ -20,6 +20,7 @@
 // setLostPacketRatio() may be called at any time from any thread.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -32,6 +33,9 @@ struct FrameRequest {
   std::uint32_t width = 0, height = 0;
   std::uint32_t bytes_per_pixel = 1;  // 1 for Mono8, 2 for Mono16 (little endian)
   std::uint64_t index = 0;            // frames filled so far by this camera
+  // When the exposure started: the software trigger's arrival, or the free-running frame's time.
+  // The image shows the world at that instant, however late it is made.
+  std::chrono::steady_clock::time_point exposure;
 };
 
 // Writes the image into `out` (width * height * bytes_per_pixel bytes); false: use the test pattern.
@@ -44,6 +48,10 @@ struct VirtualCameraOptions {
   double lost_packet_ratio = 0.0;     // GVSP packets the camera drops, 0..1
   double trigger_poll_hz = 1000.0;    // how often the camera looks for a software trigger (a trigger
                                       // write also wakes it at once)
+  // GigE Vision's timestamp latch (GevTimestampControlLatch, GevTimestampValue), which most
+  // machine-vision cameras offer: a controller reads the camera's clock to the millisecond. Without
+  // it (as Aravis' own fake camera) a controller can only estimate the clock from frame arrivals.
+  bool timestamp_latch = true;
 };
 
 struct LoopbackStatus {

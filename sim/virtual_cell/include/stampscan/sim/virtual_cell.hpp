@@ -126,12 +126,25 @@ class VirtualCell {
   bool laserSweeping() const;
   void renderAhead();  // the render-ahead thread
 
-  // The light both cameras see from one head pose, rendered ahead (guarded by ahead_mutex_).
+  // The seed of a camera's sensor noise in its `index`-th frame: the same image whoever exposes it.
+  std::uint64_t exposureSeed(int camera, std::uint64_t index) const;
+
+  // The light both cameras see from one head pose, rendered ahead, and each camera's next frame
+  // exposed from it (guarded by ahead_mutex_): at the trigger the frame is only copied out, as a
+  // real camera's image is ready as soon as its exposure ends.
   struct Ahead {
     HeadKey head;
     std::array<std::vector<float>, 2> radiance;
+    struct Exposed {
+      std::vector<std::uint8_t> bytes;
+      std::uint64_t index = 0;  // the camera's frame it is
+      int bits = 0;
+    };
+    std::array<Exposed, 2> exposed;
     bool ready = false, rendering = false;
   };
+  // The bit depth each camera was last asked for (the ahead exposure's guess for its next frame).
+  mutable std::array<std::atomic<int>, 2> frame_bits_{};
   mutable std::mutex ahead_mutex_;
   mutable std::condition_variable ahead_changed_;
   Ahead ahead_;
