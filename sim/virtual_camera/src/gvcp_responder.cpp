@@ -25,6 +25,10 @@ constexpr std::uint32_t kRegAcquisition = ARV_FAKE_CAMERA_REGISTER_ACQUISITION;
 // bounds every image. Of the XML URLs (0x0200 and 0x0400, 512 bytes each) only the first half of
 // URL 0 and URL 1 are protected, because the fake camera's GenICam description puts its trigger
 // registers at 0x0300.
+// A camera buffers a few triggers while it still makes a frame; more are dropped, as a real
+// camera's overrun.
+constexpr std::size_t kMaxQueuedTriggers = 16;
+
 struct Range {
   std::uint32_t begin, end;  // [begin, end)
 };
@@ -260,11 +264,18 @@ std::uint16_t Responder::writeRegister(std::uint32_t address, std::uint32_t valu
     }
     return GEV_STATUS_SUCCESS;
   }
-  if (address == ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE) {
+  if (address == ARV_FAKE_CAMERA_REGISTER_TRIGGER_SOFTWARE && triggers_.size() < kMaxQueuedTriggers) {
     // The exposure starts now: the frame carries this instant, however long it takes to make.
-    last_trigger_ = Trigger{deviceTimeNs(), std::chrono::steady_clock::now()};
+    triggers_.push_back(Trigger{deviceTimeNs(), std::chrono::steady_clock::now()});
   }
   return arv_fake_camera_write_register(camera_, address, value) ? GEV_STATUS_SUCCESS : GEV_STATUS_INVALID_ADDRESS;
+}
+
+std::optional<Responder::Trigger> Responder::takeTrigger() {
+  if (triggers_.empty()) return std::nullopt;
+  const Trigger first = triggers_.front();
+  triggers_.pop_front();
+  return first;
 }
 
 bool Responder::expireController(std::int64_t now_ms) {
@@ -279,6 +290,7 @@ bool Responder::expireController(std::int64_t now_ms) {
 // so that the next controller starts from a quiet camera with the default heartbeat.
 void Responder::releaseControl() {
   controller_.reset();
+  triggers_.clear();
   // The heartbeat timeout belongs to the session that set it.
   arv_fake_camera_write_register(camera_, kRegHeartbeatTimeout, default_heartbeat_ms_);
   arv_fake_camera_set_control_channel_privilege(camera_, 0);

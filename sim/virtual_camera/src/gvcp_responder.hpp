@@ -23,6 +23,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <optional>
 #include <span>
 #include <vector>
@@ -54,13 +55,14 @@ class Responder {
   std::vector<std::uint8_t> handle(std::span<const std::uint8_t> request, const Peer& from, Channel channel,
                                    std::int64_t now_ms);
 
-  // The last software trigger written: when it came, on the camera's timestamp clock and the
-  // steady clock.
+  // The software triggers written and not yet taken, oldest first: when each came, on the camera's
+  // timestamp clock and the steady clock. Each makes one frame, however long the one before takes.
   struct Trigger {
     std::uint64_t device_ns = 0;
     std::chrono::steady_clock::time_point steady;
   };
-  std::optional<Trigger> lastTrigger() const { return last_trigger_; }
+  std::optional<Trigger> takeTrigger();
+  void clearTriggers() { triggers_.clear(); }
 
   // Releases control when the controller's heartbeat ran out; true when it did.
   bool expireController(std::int64_t now_ms);
@@ -85,7 +87,7 @@ class Responder {
   std::optional<Peer> controller_;
   std::int64_t last_heartbeat_ms_ = 0;
   std::uint32_t default_heartbeat_ms_ = 3000;  // the model's heartbeat timeout at power-up
-  std::optional<Trigger> last_trigger_;
+  std::deque<Trigger> triggers_;  // at most kMaxQueuedTriggers
 };
 
 }  // namespace stampscan::sim::gvcp

@@ -413,6 +413,7 @@ void VirtualCamera::Impl::runStream() {
     gvsp::BlockInfo info;
     FrameRequest render;
     std::uint64_t exposed_ns = 0;  // the frame's timestamp: when its exposure started
+    std::optional<gvcp::Responder::Trigger> trigger;  // the software trigger it answers
     gvsp::Destination to;
     std::uint32_t packet_size = 0;
     std::size_t payload = 0;
@@ -429,6 +430,7 @@ void VirtualCamera::Impl::runStream() {
       if (!open) {
         streaming = false;
         next_frame_us.reset();
+        responder->clearTriggers();  // a trigger with no stream to send its frame to is lost
       } else {
         if (!streaming) block_id = 0;  // a new acquisition starts at block id 1, as real cameras do
         streaming = true;
@@ -442,7 +444,11 @@ void VirtualCamera::Impl::runStream() {
             wait = std::chrono::microseconds(static_cast<std::int64_t>(*next_frame_us - now_us));
           }
         } else if (arv_fake_camera_is_in_software_trigger_mode(camera)) {
-          due = arv_fake_camera_check_and_acknowledge_software_trigger(camera) != FALSE;
+          // One frame per trigger written (the responder queues them); the model's own flag only
+          // says that there was one.
+          (void)arv_fake_camera_check_and_acknowledge_software_trigger(camera);
+          trigger = responder->takeTrigger();
+          due = trigger.has_value();
           wait = poll_period;  // the control thread wakes us at once when a trigger is written
         }
       }
@@ -455,8 +461,6 @@ void VirtualCamera::Impl::runStream() {
         render.height = info.height;
         render.bytes_per_pixel = ARV_PIXEL_FORMAT_BIT_PER_PIXEL(format) > 8 ? 2 : 1;
         // A triggered exposure starts with its trigger, a free-running one now.
-        const std::optional<gvcp::Responder::Trigger> trigger =
-            arv_fake_camera_is_in_software_trigger_mode(camera) ? responder->lastTrigger() : std::nullopt;
         exposed_ns = trigger ? trigger->device_ns : gvcp::deviceTimeNs();
         render.exposure = trigger ? trigger->steady : std::chrono::steady_clock::now();
       }

@@ -7,6 +7,7 @@
 #include <map>
 #include <numbers>
 #include <stdexcept>
+#include <string_view>
 
 namespace stampscan::sim {
 
@@ -55,6 +56,7 @@ RecordedSession loadRecordedSession(const std::filesystem::path& file) {
   struct CameraFrame {
     int camera;
     RecordedFrame frame;
+    std::int64_t device_time_ns;  // its exposure, on the camera's clock
   };
   std::vector<std::pair<std::int64_t, RecordedProfile>> profiles;  // device time
   std::vector<CameraFrame> frames;
@@ -85,10 +87,10 @@ RecordedSession loadRecordedSession(const std::filesystem::path& file) {
         for (std::uint32_t y = 0; y < f.height; ++y)
           std::copy_n(f.data.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * f.step), row,
                       frame.data.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * row));
-        // When it reached the station: within milliseconds of the exposure, and on the station clock
-        // whatever the camera's own clock (a camera without a timestamp latch has only an estimate).
+        // When it reached the station, until its exposure on the station clock is known (below):
+        // the head may have left the view long before its frame arrived.
         frame.station_time_ns = static_cast<std::int64_t>(m.log_time);
-        frames.push_back({f.camera == "right" ? 1 : 0, std::move(frame)});
+        frames.push_back({f.camera == "right" ? 1 : 0, std::move(frame), f.device_time_ns});
       }
     } catch (const trace::MessageError&) {
       // A message that does not decode is left out, as the measurement leaves it out.
@@ -124,6 +126,16 @@ RecordedSession loadRecordedSession(const std::filesystem::path& file) {
     std::stable_sort(out.profiles.begin(), out.profiles.end(), [](const RecordedProfile& a, const RecordedProfile& b) {
       return a.station_time_ns < b.station_time_ns;
     });
+  }
+  // A frame's exposure on the station clock, through its camera's clock pairs (the station's own
+  // reading of that camera's clock, which the recording's measurement used too).
+  for (const char* camera : {"camera_left", "camera_right"}) {
+    const auto pairs = device_minus_station.find(camera);
+    if (pairs == device_minus_station.end() || pairs->second.empty()) continue;
+    const std::int64_t offset = medianOffset(pairs->second);
+    const int index = std::string_view(camera) == "camera_right" ? 1 : 0;
+    for (auto& f : frames)
+      if (f.camera == index) f.frame.station_time_ns = f.device_time_ns - offset;
   }
   for (auto& f : frames) out.frames[f.camera].push_back(std::move(f.frame));
   for (auto& list : out.frames)

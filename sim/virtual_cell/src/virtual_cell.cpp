@@ -93,7 +93,11 @@ void VirtualCell::renderAhead() {
     // Polled: a move's destination is known from its start, and travel takes a second or so.
     ahead_changed_.wait_for(lock, std::chrono::milliseconds(20), [&] { return ahead_stop_; });
     if (ahead_stop_) return;
-    if (laserSweeping()) continue;
+    if (laserSweeping()) {
+      among_views_ = false;
+      continue;
+    }
+    if (!among_views_) continue;
     const VirtualCmmStatus st = cmm_->status();
     const HeadKey key{st.destination, st.destination_a, st.destination_b};
     if (ahead_.head == key && (ahead_.ready || ahead_.rendering)) continue;
@@ -102,14 +106,15 @@ void VirtualCell::renderAhead() {
     ahead_.rendering = true;
     lock.unlock();
     // Given up when the head is sent elsewhere or the laser starts sweeping (its profiles are due
-    // in real time), or when the cell stops.
+    // in real time), unless a frame of this pose waits for it, or when the cell stops.
     const auto moved_on = [&] {
+      {
+        std::lock_guard stop_lock(ahead_mutex_);
+        if (ahead_stop_) return true;
+        if (ahead_awaited_ > 0) return false;
+      }
       const VirtualCmmStatus now = cmm_->status();
-      return !(HeadKey{now.destination, now.destination_a, now.destination_b} == key) || laserSweeping() ||
-             [&] {
-               std::lock_guard stop_lock(ahead_mutex_);
-               return ahead_stop_;
-             }();
+      return !(HeadKey{now.destination, now.destination_a, now.destination_b} == key) || laserSweeping();
     };
     std::array<std::vector<float>, 2> radiance;
     std::array<Ahead::Exposed, 2> exposed;
@@ -153,13 +158,16 @@ bool VirtualCell::renderFrame(int camera, const FrameRequest& request, std::span
   sensor.bits = request.bytes_per_pixel == 2 ? 16 : 8;
   const auto k = static_cast<std::size_t>(camera);
   frame_bits_[k] = sensor.bits;
+  among_views_ = true;
   // The frame exposed ahead for this very pose (waiting for it when it is under way), else the
   // light rendered ahead, else both now.
   std::vector<float> radiance;
   {
     std::unique_lock lock(ahead_mutex_);
     if (at_rest && ahead_.head == key) {
+      ++ahead_awaited_;
       ahead_changed_.wait(lock, [&] { return !ahead_.rendering || !(ahead_.head == key); });
+      --ahead_awaited_;
       if (ahead_.ready && ahead_.head == key) {
         const Ahead::Exposed& e = ahead_.exposed[k];
         if (e.index == request.index && e.bits == sensor.bits && e.bytes.size() == out.size()) {

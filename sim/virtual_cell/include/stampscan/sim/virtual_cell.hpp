@@ -148,6 +148,12 @@ class VirtualCell {
   mutable std::mutex ahead_mutex_;
   mutable std::condition_variable ahead_changed_;
   Ahead ahead_;
+  // Frames waiting for the pose under way (guarded by ahead_mutex_): it is finished even when the
+  // head has moved on, which it may as soon as the exposure ended.
+  mutable int ahead_awaited_ = 0;
+  // A frame was taken since the laser last swept: the head is among views, and its next stop is
+  // likely another (the render-ahead leaves the sweeps' starts and the park alone otherwise).
+  mutable std::atomic<bool> among_views_{false};
   bool ahead_stop_ = true;
   std::thread ahead_thread_;
   bool replayFrame(int camera, const FrameRequest& request, std::span<std::uint8_t> out) const;
