@@ -276,9 +276,12 @@ class ScanRunnerStereoTest : public ScanRunnerTest {
     ScanPlan plan;
     plan.name = "two views and a sweep";
     plan.park = {{0, 0, 450}, 0, 0};
+    // The first view in a scene of its own: the head leaves a view when its exposure ends, but not a
+    // scene before its frames are in, so the second view comes after the first one's frames.
     for (std::uint32_t k = 0; k < 2; ++k) {
       StereoStep v;
       v.index = k;
+      v.scene = k == 0 ? Scene::CalibrationPlate : Scene::Part;
       v.pose = {{k == 0 ? -10.0 : 10.0, 0, 360}, 0, 0};
       v.settle_s = 0.1;
       plan.steps.emplace_back(v);
