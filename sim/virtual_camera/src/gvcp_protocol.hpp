@@ -47,10 +47,9 @@ inline constexpr std::uint32_t kRegMacHigh = 0x0008, kRegMacLow = 0x000C;
 inline constexpr std::uint32_t kDiscoveryDataSize = 0x00F8;  // a DISCOVERY_ACK carries 0x0000-0x00F7
 inline constexpr std::uint32_t kRegXmlUrl0 = 0x0200;         // "Local:name;address;size", 512 bytes
 inline constexpr std::uint32_t kRegHeartbeatTimeout = 0x0938;  // ms
-inline constexpr std::uint32_t kRegTimestampTickFrequencyHigh = 0x093C;  // and Low at 0x0940: ticks per second
 inline constexpr std::uint32_t kRegTimestampControl = 0x0944;  // write kTimestampLatch to latch the counter
 inline constexpr std::uint32_t kRegTimestampValueHigh = 0x0948, kRegTimestampValueLow = 0x094C;  // the latched value
-inline constexpr std::uint32_t kTimestampReset = 0x1, kTimestampLatch = 0x2;
+inline constexpr std::uint32_t kTimestampLatch = 0x2;
 inline constexpr std::uint32_t kRegControlChannelPrivilege = 0x0A00;  // CCP
 inline constexpr std::uint32_t kRegStreamHostPort = 0x0D00;   // SCP0: host port in bits 15..0
 inline constexpr std::uint32_t kRegStreamPacketSize = 0x0D04; // SCPS0: packet size in bits 15..0

@@ -28,6 +28,13 @@ CameraConfig smallFreeRun() {
   return c;
 }
 
+CameraConfig smallTriggered() {
+  CameraConfig c = smallFreeRun();
+  c.frame_rate_hz.reset();
+  c.trigger = TriggerMode::Software;
+  return c;
+}
+
 TEST_F(CameraStream, BothCamerasDeliverTheSuppliedImages) {
   GigECamera left("left", options(kLeftSerial, kLeftAddress));
   GigECamera right("right", options(kRightSerial, kRightAddress));
@@ -110,10 +117,7 @@ TEST_F(CameraStream, AProcessWithoutPrivilegesGetsWholeFrames) {
 TEST_F(CameraStream, SoftwareTriggerGivesOneFramePerTrigger) {
   GigECamera cam("right", options(kRightSerial, kRightAddress));
   cam.connect();
-  CameraConfig c = smallFreeRun();
-  c.frame_rate_hz.reset();
-  c.trigger = TriggerMode::Software;
-  cam.configure(c);
+  cam.configure(smallTriggered());
   FrameSink frames;
   cam.startStreaming(std::ref(frames));
   for (std::uint64_t k = 1; k <= 5; ++k) {
@@ -139,10 +143,7 @@ TEST_F(CameraStream, ATriggeredFrameIsStampedAtItsTrigger) {
   });
   GigECamera cam("left", options(kLeftSerial, kLeftAddress));
   cam.connect();
-  CameraConfig c = smallFreeRun();
-  c.frame_rate_hz.reset();
-  c.trigger = TriggerMode::Software;
-  cam.configure(c);
+  cam.configure(smallTriggered());
   FrameSink frames;
   cam.startStreaming(std::ref(frames));
   ASSERT_EQ(cam.clockSyncMethod(), drivers::camera::ClockSyncMethod::TimestampLatch);
