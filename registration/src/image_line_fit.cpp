@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace stampscan::registration::detail {
@@ -111,11 +112,13 @@ struct RingGeometry {
     dd[5] = -c3;
     dd[6] = -s3;
     dscale[5] = dscale[6] = 0;
+    // The same divisions in every slope, made once.
+    const double inv_rho = 1 / rho, inv_vn = 1 / vn, inv_g = 1 / g, dd_dg = -(rho - 1) * inv_g * inv_g;
     const auto slopes = [&](const Eigen::Vector2d& du, const Eigen::Vector2d& dv, double dlog_mean, int k) {
-      const double drho = u.dot(du) / rho;
-      const double dg = (v.dot(dv) / vn - g * drho) / rho;
-      dd[k] = drho / g - (rho - 1) * dg / (g * g);
-      dscale[k] = -width_scale * (dg / g + dlog_mean);
+      const double drho = u.dot(du) * inv_rho;
+      const double dg = (v.dot(dv) * inv_vn - g * drho) * inv_rho;
+      dd[k] = drho * inv_g + dd_dg * dg;
+      dscale[k] = -width_scale * (dg * inv_g + dlog_mean);
     };
     for (int k = 0; k < 2; ++k) {  // the centre: du = -A e_k, dv = -A^2 e_k
       slopes(-inverse.col(k), -inverse2.col(k), 0.0, k);
@@ -174,19 +177,48 @@ Normal normalAt(double z) {
 }
 double cdf(double z) { return normalAt(z).cdf; }
 
+// Squared radii from an ellipse's centre within which, and beyond which, ellipseDistance is at
+// least `reach` in size, so that a pixel there needs no call. With semi-axes a1 >= a2 and u = M^-1
+// (x - c): |x - c| / a1 <= |u| <= |x - c| / a2, and the distance's slope lies in [1 / a1, 1 / a2];
+// the third harmonic moves it by at most |a| + |b|.
+struct ClearOfEllipse {
+  double inside_sq = -1, outside_sq = 0;
+  ClearOfEllipse(const ImageEllipse& e, double reach) {
+    const Eigen::Vector2d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(e.shape).eigenvalues();
+    const double a2 = axes.minCoeff(), a1 = axes.maxCoeff();
+    const double margin = reach + std::abs(e.third.x()) + std::abs(e.third.y());
+    if (!(a2 > 0)) {
+      outside_sq = std::numeric_limits<double>::infinity();  // a degenerate shape: always asked
+      return;
+    }
+    const double inside = a2 - margin, outside = a1 * (1 + margin / a2);
+    inside_sq = inside > 0 ? inside * inside : -1;
+    outside_sq = outside * outside;
+  }
+  bool clear(const ImageEllipse& e, const Eigen::Vector2d& x) const {
+    const double r2 = (x - e.centre).squaredNorm();
+    return r2 < inside_sq || r2 > outside_sq;
+  }
+};
+
 // The exclusions with their rings' inverse shapes, made once per fit.
 struct PreparedExclusions {
   const Exclusions& ex;
   std::vector<Eigen::Matrix2d> inverses;
+  std::vector<ClearOfEllipse> clear;
   explicit PreparedExclusions(const Exclusions& e) : ex(e) {
-    for (const auto& r : e.rings) inverses.push_back(r.shape.inverse());
+    for (const auto& r : e.rings) {
+      inverses.push_back(r.shape.inverse());
+      clear.emplace_back(r, e.reach);
+    }
   }
 };
 
 bool excluded(const Eigen::Vector2d& x, const PreparedExclusions& prepared) {
   const Exclusions& ex = prepared.ex;
   for (std::size_t k = 0; k < ex.rings.size(); ++k)
-    if (std::abs(ellipseDistance(ex.rings[k], prepared.inverses[k], x)) < ex.reach) return true;
+    if (!prepared.clear[k].clear(ex.rings[k], x) && std::abs(ellipseDistance(ex.rings[k], prepared.inverses[k], x)) < ex.reach)
+      return true;
   for (const auto& l : ex.lines)
     if (std::abs(l.distance(x)) < ex.reach) return true;
   return false;
@@ -226,18 +258,32 @@ class LineModel {
     return true;
   }
 
+  // Where a sample lies under a parameter vector, the geometry's slopes there, and the line
+  // profile's edges: what the residual needs, and all the normal equations need at an accepted
+  // step (so that a step costs one pass over the pixels, not two).
+  struct Located {
+    Where at;
+    double dd[G], dscale[G];
+    Normal outer, inner;  // at (d +- half width) / blur
+  };
+
   // The residuals of every sample under q (the geometry set to q's), and where each lies.
-  void evaluate(const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Where>* where) const {
+  void evaluate(const Vector& q, Geometry& geom, std::vector<double>& residual, std::vector<Located>& located) const {
     std::array<double, G> g;
     for (int i = 0; i < G; ++i) g[static_cast<std::size_t>(i)] = q(i);
     geom.set(g);
     residual.resize(samples_.size());
-    if (where) where->resize(samples_.size());
+    located.resize(samples_.size());
     for (std::size_t i = 0; i < samples_.size(); ++i) {
-      Where at{};
-      geom.locate(samples_[i].x, at);
-      residual[i] = samples_[i].value - model(q, samples_[i], at);
-      if (where) (*where)[i] = at;
+      Located& l = located[i];
+      geom.locate(samples_[i].x, l.at, l.dd, l.dscale);
+      const Eigen::Vector2d r = (samples_[i].x - origin_) / scale_;
+      const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
+      const double half = 0.5 * q(W) * l.at.width_scale;
+      const double d = l.at.d + 0.5 * q(S) * q(S) * l.at.curvature;  // see Where::curvature
+      l.outer = normalAt((d + half) / q(S));
+      l.inner = normalAt((d - half) / q(S));
+      residual[i] = samples_[i].value - sheet_level * (1 - q(K) * (l.outer.cdf - l.inner.cdf));
     }
   }
 
@@ -258,30 +304,30 @@ class LineModel {
     return c;
   }
 
-  // The weighted normal equations H delta = b at p. The Jacobian: the model's slopes in the distance
-  // and the local width, times their slopes in the geometry; and in the photometry.
-  void normalEquations(const Vector& p, const Geometry& geom, const std::vector<double>& residual,
-                       const std::vector<Where>& located, Matrix& H, Vector& b) const {
+  // The weighted normal equations H delta = b at p, from where evaluate(p) located the samples.
+  // The Jacobian: the model's slopes in the distance and the local width, times their slopes in
+  // the geometry; and in the photometry.
+  void normalEquations(const Vector& p, const std::vector<double>& residual, const std::vector<Located>& located,
+                       Matrix& H, Vector& b) const {
     H.setZero();
     b.setZero();
     for (std::size_t i = 0; i < samples_.size(); ++i) {
       if (weight_[i] <= 0) continue;
       const Eigen::Vector2d r = (samples_[i].x - origin_) / scale_;
-      const Where& at = located[i];
+      const Located& l = located[i];
+      const Where& at = l.at;
       const double half = 0.5 * p(W) * at.width_scale;
       const double d = at.d + 0.5 * p(S) * p(S) * at.curvature;
       const double zp = (d + half) / p(S), zm = (d - half) / p(S);
-      const Normal np = normalAt(zp), nm = normalAt(zm);
+      const Normal& np = l.outer;
+      const Normal& nm = l.inner;
       const double cover = np.cdf - nm.cdf;
       const double sheet_level = p(L0) + p(LX) * r.x() + p(LY) * r.y();
       const double dm_dcover = -sheet_level * p(K);
       const double dm_dd = dm_dcover * (np.pdf - nm.pdf) / p(S);
       const double dm_dhalf = dm_dcover * (np.pdf + nm.pdf) / p(S);
       Vector J;
-      double dd[G], dscale[G];
-      Where unused;
-      geom.locate(samples_[i].x, unused, dd, dscale);
-      for (int j = 0; j < G; ++j) J(j) = dm_dd * dd[j] + dm_dhalf * 0.5 * p(W) * dscale[j];
+      for (int j = 0; j < G; ++j) J(j) = dm_dd * l.dd[j] + dm_dhalf * 0.5 * p(W) * l.dscale[j];
       const double shade = 1 - p(K) * cover;
       J(L0) = shade;
       J(LX) = shade * r.x();
@@ -289,10 +335,13 @@ class LineModel {
       J(K) = -sheet_level * cover;
       J(S) = -dm_dcover * (zp * np.pdf - zm * nm.pdf) / p(S) + dm_dd * p(S) * at.curvature;
       J(W) = dm_dhalf * 0.5 * at.width_scale;
-      H.template selfadjointView<Eigen::Lower>().rankUpdate(J, weight_[i]);
-      b += weight_[i] * residual[i] * J;
+      // The lower triangle, column by column (Eigen's rank update of a fixed 13 x 13 triangle runs
+      // element by element).
+      const Vector weighted = weight_[i] * J;
+      for (int k = 0; k < P; ++k) H.col(k).tail(P - k) += J(k) * weighted.tail(P - k);
+      b += residual[i] * weighted;
     }
-    H = H.template selfadjointView<Eigen::Lower>();
+    H.template triangularView<Eigen::StrictlyUpper>() = H.transpose();
   }
 
   // A step's parameters within what a printed line can be.
@@ -303,14 +352,6 @@ class LineModel {
   const std::vector<double>& weights() const { return weight_; }
 
  private:
-  double model(const Vector& q, const Sample& sample, const Where& at) const {
-    const Eigen::Vector2d r = (sample.x - origin_) / scale_;
-    const double sheet_level = q(L0) + q(LX) * r.x() + q(LY) * r.y();
-    const double half = 0.5 * q(W) * at.width_scale;
-    const double d = at.d + 0.5 * q(S) * q(S) * at.curvature;  // see Where::curvature
-    return sheet_level * (1 - q(K) * (cdf((d + half) / q(S)) - cdf((d - half) / q(S))));
-  }
-
   const std::vector<Sample>& samples_;
   double line_px_;
   Eigen::Vector2d origin_;
@@ -332,9 +373,9 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
   typename Model::Vector p;
   if (!fit.start(geometry, p)) return result;
   std::vector<double> residual, trial;
-  std::vector<Where> located, trial_located;
+  std::vector<typename Model::Located> located, trial_located;
   Geometry geom = geometry;
-  fit.evaluate(p, geom, residual, &located);
+  fit.evaluate(p, geom, residual, located);
   fit.reweigh(residual, p(Model::L0));
   double lambda = 1e-3;
   const std::array<double, G> g0 = geometry.get();
@@ -342,7 +383,7 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
     result.iterations = static_cast<std::size_t>(iteration + 1);
     typename Model::Matrix H;
     typename Model::Vector b, delta;
-    fit.normalEquations(p, geom, residual, located, H, b);
+    fit.normalEquations(p, residual, located, H, b);
     const double before = fit.cost(residual);
     bool improved = false;
     for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
@@ -355,7 +396,7 @@ LineFitResult fitModel(const std::vector<Sample>& samples, double line_px, const
         continue;
       }
       Geometry candidate = geom;
-      fit.evaluate(q, candidate, trial, &trial_located);
+      fit.evaluate(q, candidate, trial, trial_located);
       if (candidate.plausible() && fit.cost(trial) <= before) {
         p = q;
         geom = candidate;
@@ -410,10 +451,11 @@ LineFitResult fitRingLine(const cv::Mat& image, double line_px, const Exclusions
   std::vector<Sample> samples;
   const PreparedExclusions exclusions(exclude);
   const Eigen::Matrix2d ring_inverse = ring.shape.inverse();
+  const ClearOfEllipse off_band(ring, band);
   for (int r = box.y; r < box.y + box.height; ++r)
     for (int c = box.x; c < box.x + box.width; ++c) {
       const Eigen::Vector2d x(c, r);
-      if (std::abs(ellipseDistance(ring, ring_inverse, x)) > band || excluded(x, exclusions)) continue;
+      if (off_band.clear(ring, x) || std::abs(ellipseDistance(ring, ring_inverse, x)) > band || excluded(x, exclusions)) continue;
       samples.push_back({x, image.at<float>(r, c)});
     }
   RingGeometry geometry(ring);

@@ -1,6 +1,7 @@
 #include "laser_raster.hpp"
 
 #include "sheet_arcs.hpp"
+#include "stampscan/registration/direct_ellipse.hpp"
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -321,29 +322,39 @@ std::vector<Eigen::Vector2d> unrolledOutline(const Interior& interior, const std
   return out;
 }
 
-double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q) {
-  const Eigen::Vector2d d = q - e.centre;
+std::vector<double> ellipseResiduals(const PlaneEllipse& e, const std::vector<Eigen::Vector2d>& points) {
+  // The axis' cosine and sine once for all points (per point, they were a fifth of a stereo view's
+  // measurement).
   const double c = std::cos(e.angle), s = std::sin(e.angle);
-  const double x = c * d.x() + s * d.y(), y = -s * d.x() + c * d.y();
-  const double rho = std::sqrt((x / e.a) * (x / e.a) + (y / e.b) * (y / e.b));
-  return rho > 0 ? d.norm() * (1 - 1 / rho) : -d.norm();
+  std::vector<double> out;
+  out.reserve(points.size());
+  for (const Eigen::Vector2d& q : points) {
+    const Eigen::Vector2d d = q - e.centre;
+    const double x = c * d.x() + s * d.y(), y = -s * d.x() + c * d.y();
+    const double rho = std::sqrt((x / e.a) * (x / e.a) + (y / e.b) * (y / e.b));
+    out.push_back(rho > 0 ? d.norm() * (1 - 1 / rho) : -d.norm());
+  }
+  return out;
 }
 
 namespace {
 bool fitEllipseOnce(const std::vector<Eigen::Vector2d>& pts, PlaneEllipse& out) {
   if (pts.size() < 20) return false;
-  std::vector<cv::Point2f> cvp;
-  // Micrometres: the direct fit works in floats.
-  for (const auto& q : pts) cvp.emplace_back(static_cast<float>(1000 * q.x()), static_cast<float>(1000 * q.y()));
-  const cv::RotatedRect r = cv::fitEllipseDirect(cvp);
-  if (!(r.size.width > 0) || !(r.size.height > 0)) return false;
-  const bool width_major = r.size.width >= r.size.height;
-  out.a = 0.0005 * std::max(r.size.width, r.size.height);
-  out.b = 0.0005 * std::min(r.size.width, r.size.height);
-  out.centre = Eigen::Vector2d(0.001 * r.center.x, 0.001 * r.center.y);
-  out.angle = (width_major ? r.angle : r.angle + 90.0) * std::numbers::pi / 180;
+  const std::optional<CentredEllipse> fit = fitDirectEllipse(pts);
+  if (!fit) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> axes(fit->shape);  // ascending
+  out.a = axes.eigenvalues()(1);
+  out.b = axes.eigenvalues()(0);
+  if (!(out.b > 0)) return false;
+  out.centre = fit->centre;
+  // The major axis' angle in [pi / 2, 3 pi / 2): the direction cv::fitEllipseDirect gave before,
+  // so that the elements' major directions keep their sign.
+  const Eigen::Vector2d major = axes.eigenvectors().col(1);
+  out.angle = std::atan2(major.y(), major.x());
+  while (out.angle < 0.5 * std::numbers::pi) out.angle += std::numbers::pi;
+  while (out.angle >= 1.5 * std::numbers::pi) out.angle -= std::numbers::pi;
   double sum = 0;
-  for (const auto& q : pts) sum += std::pow(ellipseResidual(out, q), 2);
+  for (const double residual : ellipseResiduals(out, pts)) sum += residual * residual;
   out.rms = std::sqrt(sum / static_cast<double>(pts.size()));
   out.used = pts.size();
   return true;
@@ -354,8 +365,8 @@ bool fitEllipseOnce(const std::vector<Eigen::Vector2d>& pts, PlaneEllipse& out) 
 
 bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& plane, PlaneEllipse& e) {
   if (!fitEllipseOnce(plane, e)) return false;
-  std::vector<double> res;
-  for (const auto& q : plane) res.push_back(std::abs(ellipseResidual(e, q)));
+  std::vector<double> res = ellipseResiduals(e, plane);
+  for (double& r : res) r = std::abs(r);
   const double cut = std::max(3 * 1.4826 * median(res), 0.004);
   std::vector<Eigen::Vector2d> kept;
   for (std::size_t i = 0; i < plane.size(); ++i)

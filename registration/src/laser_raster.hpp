@@ -96,9 +96,9 @@ struct PlaneEllipse {
   std::size_t used = 0;
 };
 
-// Distance of a point from an ellipse, along the ray from its centre.
-double ellipseResidual(const PlaneEllipse& e, const Eigen::Vector2d& q);
-// OpenCV's direct fit, then points farther than 3 robust sigmas (at least 4 um) dropped and the fit
+// Distance of each point from an ellipse, along the ray from its centre.
+std::vector<double> ellipseResiduals(const PlaneEllipse& e, const std::vector<Eigen::Vector2d>& points);
+// The direct fit (fitDirectEllipse), then points farther than 3 robust sigmas (at least 4 um) dropped and the fit
 // repeated: a stray edge point (a neighbour's line, a speck) does not bend the ellipse.
 bool fitEllipseRobust(const std::vector<Eigen::Vector2d>& points, PlaneEllipse& out);
 

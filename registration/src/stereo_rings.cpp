@@ -3,6 +3,7 @@
 #include "image_line_fit.hpp"
 #include "laser_raster.hpp"
 #include "stereo_common.hpp"
+#include "stampscan/registration/direct_ellipse.hpp"
 #include "stampscan/fitting/quadric_patch.hpp"
 
 #include <Eigen/Dense>
@@ -69,16 +70,9 @@ std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingSurface& s
 // The cast ellipse as centre and shape matrix M (x = c + M (cos t, sin t)): what two views must
 // agree on.
 bool castEllipse(const RingRays& rays, const RingSurface& surface, Eigen::Matrix<double, 5, 1>& out) {
-  std::vector<cv::Point2f> pts;
-  for (const auto& q : castOnto(rays, surface, 6)) pts.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
-  if (pts.size() < 6) return false;
-  // Single precision would round at 1e-7 of the coordinates, well below the 1e-4 mm that matter.
-  const cv::RotatedRect box = cv::fitEllipseDirect(pts);
-  const double a = 0.5 * box.size.width, b = 0.5 * box.size.height, angle = box.angle * std::numbers::pi / 180;
-  if (!(a > 0 && b > 0)) return false;
-  const Eigen::Matrix2d R = Eigen::Rotation2Dd(angle).toRotationMatrix();
-  const Eigen::Matrix2d M = R * Eigen::Vector2d(a, b).asDiagonal() * R.transpose();
-  out << box.center.x, box.center.y, M(0, 0), M(0, 1), M(1, 1);
+  const std::optional<CentredEllipse> e = fitDirectEllipse(castOnto(rays, surface, 6));
+  if (!e) return false;
+  out << e->centre.x(), e->centre.y(), e->shape(0, 0), e->shape(0, 1), e->shape(1, 1);
   return true;
 }
 
@@ -180,8 +174,10 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     const double sheet_mid = in.sheet_level, dark = 0.5 * (1 + params.ink_ratio) * sheet_mid;
     const double cx = in.centroid.x(), cy = in.centroid.y();
     const auto sample = [&](double x, double y) {
-      const int c = static_cast<int>(std::floor(x)), r = static_cast<int>(std::floor(y));
-      if (c < 0 || r < 0 || c + 1 >= I.cols || r + 1 >= I.rows) return detail::kNaN;
+      // Truncation is the floor for x, y >= 0 (and no call into the maths library).
+      if (!(x >= 0 && y >= 0)) return detail::kNaN;
+      const int c = static_cast<int>(x), r = static_cast<int>(y);
+      if (c + 1 >= I.cols || r + 1 >= I.rows) return detail::kNaN;
       const double fx = x - c, fy = y - r;
       return (1 - fy) * ((1 - fx) * I.at<float>(r, c) + fx * I.at<float>(r, c + 1)) +
              fy * ((1 - fx) * I.at<float>(r + 1, c) + fx * I.at<float>(r + 1, c + 1));
@@ -193,9 +189,10 @@ std::vector<ImageRing> detectImageRings(const cv::Mat& image, double expected_ra
     std::vector<double> inner_s, widths;
     std::vector<Eigen::Vector2d> directions;
     constexpr int kRays = 120;  // a start for the fit, which uses every pixel along the line
+    std::vector<double> values;
     for (int ray = 0; ray < kRays; ++ray) {
       const double th = 2 * std::numbers::pi * ray / kRays, ux = std::cos(th), uy = std::sin(th);
-      std::vector<double> values;
+      values.clear();
       bool in_ink = false, crossed = false;
       for (double s = 0; s <= 3 * inner_px && !crossed; s += 0.25) {
         const double v = sample(cx + s * ux, cy + s * uy);
