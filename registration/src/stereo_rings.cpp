@@ -31,9 +31,13 @@ struct RingRays {
   std::vector<Vec3> directions;
 };
 
+// The line is the image ellipse the line fit found: a smooth curve, so 120 points along it describe
+// it as well as 360 did (the same elements' strains within 1e-5) for a third of the casting.
+constexpr int kRayPoints = 120;
+
 RingRays raysOf(const ImageRing& ring, const CameraModel& cam, const Eigen::Isometry3d& machine_from_camera) {
   RingRays r{machine_from_camera.translation(), {}};
-  for (const auto& q : detail::normalised(ring.edge(), cam))
+  for (const auto& q : detail::normalised(ring.edge(kRayPoints), cam))
     r.directions.push_back((machine_from_camera.linear() * Vec3(q.x(), q.y(), 1)).normalized());
   return r;
 }
@@ -70,7 +74,7 @@ std::vector<Eigen::Vector2d> castOnto(const RingRays& rays, const RingSurface& s
 // The cast ellipse as centre and shape matrix M (x = c + M (cos t, sin t)): what two views must
 // agree on.
 bool castEllipse(const RingRays& rays, const RingSurface& surface, Eigen::Matrix<double, 5, 1>& out) {
-  const std::optional<CentredEllipse> e = fitDirectEllipse(castOnto(rays, surface, 6));
+  const std::optional<CentredEllipse> e = fitDirectEllipse(castOnto(rays, surface, 2));  // 60 points
   if (!e) return false;
   out << e->centre.x(), e->centre.y(), e->shape(0, 0), e->shape(0, 1), e->shape(1, 1);
   return true;
