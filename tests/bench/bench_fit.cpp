@@ -6,8 +6,13 @@
 // the child resets its peak-RSS counter (/proc/self/clear_refs) and reports the peak during the fit.
 //
 //   bench_fit [--shape pan|dome] [--points N] [--threads T] [--radii r1,r2,...] [--seed S] [--skip-pcl] [--stages]
+//             [--station PATH]
+//
+// --station PATH also times the whole `station fit` process on the same cloud, written as a binary
+// PLY before the clock starts: reading the file, the fit, writing the surface (what a user runs).
 //
 // The pan has tight radii and steep walls; the dome is smooth all over, where wide supports pay.
+#include "stampscan/fitting/ply_io.hpp"
 #include "stampscan/fitting/surface_fit.hpp"
 #include "stampscan/sim/sample_cloud.hpp"
 
@@ -19,6 +24,7 @@
 #include <pcl/surface/mls.h>
 #endif
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -26,6 +32,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -79,6 +86,28 @@ Result inChild(Fn&& fn) {
 }
 
 double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+// Runs `station fit IN -o OUT --threads T -q` as its own process; its wall time and peak RSS.
+Result stationFitProcess(const std::string& station, const std::filesystem::path& in, const std::filesystem::path& out,
+                         int threads) {
+  const std::string thread_arg = std::to_string(threads);
+  const double t0 = now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    execl(station.c_str(), station.c_str(), "fit", in.c_str(), "-o", out.c_str(), "--threads", thread_arg.c_str(), "-q",
+          static_cast<char*>(nullptr));
+    std::perror(station.c_str());
+    _exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  Result r;
+  r.seconds = now() - t0;
+  r.total_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) r.seconds = -1;
+  return r;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -90,6 +119,7 @@ int main(int argc, char** argv) {
   std::vector<double> radii = {0.75, 1.0, 1.5, 2.0, 3.0};
   std::string shape_name = "pan";
   bool stages = false;  // print the fit's time per stage
+  std::string station;  // the `station` program, to time `station fit` as a whole process
   fitting::AnchoredParams anchored;  // the default's parameters; --widen and --gamma change them
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -105,13 +135,14 @@ int main(int argc, char** argv) {
     else if (a == "--blend-radius") anchored.blend_radius = std::stod(next());
     else if (a == "--tolerance") anchored.tolerance = std::stod(next());
     else if (a == "--per-point") per_point = true;
+    else if (a == "--station") station = next();
     else if (a == "--radii") {
       radii.clear();
       std::stringstream ss(next());
       std::string item;
       while (std::getline(ss, item, ',')) radii.push_back(std::stod(item));
     } else {
-      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--blend-radius R] [--tolerance T] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl] [--stages]\n");
+      std::fprintf(stderr, "usage: bench_fit [--shape pan|dome] [--widen] [--gamma G] [--blend-radius R] [--tolerance T] [--points N] [--threads T] [--radii a,b,c] [--seed S] [--skip-pcl] [--stages] [--station PATH]\n");
       return 2;
     }
   }
@@ -197,6 +228,38 @@ int main(int argc, char** argv) {
     std::printf("  thickness strain RMS: raw %.5f, fitted %.5f\n", std::sqrt(raw_sq / static_cast<double>(n)), ours.strain_rms);
   }
   if (per_point) print("stampscan apss (per point)", runOurs(fitting::FitMethod::Apss));
+  Result process;  // `station fit` as a whole process, with --station
+  if (!station.empty()) {
+    const std::filesystem::path folder = std::filesystem::temp_directory_path() / ("bench_fit_" + std::to_string(getpid()));
+    std::filesystem::create_directories(folder);
+    const std::filesystem::path in = folder / "cloud.ply", out = folder / "fitted.ply";
+    fitting::writePly(in, sample.cloud);
+    process = stationFitProcess(station, in, out, threads);
+    if (process.seconds < 0) {
+      std::fprintf(stderr, "bench_fit: %s fit %s failed\n", station.c_str(), in.c_str());
+      return 1;
+    }
+    // Scored in a child: the parent runs nothing parallel before PCL's children.
+    const Result scored = inChild([&]() {
+      Result r;
+      const fitting::Cloud fitted = fitting::readPly(out);
+      const sim::SurfaceError e = sim::surfaceError(part, fitted.positions);
+      r.rms = e.rms;
+      r.max = e.max;
+      r.points = fitted.size();
+      return r;
+    });
+    process.rms = scored.rms;
+    process.max = scored.max;
+    process.points = scored.points;
+    std::printf("%-26s %9.3f %10.0f %10.5f %9.3f %12s %12.1f\n", "station fit (process)", process.seconds,
+                static_cast<double>(process.points) / process.seconds, process.rms, process.max, "-",
+                process.total_mb * 1048576.0 / static_cast<double>(n));
+    std::printf("  binary PLY in and out (%.1f MB in); the process's peak memory is its whole\n",
+                static_cast<double>(std::filesystem::file_size(in)) / 1e6);
+    std::fflush(stdout);
+    if (!std::getenv("BENCH_FIT_KEEP")) std::filesystem::remove_all(folder);
+  }
 
 #ifdef STAMPSCAN_HAVE_PCL
   if (!skip_pcl) {
@@ -248,6 +311,9 @@ int main(int argc, char** argv) {
     std::printf("\nPCL best radius %.2f mm: RMS %.4f mm in %.3f s. StampScan: RMS %.4f mm (%.2fx lower), %.1fx the throughput\n",
                 best_radius, best_rms, best_time, ours.rms, best_rms / ours.rms, best_time / ours.seconds);
     if (at_three > 0) std::printf("Against PCL at r = 3 mm: %.1fx the throughput\n", at_three / ours.seconds);
+    if (at_three > 0 && process.seconds > 0)
+      std::printf("The whole `station fit` process against PCL's fit alone at r = 3 mm: %.1fx; against PCL's best radius %.1fx\n",
+                  at_three / process.seconds, best_time / process.seconds);
   }
 #endif
   return 0;
