@@ -543,6 +543,13 @@ void VirtualCamera::start() {
   arv_fake_camera_write_register(camera, 0x0034, 0xFF000000u);   // current subnet mask
   arv_fake_camera_write_register(camera, gvcp::kRegMacHigh, 0x0200);
   arv_fake_camera_write_register(camera, gvcp::kRegMacLow, d.address);
+  if (options_.sensor_width > 0 && options_.sensor_height > 0) {
+    const auto width = static_cast<guint32>(options_.sensor_width), height = static_cast<guint32>(options_.sensor_height);
+    arv_fake_camera_write_register(camera, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, width);
+    arv_fake_camera_write_register(camera, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, height);
+    arv_fake_camera_write_register(camera, ARV_FAKE_CAMERA_REGISTER_WIDTH, width);
+    arv_fake_camera_write_register(camera, ARV_FAKE_CAMERA_REGISTER_HEIGHT, height);
+  }
   arv_fake_camera_set_fill_pattern(camera, &Impl::fill, impl_.get());
   // In software-trigger mode the stream thread is woken by the trigger write itself; this is only
   // the model's own polling period, kept short in case a wake-up is missed.

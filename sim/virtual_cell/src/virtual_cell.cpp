@@ -66,6 +66,9 @@ VirtualCell::VirtualCell(VirtualCellOptions options) : options_(std::move(option
       VirtualCameraOptions o;
       o.address = c == 0 ? options_.left_address : options_.right_address;
       o.serial = c == 0 ? options_.left_serial : options_.right_serial;
+      const CameraIntrinsics& drawn = c == 0 ? truth_.left : truth_.right;
+      o.sensor_width = drawn.width;
+      o.sensor_height = drawn.height;
       cameras_.push_back(std::make_unique<VirtualCamera>(o));
       renderers_[c] = std::make_unique<CameraRenderer>(c == 0 ? truth_.left : truth_.right);
       frame_bits_[static_cast<std::size_t>(c)] = options_.world.camera_sensor.bits;

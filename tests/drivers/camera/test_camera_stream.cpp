@@ -131,6 +131,40 @@ TEST_F(CameraStream, SoftwareTriggerGivesOneFramePerTrigger) {
   EXPECT_FALSE(hasFault(cam, "timeout"));
 }
 
+// A camera drawn larger than Aravis' camera model's own sensor (2048 x 2048), as a cell file's
+// 5-megapixel 2448 x 2048 camera: the virtual camera takes the drawn sensor size, and a triggered
+// frame of the whole sensor arrives intact. (Before, the model kept its own sensor, refused the
+// wider region and sent no frame: every stereo view of such a cell was missing.)
+TEST_F(CameraStream, ACameraLargerThanTheModelsOwnSensorDeliversWholeFrames) {
+  if (!left_) GTEST_SKIP() << "the cameras are served by another process";
+  left_->stop();
+  sim::VirtualCameraOptions large{kLeftAddress, kLeftSerial, "", 0.0};
+  large.sensor_width = 2448;
+  large.sensor_height = 2048;
+  left_ = std::make_unique<sim::VirtualCamera>(large);
+  left_->setFrameSource([](const sim::FrameRequest& r, std::span<std::uint8_t> out) {
+    drawTestImage(1, r.index, out);
+    return true;
+  });
+  left_->start();
+  GigECamera cam("left", options(kLeftSerial, kLeftAddress));
+  cam.connect();
+  EXPECT_EQ(cam.sensorSize(), (std::pair<std::int64_t, std::int64_t>(2448, 2048)));
+  CameraConfig c = smallTriggered();
+  c.roi = {0, 0, 2448, 2048};
+  cam.configure(c);
+  FrameSink frames;
+  cam.startStreaming(std::ref(frames));
+  EXPECT_EQ(cam.softwareTrigger(), 1u);
+  ASSERT_TRUE(frames.waitFor(1, std::chrono::seconds(5))) << "no frame of the whole sensor";
+  cam.stopStreaming();
+  const auto& f = frames.frames().front().info;
+  EXPECT_EQ(f.width, 2448u);
+  EXPECT_EQ(f.height, 2048u);
+  EXPECT_EQ(f.bytes.size(), 2448u * 2048u);
+  EXPECT_TRUE(imageIsIntact(1, f.bytes));
+}
+
 // A triggered frame carries the instant its exposure started, however long the image takes to
 // make (a simulated world may take a second to render): the station may move the head on as soon
 // as the exposure is over, and the frame's time still says where the head stood.

@@ -52,6 +52,10 @@ struct VirtualCameraOptions {
   // machine-vision cameras offer: a controller reads the camera's clock to the millisecond. Without
   // it (as Aravis' own fake camera) a controller can only estimate the clock from frame arrivals.
   bool timestamp_latch = true;
+  // The sensor's size in pixels (SensorWidth, SensorHeight; the image's Width and Height start
+  // there). 0: Aravis' model's own, 2048 x 2048. A camera drawn larger than that needs its size here:
+  // the model refuses a region wider or taller than its sensor.
+  int sensor_width = 0, sensor_height = 0;
 };
 
 struct LoopbackStatus {
