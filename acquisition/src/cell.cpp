@@ -1,5 +1,7 @@
 #include "stampscan/acquisition/cell.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <tuple>
 
 namespace stampscan::acquisition {
@@ -23,6 +25,14 @@ Cell::Cell(const CellConfig& config, CellUse use) : config_(config) {
   digitizer.vendor_id = config.digitizer_vendor;
   digitizer.product_id = config.digitizer_product;
   digitizer.serial = config.digitizer_serial;
+  // The digitizer runs as the cell file draws it (the plans' sweep speeds and the virtual twin
+  // assume it): its points per profile and profile rate. The exposure stays the driver's, shortened
+  // to the profile period at high rates.
+  const DigitizerDrawing& drawn = config.geometry.digitizer;
+  digitizer.config.points_per_profile = drawn.points_per_profile;
+  digitizer.config.profile_rate_hz = drawn.profile_rate_hz;
+  digitizer.config.exposure_us =
+      std::min(digitizer.config.exposure_us, static_cast<std::uint32_t>(std::floor(1e6 / drawn.profile_rate_hz)));
   digitizer_ = std::make_unique<drivers::digitizer::UsbDigitizer>(digitizer);
   for (auto [camera, config_of, name] : {std::tuple{&left_camera_, &config.left_camera, "camera_l"},
                                          std::tuple{&right_camera_, &config.right_camera, "camera_r"}}) {

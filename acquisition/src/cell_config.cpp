@@ -309,8 +309,12 @@ void readHead(const toml::table& t, const SectionReader& h, const std::string& f
 
 void readDigitizerDrawing(const SectionReader& s, DigitizerDrawing& d) {
   using Sign = SectionReader::Sign;
-  d.points_per_profile = static_cast<int>(s.integer("points_per_profile", d.points_per_profile, 16, 65535));
+  // The digitizer is configured so (acquisition::Cell): within what its protocol carries.
+  d.points_per_profile = static_cast<int>(
+      s.integer("points_per_profile", d.points_per_profile, drivers::digitizer::kMinPoints, drivers::digitizer::kMaxPoints));
   d.profile_rate_hz = s.number("profile_rate_hz", d.profile_rate_hz, Sign::Positive);
+  if (d.profile_rate_hz < drivers::digitizer::kMinProfileRateHz || d.profile_rate_hz > drivers::digitizer::kMaxProfileRateHz)
+    s.fail("profile_rate_hz", "must be within 1..20000 Hz");
   d.standoff_mm = s.number("standoff_mm", d.standoff_mm, Sign::Positive);
   d.measuring_range_mm = s.number("measuring_range_mm", d.measuring_range_mm, Sign::Positive);
   if (d.measuring_range_mm >= 2 * d.standoff_mm) s.fail("measuring_range_mm", "must be below twice standoff_mm");

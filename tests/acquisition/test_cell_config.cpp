@@ -174,6 +174,8 @@ TEST_F(CellFileTest, EveryKindOfMistakeIsRefusedInOneLineNamingWhere) {
       {"[digitizer]\nstandof_mm = 100\n", "[digitizer] standof_mm is not a key of this section"},
       {"[digitizer]\nmount_mm = [0, -120]\n", "[digitizer] mount_mm must be a list of 3 numbers"},
       {"[digitizer]\nfan_angle_deg = 190\n", "[digitizer] fan_angle_deg must be below 170"},
+      {"[digitizer]\npoints_per_profile = 8192\n", "[digitizer] points_per_profile is 8192, not 16..4096"},
+      {"[digitizer]\nprofile_rate_hz = 50000\n", "[digitizer] profile_rate_hz must be within 1..20000 Hz"},
       {"[digitizer]\nmeasuring_range_mm = 400\n", "[digitizer] measuring_range_mm must be below twice standoff_mm"},
       {"[cameras]\nbits = 12\n", "[cameras] bits is 12: expected 8 (Mono8) or 16 (Mono16)"},
       {"[cameras]\nwidth = 20.5\n", "[cameras] width has the wrong type: expected an integer"},

@@ -4,6 +4,7 @@
 #include "station_test_support.hpp"
 
 #include "stampscan/acquisition/trace/mcap_reader.hpp"
+#include "stampscan/acquisition/trace/session_description.hpp"
 #include "stampscan/acquisition/trace/trace_messages.hpp"
 #include "stampscan/fitting/kdtree.hpp"
 #include "stampscan/fitting/ply_io.hpp"
@@ -420,6 +421,17 @@ TEST_F(StationTest, ASecondCellFromItsFileScansThePartToTheSameGoals) {
   // matched the part where it stands), and the run says where the part's datum frame is.
   EXPECT_EQ(j.at("fixture").at("datum_mm"), nlohmann::json::parse("[25.0, 15.0, 0.0]"));
   EXPECT_EQ(j.at("fixture").at("datum_rotation_deg").at(2).get<double>(), 20.0);
+  // Its digitizer ran as the file draws it: 400 profiles a second (the driver's default is 500),
+  // which the plan's sweep speeds assume. The trace's session description says what the device
+  // reported.
+  trace::McapReader reader(onlyRunFolder(runs) / "trace.mcap");
+  std::optional<trace::SessionDescription> session;
+  const trace::TraceHealth health = reader.readMessages([](const trace::TraceMessage&) { return true; });
+  for (const trace::MetadataInfo& m : health.metadata)
+    if (m.name == trace::kSessionMetadataName) session = trace::decodeSession(m.metadata);
+  ASSERT_TRUE(session.has_value());
+  EXPECT_EQ(session->digitizer_profile_rate_hz, 400.0);
+  EXPECT_EQ(session->digitizer_points_per_profile, 1024);
 }
 
 // A part program scanned from its folder: the program's plan after the calibration scenes, its grid

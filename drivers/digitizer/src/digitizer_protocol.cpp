@@ -70,7 +70,6 @@ class Reader {
   std::size_t pos_ = 0;
 };
 
-constexpr double kMinRateHz = 1, kMaxRateHz = 20000;
 
 void writeConfig(Writer& w, const DigitizerConfig& c) {
   validate(c);
@@ -108,7 +107,7 @@ void validate(const DigitizerConfig& c) {
   if (c.points_per_profile < kMinPoints || c.points_per_profile > kMaxPoints)
     throw ProtocolError("points_per_profile",
                         std::to_string(c.points_per_profile) + " outside 16..4096");
-  if (!(c.profile_rate_hz >= kMinRateHz && c.profile_rate_hz <= kMaxRateHz))
+  if (!(c.profile_rate_hz >= kMinProfileRateHz && c.profile_rate_hz <= kMaxProfileRateHz))
     throw ProtocolError("profile_rate_mhz", "rate " + std::to_string(c.profile_rate_hz) +
                                                 " Hz outside 1..20000 Hz");
   if (c.exposure_us < 1 || c.exposure_us > 1e6 / c.profile_rate_hz)

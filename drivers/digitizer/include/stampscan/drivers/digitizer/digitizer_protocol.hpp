@@ -48,6 +48,7 @@ inline constexpr std::size_t kProfileHeaderSize = 24;
 inline constexpr std::size_t kPointSize = 6;  // float32 range + u16 intensity
 inline constexpr int kMinPoints = 16;
 inline constexpr int kMaxPoints = 4096;
+inline constexpr double kMinProfileRateHz = 1, kMaxProfileRateHz = 20000;
 
 // Status word bits, in the profile header and in GetStatus.
 inline constexpr std::uint32_t kStatusOverexposed = 1u << 0;
