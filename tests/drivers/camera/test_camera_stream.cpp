@@ -158,7 +158,8 @@ TEST_F(CameraStream, ACameraLargerThanTheModelsOwnSensorDeliversWholeFrames) {
   EXPECT_EQ(cam.softwareTrigger(), 1u);
   ASSERT_TRUE(frames.waitFor(1, std::chrono::seconds(5))) << "no frame of the whole sensor";
   cam.stopStreaming();
-  const auto& f = frames.frames().front().info;
+  const std::vector<drivers::camera::Frame> got = frames.frames();  // a copy: keep it while reading
+  const auto& f = got.front().info;
   EXPECT_EQ(f.width, 2448u);
   EXPECT_EQ(f.height, 2048u);
   EXPECT_EQ(f.bytes.size(), 2448u * 2048u);
