@@ -314,7 +314,8 @@ void readDigitizerDrawing(const SectionReader& s, DigitizerDrawing& d) {
       s.integer("points_per_profile", d.points_per_profile, drivers::digitizer::kMinPoints, drivers::digitizer::kMaxPoints));
   d.profile_rate_hz = s.number("profile_rate_hz", d.profile_rate_hz, Sign::Positive);
   if (d.profile_rate_hz < drivers::digitizer::kMinProfileRateHz || d.profile_rate_hz > drivers::digitizer::kMaxProfileRateHz)
-    s.fail("profile_rate_hz", "must be within 1..20000 Hz");
+    s.fail("profile_rate_hz", "must be within " + std::to_string(static_cast<int>(drivers::digitizer::kMinProfileRateHz)) + ".." +
+                                  std::to_string(static_cast<int>(drivers::digitizer::kMaxProfileRateHz)) + " Hz");
   d.standoff_mm = s.number("standoff_mm", d.standoff_mm, Sign::Positive);
   d.measuring_range_mm = s.number("measuring_range_mm", d.measuring_range_mm, Sign::Positive);
   if (d.measuring_range_mm >= 2 * d.standoff_mm) s.fail("measuring_range_mm", "must be below twice standoff_mm");

@@ -70,7 +70,6 @@ class Reader {
   std::size_t pos_ = 0;
 };
 
-
 void writeConfig(Writer& w, const DigitizerConfig& c) {
   validate(c);
   w.u16(static_cast<std::uint16_t>(c.points_per_profile));
