@@ -31,7 +31,7 @@ class PartPlanner {
  public:
   PartPlanner(const GridSamples& samples, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
               const PlannerOptions& o)
-      : samples_(samples), cell_(cell), limits_(limits), o_(o),
+      : samples_(samples), cell_(cell), limits_(limits), o_(o), sweep_speed_(sweepSpeed(o, cell, limits)),
         mount_(trace::toIsometry(toRigidPose(cell.digitizer.mount))) {
     plan_.name = "generated for " + (cell.fixture.name.empty() ? std::string("the cell") : cell.fixture.name);
     plan_.part = part;
@@ -322,7 +322,7 @@ class PartPlanner {
     std::vector<char> waiting = claimable();
     // Beyond the grid each pass runs on by an element's outline and the sweep's run-up, so that the
     // elements at its ends are crossed where the head's track can be trusted.
-    const double lead = plan_.part.pitch + sweepRunUp(o_.sweep_speed, limits_.acceleration);
+    const double lead = plan_.part.pitch + sweepRunUp(sweep_speed_, limits_.acceleration);
     std::vector<SweepStep> sweeps;
     std::uint32_t index = 0;
     bool forward = true;
@@ -360,7 +360,7 @@ class PartPlanner {
         s.index = index++;
         s.start = headAt(centre - direction * half * track.along, 0, track.turn);
         s.end = headAt(centre + direction * half * track.along, 0, track.turn);
-        s.speed = o_.sweep_speed;
+        s.speed = sweep_speed_;
         sweeps.push_back(s);
         forward = !forward;
       }
@@ -403,6 +403,7 @@ class PartPlanner {
   const CellGeometry& cell_;
   const MachineLimits& limits_;
   const PlannerOptions& o_;
+  double sweep_speed_;  // mm/s, see sweepSpeed
   Eigen::Isometry3d mount_;
   Vec3 lo_, hi_;
   ScanPlan plan_;
@@ -444,12 +445,18 @@ void leaveOutCollidingSweeps(ScanPlan& plan, const NominalModel& model, const Ce
   plan.steps = std::move(kept);
 }
 
+double sweepSpeed(const PlannerOptions& options, const CellGeometry& cell, const MachineLimits& limits) {
+  const double speed = options.sweep_speed > 0 ? options.sweep_speed
+                                               : options.profile_spacing_mm * cell.digitizer.profile_rate_hz;
+  return std::clamp(speed, limits.min_speed, limits.max_speed);
+}
+
 ScanPlan planPart(const NominalModel& model, const PartSpec& part, const CellGeometry& cell, const MachineLimits& limits,
                   const PlannerOptions& options) {
   if (!(options.strip_overlap >= 0 && options.strip_overlap < 0.9))
     throw std::invalid_argument("the strip overlap must be within 0 .. 0.9, not " + std::to_string(options.strip_overlap));
-  if (!(options.sweep_speed > 0) || !(options.travel_speed > 0))
-    throw std::invalid_argument("the sweep and travel speeds must be positive");
+  if (!(options.sweep_speed >= 0) || !(options.profile_spacing_mm > 0) || !(options.travel_speed > 0))
+    throw std::invalid_argument("the profile spacing and the travel speed must be positive, the sweep speed positive or 0 (from the spacing)");
   if (!(options.depth_use > 0 && options.depth_use <= 1))
     throw std::invalid_argument("depth_use must be within (0, 1]");
   if (!(options.sample_spacing_mm > 0)) throw std::invalid_argument("the sample spacing must be positive");

@@ -117,7 +117,11 @@ CommandRunner addPlanCommand(CLI::App& app) {
   cmd->add_flag("--laser-only", opt->laser_only, "Plan laser passes only");
   cmd->add_option("--overlap", opt->planner.strip_overlap, "The share of a pass's fan that overlaps its neighbour's (less where that saves passes, never less than keeps every element whole within one stripe)")
       ->check(CLI::Range(0.0, 0.85));
-  cmd->add_option("--sweep-speed", opt->planner.sweep_speed, "mm/s while the digitizer scans")->check(CLI::Range(1.0, 500.0));
+  cmd->add_option("--profile-spacing", opt->planner.profile_spacing_mm,
+                  "mm the head moves between two profiles while sweeping; the sweep speed is this times the digitizer's profile rate")
+      ->check(CLI::Range(0.005, 1.0));
+  cmd->add_option("--sweep-speed", opt->planner.sweep_speed, "mm/s while the digitizer scans (instead of the one from the profile spacing)")
+      ->check(CLI::Range(1.0, 500.0));
   cmd->add_option("--stereo-rows", opt->planner.stereo_rows, "Rows of stereo views")->check(CLI::Range(0, 20));
   cmd->add_option("--stereo-columns", opt->planner.stereo_columns, "Columns of stereo views")->check(CLI::Range(0, 20));
   cmd->add_option("--spacing", opt->planner.sample_spacing_mm, "mm between the samples of the grid area")
@@ -134,13 +138,14 @@ CommandRunner addPlanCommand(CLI::App& app) {
     const std::optional<PlanFigures> own =
         program.hasPlan() ? std::optional(figuresOf(program.plan, program, placed_model, cell, planner.sample_spacing_mm))
                           : std::nullopt;
-    const double bound = acquisition::scanTimeLowerBound(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
+    const double sweep_speed = acquisition::sweepSpeed(planner, cell.geometry, cell.limits);
+    const double bound = acquisition::scanTimeLowerBound(generated.coverage.grid_area, cell.geometry, sweep_speed);
     std::printf("plan %s on %s: grid area %.0f mm^2 (facets facing the sensors), sampled every %.1f mm\n",
                 program.name.c_str(), cell.name.c_str(), generated.coverage.grid_area, planner.sample_spacing_mm);
     printFigures("generated", generated);
     if (own) printFigures("program's", *own);
     else std::printf("  program's  none yet (write the generated one into the program with --into-program)\n");
-    const double floor = acquisition::scanTimeFloor(generated.coverage.grid_area, cell.geometry, planner.sweep_speed);
+    const double floor = acquisition::scanTimeFloor(generated.coverage.grid_area, cell.geometry, sweep_speed);
     // The bound is the sweeping bound plus the head's moves: each plan against the bound
     // plus its own moves, and its sweeping alone against the bound and the floor.
     const auto ratios = [&](const PlanFigures& f) {
@@ -153,7 +158,7 @@ CommandRunner addPlanCommand(CLI::App& app) {
     };
     std::printf("  bound      sweeping the grid area takes at least %.1f s (area / (stripe at the standoff x %.0f mm/s); "
                 "%.1f s, the floor, with the stripe at the far end of the range)\n",
-                bound, planner.sweep_speed, floor);
+                bound, sweep_speed, floor);
     std::printf("  passes     generated: %s\n", ratios(generated).c_str());
     if (own) std::printf("             program's: %s\n", ratios(*own).c_str());
     printUnseen(generated.coverage);

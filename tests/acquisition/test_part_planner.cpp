@@ -258,6 +258,39 @@ TEST(PartPlanner, AnIndexingHeadGetsOnlyItsStops) {
   EXPECT_GE(c.share(c.either_area), 0.99);
 }
 
+// The sweeps lay the digitizer's profiles as densely on every cell: a digitizer drawn slower or
+// faster than the default one is swept slower or faster, not at one fixed speed.
+TEST(PartPlanner, TheSweepSpeedFollowsTheDigitizersProfileRate) {
+  const NominalModel model = plate(60, 40);
+  const PlannerOptions defaults;
+  for (const double rate : {200.0, 500.0, 1000.0, 4000.0}) {
+    CellConfig cell = virtualCell();
+    cell.geometry.digitizer.profile_rate_hz = rate;
+    const double expected = std::min(defaults.profile_spacing_mm * rate, cell.limits.max_speed);
+    const ScanPlan plan = planPart(model, circles(), cell.geometry, cell.limits);
+    ASSERT_GT(plan.sweepCount(Scene::Part), 0u);
+    for (const PlanStep& step : plan.steps)
+      if (const auto* s = std::get_if<SweepStep>(&step)) {
+        EXPECT_DOUBLE_EQ(s->speed, expected) << rate << " Hz";
+        // The profiles along the sweep as far apart as asked (the machine's top speed permitting).
+        if (expected < cell.limits.max_speed) {
+          EXPECT_NEAR(s->speed / rate, defaults.profile_spacing_mm, 1e-12);
+        }
+      }
+  }
+  // A speed asked for is taken as it is.
+  CellConfig cell = virtualCell();
+  PlannerOptions fixed;
+  fixed.sweep_speed = 12;
+  for (const PlanStep& step : planPart(model, circles(), cell.geometry, cell.limits, fixed).steps)
+    if (const auto* s = std::get_if<SweepStep>(&step)) {
+      EXPECT_DOUBLE_EQ(s->speed, 12);
+    }
+  PlannerOptions bad;
+  bad.profile_spacing_mm = 0;
+  EXPECT_THROW(planPart(model, circles(), cell.geometry, cell.limits, bad), std::invalid_argument);
+}
+
 TEST(PartPlanner, AModelWithNothingFacingTheSensorsIsRefusedNamingIt) {
   const CellConfig cell = virtualCell();
   NominalModel upside_down = plate(50, 50);

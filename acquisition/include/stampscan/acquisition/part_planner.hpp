@@ -52,7 +52,12 @@ struct PlannerOptions {
   // fixture than the clearance is left out, and what only it would have seen is predicted unseen.
   bool leave_out_colliding_sweeps = true;
   double clearance_mm = 5;
-  double sweep_speed = 25;      // mm/s while the digitizer scans
+  // How far the head moves between two of the digitizer's profiles while it sweeps (mm). The sweep
+  // speed follows from it and the digitizer's drawn profile rate, so that a slower or faster
+  // digitizer lays its profiles as densely as any other (25 mm/s at 500 Hz). A sweep speed set
+  // here (mm/s, > 0) is taken as it is instead.
+  double profile_spacing_mm = 0.05;
+  double sweep_speed = 0;
   double travel_speed = 200;    // mm/s between steps
   double depth_use = 0.8;       // the share of the measuring range one pass's depth band may take
   int stereo_rows = 3, stereo_columns = 3;
@@ -61,6 +66,10 @@ struct PlannerOptions {
   double grid_normal_z = 0.05;
   double sample_spacing_mm = 1.0;  // how densely the grid area is sampled to plan and predict
 };
+
+// The speed of the part sweeps (mm/s): options.sweep_speed when set, else the profile spacing times
+// the digitizer's profile rate, within the machine's speeds.
+double sweepSpeed(const PlannerOptions& options, const CellGeometry& cell, const MachineLimits& limits);
 
 // A plan of laser passes and stereo views over `model` (datum frame) for the cell's sensors; the part
 // section says the grid. Throws std::invalid_argument for a model with no grid area or options out of
