@@ -32,7 +32,7 @@ bool laserSeesPoint(const SweepSight& s, const LaserSight& d, const Vec3& q, con
   if (std::abs(range - d.standoff_mm) > 0.5 * d.measuring_range_mm) return false;
   if (std::abs(std::atan2(local.x(), -local.z())) > d.half_fan_rad) return false;
   const double cos_incidence = normal.dot((mirror - q) / range);
-  if (cos_incidence <= std::cos(d.full_return_incidence_rad)) return false;
+  if (cos_incidence <= std::cos(d.measurable_incidence_rad)) return false;
   if (lines == nullptr) return true;
   const SightLines::Sight sight = lines->sight(mirror, q);
   return sight.clear && !(sight.polished && d.glare_incidence_rad > 0 && cos_incidence > std::cos(d.glare_incidence_rad));
@@ -46,7 +46,7 @@ LaserSight laserSight(const DigitizerDrawing& digitizer) {
   s.standoff_mm = digitizer.standoff_mm;
   s.measuring_range_mm = digitizer.measuring_range_mm;
   s.half_fan_rad = 0.5 * digitizer.fan_angle_deg * kDeg;
-  s.full_return_incidence_rad = digitizer.incidence_limit_deg * kDeg;
+  s.measurable_incidence_rad = digitizer.incidence_limit_deg * kDeg;
   return s;
 }
 

@@ -5,6 +5,10 @@
 
 namespace stampscan::sim {
 
+double DigitizerSpec::incidenceLosing(double share) const {
+  return steep_from + std::sqrt(std::clamp(share, 0.0, 1.0)) * (max_incidence - steep_from);
+}
+
 Vec3 digitizerRay(const DigitizerSpec& spec, int i) {
   const double a = spec.angle(i);
   return {std::sin(a), 0.0, -std::cos(a)};
@@ -36,8 +40,10 @@ ProfileMeasurement measureProfile(const Scene& scene, const DigitizerSpec& spec,
     const double incidence = std::acos(cos_inc);
     if (incidence >= spec.max_incidence) continue;
     if (incidence > spec.steep_from) {
-      const double share = (incidence - spec.steep_from) / (spec.max_incidence - spec.steep_from);
-      if (u_drop < share * share) continue;
+      // The chance of losing the point rises with the square of the way from steep_from to the
+      // limit (incidenceLosing inverts it).
+      const double way = (incidence - spec.steep_from) / (spec.max_incidence - spec.steep_from);
+      if (u_drop < way * way) continue;
     }
     if (hit->shiny && incidence < spec.glare_incidence) {
       // Specular glare saturates the triangulation camera: the point is lost or badly placed.

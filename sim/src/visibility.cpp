@@ -81,15 +81,16 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   const PartScene scene(*part, world.grid, machine_from_datum);
   const PartSightLines lines(scene, params.occlusion_tolerance_mm);
   const CellTruth cell = drawCellTruth(world);
-  // The sensors as the simulator drew them: true mounts and intrinsics; the digitizer returns every
-  // point only up to steep_from (beyond it, towards its limit, it drops more and more at random, and an
-  // outline with holes in it is not seen whole).
+  // The sensors as the simulator drew them: true mounts and intrinsics; the digitizer's outlines are
+  // seen whole up to the incidence where it loses 5 % of the points at random (beyond steep_from it
+  // drops more and more towards its limit; the station's laser search measures an outline with up
+  // to about 6 % of its points lost, registration/laser_rings.hpp, and not one with many holes).
   acquisition::LaserSight laser;
   laser.head_from_mirror = cell.head_from_digitizer;
   laser.standoff_mm = world.digitizer.standoff;
   laser.measuring_range_mm = world.digitizer.measuring_range;
   laser.half_fan_rad = world.digitizer.half_angle;
-  laser.full_return_incidence_rad = world.digitizer.steep_from;
+  laser.measurable_incidence_rad = world.digitizer.incidenceLosing(0.05);
   laser.glare_incidence_rad = world.digitizer.glare_incidence;
   acquisition::StereoSight stereo;
   stereo.head_from_camera = {cell.head_from_left, cell.head_from_right};

@@ -67,7 +67,7 @@ TEST(SensorSight, TheLaserSeesWhatItsFanCrossesWithinItsRangeAndNotInTheRunUps) 
 
 TEST(SensorSight, TheLaserLosesSteepSurfacesAndWhatIsHiddenOrInGlare) {
   const SweepSight s = planSight(sweepPlan(kLaser.standoff_mm), kLaser, kStereo, 1000).sweeps.at(0);
-  const double limit = kLaser.full_return_incidence_rad;
+  const double limit = kLaser.measurable_incidence_rad;
   const Vec3 within(std::sin(limit - 2 * kDeg), 0, std::cos(limit - 2 * kDeg));
   const Vec3 beyond(std::sin(limit + 2 * kDeg), 0, std::cos(limit + 2 * kDeg));
   EXPECT_TRUE(seesPoint(s, {0, 0, 0}, within));

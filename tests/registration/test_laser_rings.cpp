@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 namespace {
 
@@ -23,8 +24,10 @@ struct Measured {
   std::size_t found = 0, matched = 0, false_found = 0, truth_in_view = 0, truth_found = 0;
 };
 
+// `lost_share`: that share of the returns is dropped at random before the search, as a steep wall
+// or a dark spot loses returns here and there.
 Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margin = 2.0,
-                  sim::GridKind grid = sim::GridKind::Circle) {
+                  sim::GridKind grid = sim::GridKind::Circle, double lost_share = 0) {
   sim::ScanParams p = sim::ScanParams::quick();
   p.part = kind;
   p.grid.kind = grid;
@@ -44,12 +47,18 @@ Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margi
   std::vector<registration::GridElement> found;
   std::uint32_t id = 0;
   std::vector<Eigen::Vector3d> scanned;  // every returned point, to know which elements were in view
+  std::mt19937_64 rng(seed);
+  std::bernoulli_distribution lost(lost_share);
   for (const auto& [t0, t1] : s.sweepWindows("part")) {
     std::vector<registration::Profile> sweep;
     for (const auto& m : s.profiles) {
-      const registration::Profile prof = profileOf(m);
+      registration::Profile prof = profileOf(m);
       const std::int64_t t = cal.exposureTime(prof);
-      if (t >= t0 && t <= t1) sweep.push_back(prof);
+      if (t < t0 || t > t1) continue;
+      if (lost_share > 0)
+        for (float& range : prof.range)
+          if (lost(rng)) range = 0;
+      sweep.push_back(std::move(prof));
     }
     registration::RingDetectionStats stats;
     const auto rings = grid == sim::GridKind::Circle ? registration::detectLaserRings(sweep, track, cal, {}, id++, &stats)
@@ -165,6 +174,27 @@ TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
   EXPECT_LE(m.strain_rms, 0.0035);  // 0.0032 measured on the sheet (0.0033 from the rounded outline), 0.0041 in the chord plane
+  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+}
+
+// A return lost alone is filled from its neighbours and a ray marches over a short hole: a few
+// per cent of the points lost at random (as on the pan's steep walls, where that had left most
+// elements to the cameras) lose no element and cost little accuracy.
+TEST(LaserRings, ReturnsLostHereAndThereLoseNoRing) {
+  const Measured m = runLaser(sim::PartKind::Dome, 31, 2.0, sim::GridKind::Circle, 0.03);
+  EXPECT_GT(m.matched, 50u);
+  EXPECT_EQ(m.false_found, 0u);
+  EXPECT_LE(m.position_rms, 0.05);
+  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+}
+
+TEST(LaserSquares, ReturnsLostHereAndThereLoseNoCell) {
+  const Measured m = runLaser(sim::PartKind::Dome, 34, 2.0, sim::GridKind::Square, 0.03);
+  EXPECT_GT(m.matched, 50u);
+  EXPECT_EQ(m.false_found, 0u);
+  EXPECT_LE(m.position_rms, 0.05);
+  EXPECT_LE(m.strain_rms, 0.0019);
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 

@@ -62,8 +62,9 @@ TEST(Visibility, TheLaserSeesTheElementsUnderItsSweepsAndNoneFarAway) {
   for (std::size_t i = 0; i < truth.size(); ++i) EXPECT_LE(v.laser[i], without_glare.laser[i]);
 }
 
-// The pan's walls, seen from straight above: lit where the digitizer starts to lose points at random
-// (beyond DigitizerSpec::steep_from), their rings come back with holes and are not seen whole; a
+// The pan's walls, seen from straight above: lit where the digitizer loses more than a few per cent
+// of its points at random (well beyond DigitizerSpec::steep_from), their rings come back with too
+// many holes to be measured; a
 // camera that sees them obliquely sees their lines foreshortened, too thin to locate.
 TEST(Visibility, SteepWallsAreNotSeenWholeWhereTheSensorsLoseThem) {
   sim::ScanParams p;
@@ -80,11 +81,11 @@ TEST(Visibility, SteepWallsAreNotSeenWholeWhereTheSensorsLoseThem) {
     EXPECT_LE(v.laser[i], lenient.laser[i]);
     if (lenient.laser[i] && !v.laser[i]) {
       ++walls_lost;
-      // Only where the wall is steeper than the sensor returns every point.
-      EXPECT_GT(std::acos(truth.normals[i].z()), p.digitizer.steep_from - 0.2) << "element " << i;
+      // Only where the wall is steeper than the sensor loses 5 % of its points.
+      EXPECT_GT(std::acos(truth.normals[i].z()), p.digitizer.incidenceLosing(0.05) - 0.2) << "element " << i;
     }
   }
-  EXPECT_GT(walls_lost, 50u);
+  EXPECT_GT(walls_lost, 20u);  // 36 on this plan
   // A camera of half the focal length sees every line half as wide: the oblique walls drop out first.
   sim::ScanParams short_lens = p;
   short_lens.camera.fx *= 0.5;

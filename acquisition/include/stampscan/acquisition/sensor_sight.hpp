@@ -48,8 +48,9 @@ struct LaserSight {
   Eigen::Isometry3d head_from_mirror = Eigen::Isometry3d::Identity();  // looking down its -z, fan in x-z
   double standoff_mm = 100, measuring_range_mm = 60;
   double half_fan_rad = 0.21;
-  // Up to this incidence the sensor returns every point of a surface (beyond it, points drop).
-  double full_return_incidence_rad = 1.31;
+  // Up to this incidence the sensor returns enough of a surface to measure an outline on it (beyond
+  // it, it loses too many points).
+  double measurable_incidence_rad = 1.31;
   double glare_incidence_rad = 0;  // on a polished spot, nearer normal than this saturates (0: none)
 };
 // The digitizer as drawn in the cell file: it returns points up to its incidence limit.

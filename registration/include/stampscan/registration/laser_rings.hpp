@@ -2,10 +2,12 @@
 // an intensity raster (rows: profiles, columns: points along the fan) with a machine-frame position
 // behind every pixel. In it each printed ring is a dark closed line around a bright interior:
 //  1. ink: pixels darker than a share of the local sheet level (a grey closing of the raster);
-//  2. ring interiors: connected bright regions of the expected size that touch no gap in the data
-//     and not the raster's edge;
+//  2. ring interiors: connected bright regions of the expected size, not at the raster's edge and
+//     mostly away from gaps in the data (a return lost between two that returned is filled from
+//     them first: a steep wall loses 1-2 % of its points so);
 //  3. the interior's edge to sub-pixel precision: along the ray from the interior's centre, where
-//     the intensity crosses the middle between sheet and ink;
+//     the intensity crosses the middle between sheet and ink (a ray marches over a hole of up to
+//     two and a half pixels, never reads the crossing across one);
 //  4. the edge lifted to 3D through the raster's positions, a plane fitted to it, and a robust
 //     ellipse fit in that plane (OpenCV's direct fit, then points far from it dropped and the fit
 //     repeated; fits with a large residual or implausible axes are rejected);

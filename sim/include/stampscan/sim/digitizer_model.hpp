@@ -24,6 +24,8 @@ struct DigitizerSpec {
   double steep_from = 0.96;      // rad (55 degrees): dropouts start here, rising to certain at max
   double glare_incidence = 0.35; // rad (20 degrees): on a polished spot, nearer normal saturates the camera
   double glare_dropout = 0.7;    // chance of losing a point on a polished spot near normal incidence
+  // The incidence beyond which the digitizer loses more than `share` of the points (rad).
+  double incidenceLosing(double share) const;
   double angle(int i) const { return -half_angle + 2 * half_angle * i / (points_per_profile - 1); }
   double angleIncrement() const { return 2 * half_angle / (points_per_profile - 1); }
 };

@@ -5,9 +5,9 @@
 // the station's own model of it (acquisition/sensor_sight.hpp), which the planner's coverage
 // prediction uses too. Here it is asked of the simulator's world: the formed part (its polished
 // spots, and what hides what), the cell's true mounts and intrinsics (drawCellTruth), and the
-// digitizer's full returns only up to DigitizerSpec::steep_from (beyond it, towards its limit
-// max_incidence, it loses more and more points at random, and an outline with holes in it is not
-// seen whole). The plan's head poses are taken as commanded. Nothing here looks at what was
+// digitizer's returns up to the incidence where it loses 5 % of its points at random (beyond
+// DigitizerSpec::steep_from, towards its limit max_incidence, it loses more and more, and an outline
+// with many holes in it is not measured). The plan's head poses are taken as commanded. Nothing here looks at what was
 // measured.
 #pragma once
 
