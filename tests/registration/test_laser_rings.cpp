@@ -136,67 +136,53 @@ Measured runLaser(sim::PartKind kind, std::uint64_t seed, double unprinted_margi
   return m;
 }
 
-TEST(LaserRings, DomeElementsMatchTheGroundTruth) {
-  const Measured m = runLaser(sim::PartKind::Dome, 31);
+// The goals every search meets: no false element, 99 % of the elements in full view found, and
+// positions within 0.05 mm.
+void expectGoals(const Measured& m, double max_strain_rms) {
   EXPECT_GT(m.matched, 50u);
   EXPECT_EQ(m.false_found, 0u);
   EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.005);
+  EXPECT_LE(m.strain_rms, max_strain_rms);
   EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+}
+
+TEST(LaserRings, DomeElementsMatchTheGroundTruth) {
+  const Measured m = runLaser(sim::PartKind::Dome, 31);
+  expectGoals(m, 0.005);
 }
 
 TEST(LaserRings, PanElementsMatchTheGroundTruth) {
   // The scanned region of the quick session is the pan's floor with its dome and the start of the walls.
   const Measured m = runLaser(sim::PartKind::Pan, 32);
-  EXPECT_GT(m.matched, 50u);
-  EXPECT_EQ(m.false_found, 0u);
-  EXPECT_LE(m.position_rms, 0.05);
   // 0.0023: the rings over the walls' radii read on the sheet, not in their chord plane (0.0027 so).
-  EXPECT_LE(m.strain_rms, 0.0026);
-  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+  expectGoals(m, 0.0026);
 }
 
 TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
   const Measured m = runLaser(sim::PartKind::Dome, 34, 2.0, sim::GridKind::Square);
-  EXPECT_GT(m.matched, 50u);
-  EXPECT_EQ(m.false_found, 0u);
-  EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.0019);  // 0.0016 measured
+  expectGoals(m, 0.0019);  // 0.0016 measured
   // The cell's stretch from its sides, not its outline's blur-rounded corners: those took 0.0007
   // from the in-plane strains (thickness strain high by as much).
   EXPECT_LE(std::abs(m.major_bias + m.minor_bias), 0.0003);
-  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
 }
 
 TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
   const Measured m = runLaser(sim::PartKind::Pan, 35, 2.0, sim::GridKind::Square);
-  EXPECT_GT(m.matched, 50u);
-  EXPECT_EQ(m.false_found, 0u);
-  EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.0035);  // 0.0032 measured on the sheet (0.0033 from the rounded outline), 0.0041 in the chord plane
-  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+  expectGoals(m, 0.0035);  // 0.0032 measured on the sheet (0.0033 from the rounded outline), 0.0041 in the chord plane
 }
 
 // A return lost alone is filled from its neighbours and a ray marches over a short hole: a few
 // per cent of the points lost at random (as on the pan's steep walls, where that had left most
 // elements to the cameras) lose no element and cost little accuracy.
-TEST(LaserRings, ReturnsLostHereAndThereLoseNoRing) {
-  const Measured m = runLaser(sim::PartKind::Dome, 31, 2.0, sim::GridKind::Circle, 0.03);
-  EXPECT_GT(m.matched, 50u);
-  EXPECT_EQ(m.false_found, 0u);
-  EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.005);
-  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
+void expectLossesCostLittle(sim::GridKind grid, std::uint64_t seed) {
+  const Measured whole = runLaser(sim::PartKind::Dome, seed, 2.0, grid);
+  const Measured lost = runLaser(sim::PartKind::Dome, seed, 2.0, grid, 0.03);
+  expectGoals(lost, whole.strain_rms + 0.0002);
+  EXPECT_LE(lost.position_rms, whole.position_rms + 0.001);
 }
 
-TEST(LaserSquares, ReturnsLostHereAndThereLoseNoCell) {
-  const Measured m = runLaser(sim::PartKind::Dome, 34, 2.0, sim::GridKind::Square, 0.03);
-  EXPECT_GT(m.matched, 50u);
-  EXPECT_EQ(m.false_found, 0u);
-  EXPECT_LE(m.position_rms, 0.05);
-  EXPECT_LE(m.strain_rms, 0.0019);
-  EXPECT_GE(static_cast<double>(m.truth_found), 0.99 * static_cast<double>(m.truth_in_view));
-}
+TEST(LaserRings, ReturnsLostHereAndThereLoseNoRing) { expectLossesCostLittle(sim::GridKind::Circle, 31); }
+TEST(LaserSquares, ReturnsLostHereAndThereLoseNoCell) { expectLossesCostLittle(sim::GridKind::Square, 34); }
 
 TEST(LaserRings, NothingIsFoundWhereNoGridIsPrinted) {
   // A blank printed only beyond 60 mm from its centre: the scanned region has no grid at all.
