@@ -143,6 +143,48 @@ TEST(ElementMerge, AWrongMeasurementAmongSeveralIsLeftOut) {
   EXPECT_LT(std::abs(g.thickness_strain - truth[nn[0].index].strain), 5 * kLaserStrain);
 }
 
+// One path's measurements of an element share part of their error: three stereo views that read
+// one element alike but wrongly (a strongly thinned cell on a steep wall) are no majority against the
+// laser's one reading of it. The laser's reading stays in the element.
+TEST(ElementMerge, OnePathsAgreeingViewsDoNotOutvoteTheOtherPath) {
+  const std::vector<Truth> truth = grid(20);
+  std::vector<GridElement> m = session(truth, 5);
+  const std::size_t k = 7 * 20 + 9;  // an element inside the grid
+  const double true_strain = truth[k].strain;
+  std::vector<GridElement> kept;
+  bool laser_kept = false;
+  for (GridElement g : m) {
+    if ((g.position - truth[k].position).norm() < 0.5) {
+      if (g.source == Source::Laser) {
+        if (laser_kept) continue;  // one laser reading
+        laser_kept = true;
+      } else {
+        g.thickness_strain = true_strain - 0.02;  // every view alike, all wrong
+      }
+    }
+    kept.push_back(g);
+  }
+  // Three stereo views of it, as on the wall.
+  std::mt19937_64 rng(9);
+  std::size_t views = 0;
+  for (const GridElement& g : kept) views += (g.position - truth[k].position).norm() < 0.5 && g.source == Source::Stereo;
+  for (std::uint32_t v = static_cast<std::uint32_t>(views); v < 3; ++v) {
+    GridElement g = measured(truth[k], Source::Stereo, 1000 + v, 0, kStereoMm, rng);
+    g.thickness_strain = true_strain - 0.02;
+    kept.push_back(g);
+  }
+  const auto merged = registration::mergeMeasurements(kept, 0.6);
+  std::vector<Vec3> merged_positions;
+  for (const GridElement& g : merged.elements) merged_positions.push_back(g.position);
+  const fitting::KdTree tree(merged_positions);  // indexes the positions in place
+  std::vector<fitting::Neighbor> nn;
+  tree.knn(truth[k].position, 1, nn);
+  ASSERT_FALSE(nn.empty());
+  const GridElement& g = merged.elements[nn[0].index];
+  EXPECT_EQ(g.measurements, 4u);  // the laser's reading and the three views
+  EXPECT_GT(g.thickness_strain, true_strain - 0.02 + 0.001) << "the laser's reading was left out";
+}
+
 TEST(ElementMerge, WithoutTwinsTheNoiseIsNotKnownAndNothingIsClaimed) {
   const std::vector<Truth> truth = grid(10);
   std::mt19937_64 rng(5);

@@ -13,6 +13,8 @@
 // each element in wholly different ways, so their disagreement shows the two paths' whole errors;
 // what it holds beyond their own parts is taken as shared, half to each path. The merged element is
 // the inverse-variance weighted mean of its paths' means, with the combined standard uncertainty.
+// A measurement far from three or more of its own path's measurements of the element is a misreading
+// and left out; one path's agreeing measurements do not outvote the other path (they share an error).
 #pragma once
 
 #include "stampscan/registration/grid_element.hpp"
