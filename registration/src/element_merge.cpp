@@ -175,20 +175,16 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
                        const PathVariances& s) {
   const bool known = l.known() && s.known();
   const auto path = [&](std::uint32_t i) -> const PathVariances& { return m[i].source == Source::Laser ? l : s; };
+  const auto path_index = [&](std::uint32_t i) { return m[i].source == Source::Laser ? 0 : 1; };  // laser, stereo
   if (known && members.size() >= 3) {
-    double centre[2] = {0, 0};
-    std::size_t count[2] = {0, 0};
-    for (const Source source : {Source::Laser, Source::Stereo}) {
-      std::vector<double> strains;
-      for (std::uint32_t i : members)
-        if (m[i].source == source) strains.push_back(m[i].thickness_strain);
-      const int p = source == Source::Laser ? 0 : 1;
-      count[p] = strains.size();
-      if (count[p] >= 3) centre[p] = fitting::median(strains);
-    }
+    std::vector<double> strains[2];
+    for (std::uint32_t i : members) strains[path_index(i)].push_back(m[i].thickness_strain);
+    const std::size_t count[2] = {strains[0].size(), strains[1].size()};
+    const double centre[2] = {count[0] >= 3 ? fitting::median(strains[0]) : 0.0,
+                              count[1] >= 3 ? fitting::median(strains[1]) : 0.0};
     std::vector<std::uint32_t> kept;
     for (std::uint32_t i : members) {
-      const int p = m[i].source == Source::Laser ? 0 : 1;
+      const int p = path_index(i);
       if (count[p] < 3 ||
           std::abs(m[i].thickness_strain - centre[p]) <= kOutlierSigmas * std::sqrt(path(i).strain(qualitySq(m[i]))))
         kept.push_back(i);
@@ -202,7 +198,7 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
   std::size_t counts[2] = {0, 0};
   double own_weight[2] = {0, 0};  // laser, stereo: the sums of 1 / own variance
   for (std::uint32_t i : members) {
-    const int p = m[i].source == Source::Laser ? 0 : 1;
+    const int p = path_index(i);
     ++counts[p];
     if (known) own_weight[p] += 1 / own_strain(i);
   }
@@ -210,13 +206,13 @@ GridElement mergeGroup(const std::vector<GridElement>& m, std::vector<std::uint3
   double shared_sigma[2] = {0, 0};
   if (known)
     for (std::uint32_t i : members) {
-      const int p = m[i].source == Source::Laser ? 0 : 1;
+      const int p = path_index(i);
       shared_sigma[p] += (1 / own_strain(i)) / own_weight[p] * std::sqrt(path(i).sharedStrain(qualitySq(m[i])));
     }
   const auto weights = [&](std::uint32_t i) -> std::pair<double, double> {  // strain, position
     if (!known) return {1.0, 1.0};
     const PathVariances& v = path(i);
-    const int p = m[i].source == Source::Laser ? 0 : 1;
+    const int p = path_index(i);
     const double n = static_cast<double>(counts[p]);
     const double strain_var = std::max(1 / own_weight[p] + shared_sigma[p] * shared_sigma[p], 1e-8);
     const double position_var = std::max(*v.position_own / n + v.position_shared, 1e-6);

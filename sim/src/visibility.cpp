@@ -82,15 +82,14 @@ ElementVisibility visibleElements(const ScanParams& world, const acquisition::Sc
   const PartSightLines lines(scene, params.occlusion_tolerance_mm);
   const CellTruth cell = drawCellTruth(world);
   // The sensors as the simulator drew them: true mounts and intrinsics; the digitizer's outlines are
-  // seen whole up to the incidence where it loses 5 % of the points at random (beyond steep_from it
-  // drops more and more towards its limit; the station's laser search measures an outline with up
-  // to about 6 % of its points lost, registration/laser_rings.hpp, and not one with many holes).
+  // seen whole up to the incidence where it loses laser_loss_measured of the points at random (beyond
+  // steep_from it drops more and more towards its limit).
   acquisition::LaserSight laser;
   laser.head_from_mirror = cell.head_from_digitizer;
   laser.standoff_mm = world.digitizer.standoff;
   laser.measuring_range_mm = world.digitizer.measuring_range;
   laser.half_fan_rad = world.digitizer.half_angle;
-  laser.measurable_incidence_rad = world.digitizer.incidenceLosing(0.05);
+  laser.measurable_incidence_rad = world.digitizer.incidenceLosing(params.laser_loss_measured);
   laser.glare_incidence_rad = world.digitizer.glare_incidence;
   acquisition::StereoSight stereo;
   stereo.head_from_camera = {cell.head_from_left, cell.head_from_right};

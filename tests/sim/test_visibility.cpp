@@ -81,8 +81,8 @@ TEST(Visibility, SteepWallsAreNotSeenWholeWhereTheSensorsLoseThem) {
     EXPECT_LE(v.laser[i], lenient.laser[i]);
     if (lenient.laser[i] && !v.laser[i]) {
       ++walls_lost;
-      // Only where the wall is steeper than the sensor loses 5 % of its points.
-      EXPECT_GT(std::acos(truth.normals[i].z()), p.digitizer.incidenceLosing(0.05) - 0.2) << "element " << i;
+      // Only where the wall is steeper than the sensor loses what the search measures without.
+      EXPECT_GT(std::acos(truth.normals[i].z()), p.digitizer.incidenceLosing(sim::VisibilityParams{}.laser_loss_measured) - 0.2) << "element " << i;
     }
   }
   EXPECT_GT(walls_lost, 20u);  // 36 on this plan

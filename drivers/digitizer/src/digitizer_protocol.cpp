@@ -105,10 +105,12 @@ const char* toString(Request request) {
 void validate(const DigitizerConfig& c) {
   if (c.points_per_profile < kMinPoints || c.points_per_profile > kMaxPoints)
     throw ProtocolError("points_per_profile",
-                        std::to_string(c.points_per_profile) + " outside 16..4096");
+                        std::to_string(c.points_per_profile) + " outside " + std::to_string(kMinPoints) + ".." +
+                            std::to_string(kMaxPoints));
   if (!(c.profile_rate_hz >= kMinProfileRateHz && c.profile_rate_hz <= kMaxProfileRateHz))
-    throw ProtocolError("profile_rate_mhz", "rate " + std::to_string(c.profile_rate_hz) +
-                                                " Hz outside 1..20000 Hz");
+    throw ProtocolError("profile_rate_mhz", "rate " + std::to_string(c.profile_rate_hz) + " Hz outside " +
+                                                std::to_string(static_cast<int>(kMinProfileRateHz)) + ".." +
+                                                std::to_string(static_cast<int>(kMaxProfileRateHz)) + " Hz");
   if (c.exposure_us < 1 || c.exposure_us > 1e6 / c.profile_rate_hz)
     throw ProtocolError("exposure_us", std::to_string(c.exposure_us) +
                                            " us: must be 1 .. one profile period");

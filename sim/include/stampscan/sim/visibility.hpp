@@ -33,6 +33,10 @@ struct VisibilityParams {
   // about 1.5 px): at full resolution the lines are some 1.7 px wide at the working distance, in the
   // quarter-resolution images of a quick session under half a pixel.
   double min_line_px = 1.0;
+  // The share of an outline's laser returns the station's search measures it without (a lone lost
+  // return is filled, a ray passes a short hole; about 6 % at random still finds 99 % of the
+  // elements): beyond the incidence where the digitizer loses more, its outlines are not seen whole.
+  double laser_loss_measured = 0.05;
   // The sweeps' run-ups (acquisition::sweepRunUp): the cell's position reports and acceleration.
   double report_interval_s = acquisition::kCmmReportInterval;
   double acceleration = acquisition::MachineLimits{}.acceleration;
