@@ -111,7 +111,10 @@ struct PathVariances {
 };
 
 // Each path's own variance from its twins. The mixed pairs' spread is the two paths' whole
-// variances together: what exceeds their own parts is shared, half to each. What of it grows with
+// variances together: what exceeds their own parts is shared. Two paths' differences cannot tell
+// whose that shared part is; it is split in proportion to the paths' own variances, as the same
+// causes (resolution, the view's obliqueness) make both parts of a path's error. Half to each had
+// given a laser with fine returns the shared error of a coarse camera pair. What of it grows with
 // the stereo view's quality, beyond the stereo twins' own growth, is error the stereo views of one
 // element share (a cell on a wall every camera pose sees obliquely): the stereo path's, growing with
 // its quality likewise. A path without twins of its own takes its whole variance from the mixed
@@ -141,15 +144,20 @@ void estimateNoise(const PairDifferences& laser, const PairDifferences& stereo, 
   if (l.known() && s.known()) {
     const VarianceLine spread = binnedVarianceLine(mixed.strain_sq, mixed.stereo_quality_sq);
     const double stereo_growth = std::max(0.0, spread.c1 - s.strain_own->b);
+    const double typical_laser_own = fitting::median(laser_own), typical_stereo_own = fitting::median(stereo_own);
+    double shared = 0;
     if (stereo_growth > 0) {
-      l.strain_shared = s.strain_shared =
-          std::max(0.0, 0.5 * (spread.c0 - fitting::median(laser_own) - s.strain_own->a));
+      shared = std::max(0.0, spread.c0 - typical_laser_own - s.strain_own->a);
       s.shared_slope = stereo_growth;
     } else {
       std::vector<double> both(laser_own.size());
       for (std::size_t i = 0; i < both.size(); ++i) both[i] = laser_own[i] + stereo_own[i];
-      l.strain_shared = s.strain_shared = std::max(0.0, 0.5 * (sum_strain - fitting::median(both)));
+      shared = std::max(0.0, sum_strain - fitting::median(both));
     }
+    const double own_sum = typical_laser_own + typical_stereo_own;
+    const double laser_share = own_sum > 0 ? typical_laser_own / own_sum : 0.5;
+    l.strain_shared = laser_share * shared;
+    s.strain_shared = (1 - laser_share) * shared;
     l.position_shared = s.position_shared = std::max(0.0, 0.5 * (sum_position - *l.position_own - *s.position_own));
     l.shared_known = s.shared_known = true;
     return;

@@ -105,6 +105,39 @@ TEST(ElementMerge, OneElementPerPrintedElementWithItsPathsNoise) {
   EXPECT_LT(share, 0.985);
 }
 
+TEST(ElementMerge, EachPathKeepsItsOwnShareOfTheSharedError) {
+  // A fine laser and a coarse camera pair: each path's measurements of one element share an error
+  // of half their own noise (a view's geometry and a print's flaw are the same for all of them).
+  // The two paths' disagreement holds both shared errors; the laser's is a small part of it, and a
+  // laser-led element stated with the cameras' would claim far too much doubt.
+  constexpr double kLaserOwn = 0.0005, kStereoOwn = 0.0025, kSharedRatio = 0.5;
+  const std::vector<Truth> truth = grid(40);
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> z;
+  std::vector<GridElement> m;
+  for (const Truth& t : truth) {
+    const Truth laser_seen{t.position, t.strain + kSharedRatio * kLaserOwn * z(rng)};
+    const Truth stereo_seen{t.position, t.strain + kSharedRatio * kStereoOwn * z(rng)};
+    for (std::uint32_t sweep = 0; sweep < 2; ++sweep) m.push_back(measured(laser_seen, Source::Laser, sweep, kLaserOwn, kLaserMm, rng));
+    for (std::uint32_t v = 0; v < 3; ++v) m.push_back(measured(stereo_seen, Source::Stereo, 1000 + v, kStereoOwn, kStereoMm, rng));
+  }
+  const auto merged = registration::mergeMeasurements(m, 0.25 * 2.54);
+  ASSERT_TRUE(merged.laser.strain_shared && merged.stereo.strain_shared);
+  EXPECT_NEAR(*merged.laser.strain_shared, kSharedRatio * kLaserOwn, 0.3 * kSharedRatio * kLaserOwn);
+  EXPECT_NEAR(*merged.stereo.strain_shared, kSharedRatio * kStereoOwn, 0.2 * kSharedRatio * kStereoOwn);
+  const std::vector<Vec3> true_positions = positionsOf(truth);
+  const fitting::KdTree tree(true_positions);
+  std::vector<fitting::Neighbor> nn;
+  std::size_t within = 0;
+  for (const GridElement& g : merged.elements) {
+    tree.knn(g.position, 1, nn);
+    within += std::abs(g.thickness_strain - truth[nn[0].index].strain) <= 2 * g.strain_sigma;
+  }
+  const double share = static_cast<double>(within) / static_cast<double>(merged.elements.size());
+  EXPECT_GT(share, 0.92);
+  EXPECT_LT(share, 0.985) << "the stated uncertainty is inflated";
+}
+
 TEST(ElementMerge, TheOrderOfTheMeasurementsDoesNotMatter) {
   const std::vector<Truth> truth = grid(12);
   std::vector<GridElement> m = session(truth, 2);
