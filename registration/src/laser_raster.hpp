@@ -47,6 +47,7 @@ struct InteriorSearch {
   double min_strain = -0.7, max_strain = 1.0;
   double min_edge_share = 0.85;
   double max_edge_gap_deg = 15;
+  bool line_centres = false;     // the outline through the lines' centres, not along their inner edge
 };
 
 // A bright region enclosed by ink, with its inner edge found along 360 rays from its centroid.
