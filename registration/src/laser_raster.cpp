@@ -165,6 +165,7 @@ double lineCentre(const std::vector<Sample>& values, std::size_t in_at, double c
 
 // The sub-pixel inner edge along rays from the centroid, isotropic on the part: one point per ray
 // that crosses the line (dark, then bright again) on valid data; the widest gap between such rays.
+// With `line_centres`, each point is the line's centre instead (lineCentre).
 // A ray marches on over a hole in the data of up to two and a half pixels (returns lost here and
 // there on a steep wall; a lone one is filled by buildRaster) but never reads the crossing across
 // one. Such a hole could hide a blurred line, and the ray would then cross the next line out: a

@@ -90,7 +90,7 @@ std::optional<std::vector<Eigen::Vector2d>> sharpCornered(const std::vector<Eige
     Line line = lineThrough(points);
     // Points standing outward off the side by more than the others' scatter allows are rays that
     // passed close by a corner: the crossing line's darkness drew their centre out (a cell read
-    // through its lines' centres, squares_.hpp). Left out, the side fitted again.
+    // through its lines' centres, lineCentre in laser_raster.cpp). Left out, the side fitted again.
     const Eigen::Vector2d normal(-line.direction.y(), line.direction.x());
     const double outward = normal.dot(line.point - centre) >= 0 ? 1.0 : -1.0;
     std::vector<double> offsets;
