@@ -125,47 +125,8 @@ std::optional<double> sheetLevel(const Raster& R, const cv::Mat& labels, const c
   return median(level);
 }
 
-// A ray's intensity sample: at s mm from the interior's centre.
-struct Sample {
-  double s, v;
-};
-
-// The centre of the line a ray crosses, from its samples: `in_at` is the first past the line's
-// inner half-dark flank (`mid`), `crossed_at` where the ray was bright again past the line. The
-// centroid of the line's darkness, over the line and a pixel (`pixel_mm`) beyond either half-dark
-// flank, below the sheet taken as a straight level between its medians one to two line widths
-// inside and outside the line (on a slope the sheet is brighter on one side than the other). A
-// threshold's crossing moves with where the samples fall on a sharp edge, and it moves alike for
-// every ray along a straight line: a square cell's side moved as a whole, and on flat sheet its
-// strain read 0.0015 RMS where a ring's read 0.0006. The centroid does not move so.
-double lineCentre(const std::vector<Sample>& values, std::size_t in_at, double crossed_at, double mid, double sheet_mid,
-                  double pixel_mm, double line_width) {
-  std::size_t out_at = in_at;
-  while (out_at + 1 < values.size() && values[out_at].v < mid) ++out_at;
-  if (values[out_at].v < mid) return kNaN;  // no far flank: the ray ran out of data on the line
-  const double inner_flank = values[in_at].s;
-  std::vector<double> near, far;
-  for (const Sample& x : values) {
-    if (x.s >= inner_flank - 2 * line_width && x.s <= inner_flank - line_width) near.push_back(x.v);
-    if (x.s > crossed_at + line_width) far.push_back(x.v);
-  }
-  const double near_level = near.empty() ? sheet_mid : median(near), near_s = inner_flank - 1.5 * line_width;
-  const double far_level = far.empty() ? sheet_mid : median(far), far_s = crossed_at + 1.5 * line_width;
-  const double from = inner_flank - pixel_mm, to = values[out_at].s + pixel_mm;
-  double sum_w = 0, sum_ws = 0;
-  for (const Sample& x : values) {
-    if (x.s < from || x.s > to) continue;
-    const double sheet = near_level + (far_level - near_level) * (x.s - near_s) / (far_s - near_s);
-    const double w = std::max(0.0, sheet - x.v);
-    sum_w += w;
-    sum_ws += w * x.s;
-  }
-  return sum_w > 0 ? sum_ws / sum_w : kNaN;
-}
-
 // The sub-pixel inner edge along rays from the centroid, isotropic on the part: one point per ray
 // that crosses the line (dark, then bright again) on valid data; the widest gap between such rays.
-// With `line_centres`, each point is the line's centre instead (lineCentre).
 // A ray marches on over a hole in the data of up to two and a half pixels (returns lost here and
 // there on a steep wall; a lone one is filled by buildRaster) but never reads the crossing across
 // one. Such a hole could hide a blurred line, and the ray would then cross the next line out: a
@@ -181,6 +142,9 @@ InnerEdge innerEdge(const Raster& R, const InteriorSearch& params, double cx, do
   const double reach = 1.5 * params.inner_reach_mm * std::exp(params.max_strain);
   const double dark = params.ink_ratio * sheet_mid;
   const double longest_hole = std::max(0.5 * params.line_width, 2.5 * std::max(R.col_mm, R.row_mm));
+  struct Sample {
+    double s, v;
+  };
   std::vector<Sample> values;
   std::vector<double> radius(kRays, kNaN);  // mm along the ray, NaN for no crossing
   std::vector<char> passed_hole(kRays, 0);
@@ -209,31 +173,17 @@ InnerEdge innerEdge(const Raster& R, const InteriorSearch& params, double cx, do
       else if (in_ink) crossed = true;
     }
     if (broken || !crossed || values.size() < 4) continue;
-    // For the line's centre, on past the line to the sheet beyond it.
-    const double crossed_at = values.back().s;
-    if (params.line_centres) {
-      for (double s = crossed_at + step; s <= crossed_at + 2 * params.line_width; s += step) {
-        const double v = R.sample(cx + s * ux, cy + s * uy);
-        if (std::isnan(v)) break;
-        values.push_back({s, v});
-      }
-    }
     double ink = values.front().v;
     for (const Sample& x : values) ink = std::min(ink, x.v);
     const double mid = 0.5 * (sheet_mid + ink);
-    std::size_t in_at = 0;
     for (std::size_t i = 1; i < values.size(); ++i)
       if (values[i].v < mid && values[i - 1].v >= mid) {
         if (values[i].s - values[i - 1].s < 1.5 * step) {
           const double f = (values[i - 1].v - mid) / (values[i - 1].v - values[i].v);
           radius[static_cast<std::size_t>(k)] = values[i - 1].s + f * (values[i].s - values[i - 1].s);
-          in_at = i;
         }
         break;
       }
-    if (params.line_centres && in_at > 0)
-      radius[static_cast<std::size_t>(k)] =
-          lineCentre(values, in_at, crossed_at, mid, sheet_mid, 1.0 / std::hypot(ux, uy), params.line_width);
   }
   InnerEdge edge;
   int last_ray = -1, first_ray = -1;

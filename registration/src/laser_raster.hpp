@@ -47,11 +47,9 @@ struct InteriorSearch {
   double min_strain = -0.7, max_strain = 1.0;
   double min_edge_share = 0.85;
   double max_edge_gap_deg = 15;
-  bool line_centres = false;     // the outline through the lines' centres, not along their inner edge
 };
 
-// A bright region enclosed by ink, with its inner edge (or its lines' centres) found along 360 rays
-// from its centroid.
+// A bright region enclosed by ink, with its inner edge found along 360 rays from its centroid.
 struct Interior {
   std::vector<Vec3> edge;                // machine frame, in ray order
   std::vector<Eigen::Vector2d> plane;    // the same in the plane fitted to the edge

@@ -4,7 +4,6 @@
 
 #include <Eigen/Dense>
 
-#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -44,20 +43,6 @@ PolygonMoments momentsOf(const std::vector<Eigen::Vector2d>& poly) {
   return m;
 }
 
-struct Line {
-  Eigen::Vector2d point, direction;
-};
-
-// The total least squares line through `points`.
-Line lineThrough(const std::vector<Eigen::Vector2d>& points) {
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const Eigen::Vector2d& p : points) mean += p;
-  mean /= static_cast<double>(points.size());
-  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-  for (const Eigen::Vector2d& p : points) cov += (p - mean) * (p - mean).transpose();
-  return {mean, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvectors().col(1)};
-}
-
 // The cell's outline with its corners made sharp. The spot's blur rounds an interior's corners off,
 // and a rounded corner takes area and, more, second moment from the cell: its in-plane strains read
 // low (its thickness strain 0.0007 high on the simulated dome). Each side is a line fitted (total
@@ -80,33 +65,22 @@ std::optional<std::vector<Eigen::Vector2d>> sharpCornered(const std::vector<Eige
     if (farthest) corners.push_back(i);
   }
   if (corners.size() != 4) return std::nullopt;
+  struct Line {
+    Eigen::Vector2d point, direction;
+  };
   std::vector<Line> sides;
   std::vector<std::vector<Eigen::Vector2d>> middles;
   for (std::size_t k = 0; k < 4; ++k) {
     const std::size_t from = corners[k], length = (corners[(k + 1) % 4] + n - from) % n;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     std::vector<Eigen::Vector2d> points;
     for (std::size_t j = length / 8; j <= length - length / 8; ++j) points.push_back(outline[(from + j) % n]);
     if (points.size() < 5) return std::nullopt;
-    Line line = lineThrough(points);
-    // Points standing outward off the side by more than the others' scatter allows are rays that
-    // passed close by a corner: the crossing line's darkness drew their centre out (a cell read
-    // through its lines' centres, lineCentre in laser_raster.cpp). Left out, the side fitted again.
-    const Eigen::Vector2d normal(-line.direction.y(), line.direction.x());
-    const double outward = normal.dot(line.point - centre) >= 0 ? 1.0 : -1.0;
-    std::vector<double> offsets;
-    for (const Eigen::Vector2d& p : points) offsets.push_back(outward * normal.dot(p - line.point));
-    const double typical = detail::median(offsets);
-    std::vector<double> spread;
-    for (double o : offsets) spread.push_back(std::abs(o - typical));
-    const double sigma = std::max(1.4826 * detail::median(spread), 1e-4);  // the MAD's sigma
-    std::vector<Eigen::Vector2d> kept;
-    for (std::size_t i = 0; i < points.size(); ++i)
-      if (offsets[i] - typical <= 2.5 * sigma) kept.push_back(points[i]);
-    if (kept.size() >= 5 && kept.size() < points.size()) {
-      points = std::move(kept);
-      line = lineThrough(points);
-    }
-    sides.push_back(line);
+    for (const Eigen::Vector2d& p : points) mean += p;
+    mean /= static_cast<double>(points.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const Eigen::Vector2d& p : points) cov += (p - mean) * (p - mean).transpose();
+    sides.push_back({mean, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvectors().col(1)});
     middles.push_back(std::move(points));
   }
   std::vector<Eigen::Vector2d> vertices;
@@ -141,9 +115,6 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
   detail::InteriorSearch search = detail::commonSearch(params);
   search.nominal_area_mm2 = side * side;
   search.inner_reach_mm = side / std::sqrt(2.0);  // to a corner
-  // The outline through the lines' centres: the cell a pitch wide (see lineCentre, laser_raster.cpp).
-  search.line_centres = true;
-  const double outline_side = params.pitch;
   for (const detail::Interior& in : detail::findInteriors(R, search, st)) {
     // The cell's sides are lengths on the sheet: where it bends the outline is taken onto the sheet
     // about the cell's centre, not left in the plane's shorter chords (see laser_rings.cpp).
@@ -160,21 +131,20 @@ std::vector<GridElement> detectLaserSquares(const std::vector<Profile>& sweep, c
     const PolygonMoments cell = sharp ? momentsOf(*sharp) : m;
     GridElement g;
     if (std::abs(shape_error) > params.max_shape_error || !(cell.area > 0) ||
-        !detail::elementFromStretch(12 * cell.covariance / (outline_side * outline_side), in.frame, params, g)) {
+        !detail::elementFromStretch(12 * cell.covariance / (side * side), in.frame, params, g)) {
       ++st.rejected_fit;
       continue;
     }
     g.normal = in.normal;
-    // Its centre too: a corner's rounding, or a ray drawn out by it, would pull the outline's.
-    const Vec3 centre = in.mean + cell.centroid.x() * in.frame.col(0) + cell.centroid.y() * in.frame.col(1);
+    const Vec3 centre = in.mean + m.centroid.x() * in.frame.col(0) + m.centroid.y() * in.frame.col(1);
     g.position = centre + detail::surfaceOffset(in, centre, 0.3 * side) * in.normal;
     g.fit_rms = std::abs(shape_error);
     g.edge_points = in.plane.size();
     g.source = Source::Laser;
     g.view = sweep_id;
-    // The cell's second moments: a quadratic strain along a side of half-length a enters as
+    // The interior's second moments: a quadratic strain along a side of half-length a enters as
     // a^2 / 10, across it as a^2 / 6; their mean, (2 / 15) a^2, for a cell however it is turned.
-    g.gauge_mm2 = outline_side * outline_side / 30;
+    g.gauge_mm2 = side * side / 30;
     out.push_back(g);
     ++st.found;
   }

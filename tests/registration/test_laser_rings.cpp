@@ -160,9 +160,7 @@ TEST(LaserRings, PanElementsMatchTheGroundTruth) {
 
 TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
   const Measured m = runLaser(sim::PartKind::Dome, 34, 2.0, sim::GridKind::Square);
-  // 0.0009 measured: the cell read through its lines' centres (0.0016 along their inner edges, whose
-  // threshold crossings moved a straight side as a whole with where the returns fell on it).
-  expectGoals(m, 0.0011);
+  expectGoals(m, 0.0019);  // 0.0016 measured
   // The cell's stretch from its sides, not its outline's blur-rounded corners: those took 0.0007
   // from the in-plane strains (thickness strain high by as much).
   EXPECT_LE(std::abs(m.major_bias + m.minor_bias), 0.0003);
@@ -170,10 +168,7 @@ TEST(LaserSquares, DomeCellsMatchTheGroundTruth) {
 
 TEST(LaserSquares, PanCellsMatchTheGroundTruth) {
   const Measured m = runLaser(sim::PartKind::Pan, 35, 2.0, sim::GridKind::Square);
-  // 0.0036 measured. These are the cells' means against the strain at their centres: the cell read
-  // through its lines' centres spans the whole pitch, and over the radii at the walls' foot its mean
-  // strays further from its centre's (a scan moves each measurement to its centre, element_merge.hpp).
-  expectGoals(m, 0.0040);
+  expectGoals(m, 0.0035);  // 0.0032 measured on the sheet (0.0033 from the rounded outline), 0.0041 in the chord plane
 }
 
 // A return lost alone is filled from its neighbours and a ray marches over a short hole: a few

@@ -41,12 +41,11 @@ std::vector<GridElement> detectLaserRings(const std::vector<Profile>& sweep, con
                                           const DigitizerCalibration& calibration, const RingDetectionParams& params,
                                           std::uint32_t sweep_id, RingDetectionStats* stats = nullptr);
 
-// Square grids. A printed square cell (side p between its lines' centres) becomes, under the local
-// deformation gradient F, a parallelogram whose second moments are F p^2 / 12 F^T. So
-// B = F F^T = 12 Cov / p^2, from the area moments of the cell's outline through its lines' centres
-// (a polygon of 360 points, each the centroid of a line's darkness along a ray from the cell's
-// centre, its corners made sharp), gives the principal stretches and the major direction: the
-// deformation gradient of the cell's corners, without locating the corners one by one.
+// Square grids. The interior of a printed square cell (side p - w between the lines' inner edges)
+// becomes, under the local deformation gradient F, a parallelogram whose second moments are
+// F (p - w)^2 / 12 F^T. So B = F F^T = 12 Cov / (p - w)^2, from the area moments of the cell's
+// sub-pixel inner edge (a polygon of 360 points), gives the principal stretches and the major
+// direction: the deformation gradient of the cell's corners, without locating the corners one by one.
 struct SquareDetectionParams {
   double pitch = 2.54;       // mm between grid lines
   double line_width = 0.15;  // mm
